@@ -1,0 +1,112 @@
+// aliquot bench: our path tracer's throughput as a ratio to raw Embree on the same scene,
+// both measured in this one run so the machine cancels out.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <numbers>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "local_render.h"
+#include "render_options.h"
+#include "scene_loader.h"
+#include "uniform_strategy.h"
+
+namespace aliquot::cli {
+
+namespace {
+
+// Incoherent rays as a path tracer makes them: origins spread through the scene's bounds,
+// directions uniform on the sphere. Drawn from the same deterministic generator.
+double raw_embree_rays_per_second(const PathTracer& tracer, const Scene& scene, int threads) {
+    Vec3 lo(1e30f), hi(-1e30f);
+    for (const TriangleMesh& m : scene.meshes)
+        for (const Vec3& p : m.positions) {
+            lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+            hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+        }
+    const Vec3 extent = hi - lo;
+    constexpr uint64_t kRays = 1 << 22;
+    std::atomic<uint64_t> next{0};
+    std::atomic<uint64_t> hits{0};
+    auto work = [&] {
+        enable_flush_to_zero();
+        uint64_t local_hits = 0;
+        constexpr uint64_t kChunk = 4096;
+        for (uint64_t begin; (begin = next.fetch_add(kChunk)) < kRays;) {
+            for (uint64_t i = begin; i < std::min(begin + kChunk, kRays); ++i) {
+                SampleRng rng(12345, 0, 0, i);
+                const Vec3 o = lo + extent * Vec3(0.01f + 0.98f * rng.next_float(),
+                                                  0.01f + 0.98f * rng.next_float(),
+                                                  0.01f + 0.98f * rng.next_float());
+                const float z = 1.0f - 2.0f * rng.next_float();
+                const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+                const float phi = 2.0f * float(std::numbers::pi) * rng.next_float();
+                Hit hit;
+                local_hits += tracer.embree().intersect(
+                    o, {r * std::cos(phi), r * std::sin(phi), z}, 1e30f, hit);
+            }
+        }
+        hits += local_hits;
+    };
+    const auto start = std::chrono::steady_clock::now();
+    {
+        std::vector<std::jthread> pool;
+        for (int t = 0; t < threads; ++t) pool.emplace_back(work);
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return double(kRays) / seconds;
+}
+
+struct BenchCommand {
+    RenderOptions options;
+    bool json = false;
+
+    void run() {
+        check_render_options(options);
+        const Scene scene = load_scene(options.scene);
+        const PathTracer tracer(scene);
+        const double raw = raw_embree_rays_per_second(tracer, scene, options.threads);
+
+        UniformStrategy strategy(options.width, options.height, uint32_t(options.spp));
+        Accumulator merged(options.width, options.height);
+        const RenderStats stats =
+            render_locally(tracer, {options.width, options.height, options.seed}, strategy,
+                           merged, options.threads);
+        const double sps = double(stats.samples) / stats.seconds;
+        const double rps = double(stats.rays) / stats.seconds;
+        nlohmann::json out = {{"scene", options.scene},
+                              {"width", options.width},
+                              {"height", options.height},
+                              {"spp", options.spp},
+                              {"threads", options.threads},
+                              {"samples_per_second", sps},
+                              {"rays_per_second", rps},
+                              {"rays_per_sample", double(stats.rays) / double(stats.samples)},
+                              {"embree_raw_rays_per_second", raw},
+                              {"ray_utilization", rps / raw}};
+        if (json)
+            std::cout << out.dump() << std::endl;
+        else
+            std::cout << out.dump(2) << std::endl;
+    }
+};
+
+}  // namespace
+
+void register_bench(CLI::App& app) {
+    auto command = std::make_shared<BenchCommand>();
+    CLI::App* cmd = app.add_subcommand(
+        "bench", "path tracer samples/s and rays/s against raw Embree rays/s, in one run");
+    add_render_options(*cmd, command->options);
+    cmd->add_flag("--json", command->json, "print one JSON object on one line");
+    cmd->callback([command] { command->run(); });
+}
+
+}  // namespace aliquot::cli

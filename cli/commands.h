@@ -1,0 +1,20 @@
+// The aliquot subcommands: each file registers one with the CLI11 app.
+#pragma once
+
+#include <stdexcept>
+
+#include <CLI/CLI.hpp>
+
+namespace aliquot::cli {
+
+// An error the user can fix: printed as one line "aliquot: <message>", exit status 1.
+class CommandError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+void register_render(CLI::App& app);
+void register_compare(CLI::App& app);
+void register_bench(CLI::App& app);
+
+}  // namespace aliquot::cli

@@ -1,0 +1,31 @@
+// Options shared by every command that starts a render: parsed and checked once, with one
+// clear message naming the option that is wrong.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+namespace aliquot::cli {
+
+struct RenderOptions {
+    std::string scene = "cornell-box";
+    std::string resolution = "256x256";
+    uint32_t width = 256, height = 256;
+    int64_t spp = 64;
+    uint64_t seed = 0;
+    int threads = 0;  // 0: all hardware threads
+};
+
+// Adds --scene, --resolution, --spp, --seed, --threads to `cmd`.
+void add_render_options(CLI::App& cmd, RenderOptions& options);
+// Parses the resolution and checks ranges; throws CommandError.
+void check_render_options(RenderOptions& options);
+// Fails early, before any work, if `path` cannot be written.
+void check_writable(const std::filesystem::path& path, const std::string& option);
+
+constexpr uint32_t kMaxResolution = 8192;
+
+}  // namespace aliquot::cli

@@ -1,0 +1,86 @@
+#include "accumulator.h"
+
+#include <string>
+
+namespace aliquot {
+
+Accumulator::Accumulator(uint32_t width, uint32_t height)
+    : width_(width), height_(height), pixels_(size_t(width) * height) {}
+
+void Accumulator::merge(const SampleJobResult& result) {
+    const PixelRect& r = result.rect;
+    if (uint64_t(r.x) + r.width > width_ || uint64_t(r.y) + r.height > height_)
+        throw MergeError("result rectangle lies outside the " + std::to_string(width_) + "x" +
+                         std::to_string(height_) + " image");
+    if (result.pixels.size() != r.size())
+        throw MergeError("result has " + std::to_string(result.pixels.size()) +
+                         " pixels for a rectangle of " + std::to_string(r.size()));
+    for (uint32_t row = 0; row < r.height; ++row) {
+        for (uint32_t col = 0; col < r.width; ++col) {
+            const PixelSums& src = result.pixels[size_t(row) * r.width + col];
+            PixelSums& dst = pixels_[size_t(r.y + row) * width_ + r.x + col];
+            for (int c = 0; c < 3; ++c) {
+                dst.even[c] += src.even[c];
+                dst.odd[c] += src.odd[c];
+            }
+            dst.sum_sq_luminance += src.sum_sq_luminance;
+            dst.samples += src.samples;
+            dst.rays += src.rays;
+            dst.nonfinite += src.nonfinite;
+            total_samples_ += src.samples;
+            total_rays_ += src.rays;
+            total_nonfinite_ += src.nonfinite;
+        }
+    }
+}
+
+void Accumulator::mean(size_t i, double rgb[3]) const {
+    const PixelSums& p = pixels_[i];
+    const double inv = p.samples ? 1.0 / double(p.samples) : 0.0;
+    for (int c = 0; c < 3; ++c) rgb[c] = (p.even[c] + p.odd[c]) * inv;
+}
+
+void Accumulator::half_means(size_t i, double even[3], double odd[3]) const {
+    const PixelSums& p = pixels_[i];
+    // Sample indices of a pixel run 0, 1, 2, ... across rounds, so the even half holds
+    // ceil(n/2) of them and the odd half floor(n/2).
+    const uint64_t n_even = (p.samples + 1) / 2, n_odd = p.samples / 2;
+    for (int c = 0; c < 3; ++c) {
+        even[c] = n_even ? p.even[c] / double(n_even) : 0.0;
+        odd[c] = n_odd ? p.odd[c] / double(n_odd) : 0.0;
+    }
+}
+
+double Accumulator::luminance_variance(size_t i) const {
+    const PixelSums& p = pixels_[i];
+    if (p.samples < 2) return 0.0;
+    const double n = double(p.samples);
+    const double sum = 0.212671 * (p.even[0] + p.odd[0]) + 0.715160 * (p.even[1] + p.odd[1]) +
+                       0.072169 * (p.even[2] + p.odd[2]);
+    const double var = (p.sum_sq_luminance - sum * sum / n) / (n - 1.0);
+    return var > 0 ? var : 0.0;  // cancellation can leave a tiny negative
+}
+
+Image Accumulator::image(bool aovs) const {
+    Image img(width_, height_);
+    for (size_t i = 0; i < pixels_.size(); ++i) {
+        double rgb[3];
+        mean(i, rgb);
+        for (int c = 0; c < 3; ++c) img.rgb[3 * i + c] = float(rgb[c]);
+    }
+    if (aovs) {
+        Image::Channel spp{"spp", std::vector<float>(pixels_.size())};
+        Image::Channel variance{"variance", std::vector<float>(pixels_.size())};
+        for (size_t i = 0; i < pixels_.size(); ++i) {
+            spp.values[i] = float(pixels_[i].samples);
+            variance.values[i] =
+                pixels_[i].samples ? float(luminance_variance(i) / double(pixels_[i].samples))
+                                   : 0.0f;
+        }
+        img.extra.push_back(std::move(spp));
+        img.extra.push_back(std::move(variance));
+    }
+    return img;
+}
+
+}  // namespace aliquot

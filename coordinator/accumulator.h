@@ -1,0 +1,57 @@
+// Accumulator: a render's per-pixel sums in double precision, merged from sample jobs.
+// Everything a strategy or an output needs is derived from it.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <vector>
+
+#include "image.h"
+#include "sample_job.h"
+
+namespace aliquot {
+
+class MergeError : public std::invalid_argument {
+public:
+    using std::invalid_argument::invalid_argument;
+};
+
+class Accumulator {
+public:
+    Accumulator() = default;
+    Accumulator(uint32_t width, uint32_t height);
+
+    uint32_t width() const { return width_; }
+    uint32_t height() const { return height_; }
+    size_t pixel_count() const { return pixels_.size(); }
+
+    // Adds a job's sums. Throws MergeError, touching nothing, when the result does not fit
+    // the image (rectangle outside it, wrong pixel count).
+    void merge(const SampleJobResult& result);
+
+    const PixelSums& at(size_t i) const { return pixels_[i]; }
+    PixelSums& mutable_at(size_t i) { return pixels_[i]; }  // checkpoint restore only
+    uint64_t samples(size_t i) const { return pixels_[i].samples; }
+
+    // Mean RGB of pixel i over all its samples (0 with no samples).
+    void mean(size_t i, double rgb[3]) const;
+    // Mean RGB over even-index / odd-index samples only: two independent half estimates.
+    void half_means(size_t i, double even[3], double odd[3]) const;
+    // Sample variance of one sample's luminance at pixel i (0 below two samples).
+    double luminance_variance(size_t i) const;
+
+    uint64_t total_samples() const { return total_samples_; }
+    uint64_t total_rays() const { return total_rays_; }
+    uint64_t total_nonfinite() const { return total_nonfinite_; }
+
+    // The image; with `aovs`, channels "spp" (samples per pixel) and "variance" (estimated
+    // variance of the pixel's mean luminance, sample variance / spp).
+    Image image(bool aovs = false) const;
+
+private:
+    uint32_t width_ = 0, height_ = 0;
+    std::vector<PixelSums> pixels_;
+    uint64_t total_samples_ = 0, total_rays_ = 0, total_nonfinite_ = 0;
+};
+
+}  // namespace aliquot

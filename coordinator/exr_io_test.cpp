@@ -1,0 +1,194 @@
+// OpenEXR I/O: round trips, deterministic bytes, and errors that name the file.
+#include "exr_io.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <Imath/half.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <iterator>
+#include <string>
+
+namespace aliquot {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh directory per test, so tests can run in parallel (ctest -j) without sharing files.
+class ExrIo : public testing::Test {
+protected:
+    void SetUp() override {
+        dir = fs::temp_directory_path() /
+              ("aliquot_exr_" + std::to_string(getpid()) + "_" +
+               testing::UnitTest::GetInstance()->current_test_info()->name());
+        fs::remove_all(dir);
+        fs::create_directories(dir);
+    }
+    void TearDown() override { fs::remove_all(dir); }
+    fs::path dir;
+};
+
+Image patterned(uint32_t w, uint32_t h) {
+    Image image(w, h);
+    for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = 0.25f * float(i % 97) - 3.0f;
+    image.extra.push_back({"spp", {}});
+    image.extra.push_back({"variance", {}});
+    for (size_t i = 0; i < image.pixel_count(); ++i) {
+        image.extra[0].values.push_back(float(i % 4096));
+        image.extra[1].values.push_back(1e-6f * float(i));
+    }
+    return image;
+}
+
+std::string bytes_of(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), {}};
+}
+
+void expect_same(const Image& a, const Image& b) {
+    ASSERT_EQ(a.width, b.width);
+    ASSERT_EQ(a.height, b.height);
+    EXPECT_EQ(a.rgb, b.rgb);
+    ASSERT_EQ(a.extra.size(), b.extra.size());
+    for (size_t i = 0; i < a.extra.size(); ++i) {
+        EXPECT_EQ(a.extra[i].name, b.extra[i].name);
+        EXPECT_EQ(a.extra[i].values, b.extra[i].values);
+    }
+}
+
+TEST_F(ExrIo, RoundTripKeepsRgbAndExtraChannelsAtOddSize) {
+    const Image image = patterned(601, 377);
+    write_exr(dir / "a.exr", image);
+    expect_same(read_exr(dir / "a.exr"), image);
+}
+
+TEST_F(ExrIo, RoundTripKeepsOnePixelImage) {
+    const Image image = patterned(1, 1);
+    write_exr(dir / "a.exr", image);
+    expect_same(read_exr(dir / "a.exr"), image);
+}
+
+TEST_F(ExrIo, ExtraChannelsComeBackSortedByName) {
+    Image image(2, 2);
+    image.extra = {{"variance", {1, 2, 3, 4}}, {"spp", {5, 6, 7, 8}}};
+    write_exr(dir / "a.exr", image);
+    const Image back = read_exr(dir / "a.exr");
+    ASSERT_EQ(back.extra.size(), 2u);
+    EXPECT_EQ(back.extra[0].name, "spp");
+    EXPECT_EQ(back.extra[0].values, (std::vector<float>{5, 6, 7, 8}));
+    EXPECT_EQ(back.extra[1].name, "variance");
+}
+
+TEST_F(ExrIo, SameImageGivesIdenticalBytes) {
+    const Image image = patterned(64, 48);
+    write_exr(dir / "a.exr", image);
+    write_exr(dir / "b.exr", image);
+    const std::string a = bytes_of(dir / "a.exr");
+    EXPECT_FALSE(a.empty());
+    EXPECT_EQ(a, bytes_of(dir / "b.exr"));
+}
+
+TEST_F(ExrIo, WritingIntoMissingDirectoryNamesThePath) {
+    const fs::path path = dir / "missing" / "x.exr";
+    try {
+        write_exr(path, Image(4, 4));
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "cannot write " + path.string() + ": No such file or directory");
+    }
+}
+
+TEST_F(ExrIo, WritingChannelWithWrongValueCountFails) {
+    Image image(4, 4);
+    image.extra.push_back({"spp", {1, 2, 3}});
+    EXPECT_THROW(write_exr(dir / "a.exr", image), ImageFileError);
+}
+
+TEST_F(ExrIo, ReadingMissingFileNamesThePath) {
+    const fs::path path = dir / "nope.exr";
+    try {
+        read_exr(path);
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "cannot read " + path.string() + ": No such file or directory");
+    }
+}
+
+TEST_F(ExrIo, ReadingNonExrFileFails) {
+    std::ofstream(dir / "a.exr") << "P3\n1 1\n255\n0 0 0\n";
+    try {
+        read_exr(dir / "a.exr");
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "cannot read " + (dir / "a.exr").string() + ": not an OpenEXR file");
+    }
+}
+
+TEST_F(ExrIo, ReadingTruncatedFileFailsWithItsPath) {
+    write_exr(dir / "a.exr", patterned(32, 32));
+    const std::string bytes = bytes_of(dir / "a.exr");
+    std::ofstream(dir / "cut.exr", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+    try {
+        read_exr(dir / "cut.exr");
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("cannot read " + (dir / "cut.exr").string(), 0),
+                  0u)
+            << e.what();
+    }
+}
+
+// Files from other tools: a data window away from the origin, half floats, no B channel.
+// Every channel holds 0, 1, 2, ... (exact in half); returns those values as floats.
+std::vector<float> write_foreign(const fs::path& path, const Imath::Box2i& window,
+                                 std::initializer_list<const char*> names) {
+    Imf::Header header(window, window);
+    const int w = window.max.x - window.min.x + 1, h = window.max.y - window.min.y + 1;
+    std::vector<half> data(size_t(w) * h);
+    for (size_t i = 0; i < data.size(); ++i) data[i] = half(float(i));
+    Imf::FrameBuffer frame;
+    for (const char* name : names) {
+        header.channels().insert(name, Imf::Channel(Imf::HALF));
+        frame.insert(name, Imf::Slice::Make(Imf::HALF, data.data(), window));
+    }
+    Imf::OutputFile file(path.string().c_str(), header);
+    file.setFrameBuffer(frame);
+    file.writePixels(h);
+    return std::vector<float>(data.begin(), data.end());
+}
+
+TEST_F(ExrIo, ReadsDataWindowThatDoesNotStartAtZero) {
+    const std::vector<float> data =
+        write_foreign(dir / "a.exr", Imath::Box2i({10, 20}, {14, 22}), {"R", "G", "B", "Z"});
+    const Image image = read_exr(dir / "a.exr");
+    ASSERT_EQ(image.width, 5u);
+    ASSERT_EQ(image.height, 3u);
+    for (size_t i = 0; i < data.size(); ++i) {
+        EXPECT_EQ(image.rgb[3 * i], data[i]);
+        EXPECT_EQ(image.rgb[3 * i + 2], data[i]);
+    }
+    ASSERT_EQ(image.extra.size(), 1u);
+    EXPECT_EQ(image.extra[0].name, "Z");
+    EXPECT_EQ(image.extra[0].values, data);
+}
+
+TEST_F(ExrIo, ReadingFileWithoutBlueChannelFails) {
+    write_foreign(dir / "a.exr", Imath::Box2i({0, 0}, {3, 3}), {"R", "G"});
+    try {
+        read_exr(dir / "a.exr");
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_EQ(std::string(e.what()),
+                  "cannot read " + (dir / "a.exr").string() + ": no channel B");
+    }
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,28 @@
+// UniformStrategy: every pixel gets the same number of samples (the seed's floor(B/N)),
+// delivered in progressive rounds so that progress and error can be watched as it converges.
+#pragma once
+
+#include "strategy.h"
+
+namespace aliquot {
+
+class UniformStrategy : public Strategy {
+public:
+    UniformStrategy(uint32_t width, uint32_t height, uint32_t spp);
+
+    std::string name() const override { return "uniform"; }
+    std::optional<Round> next_round(const Accumulator& merged) override;
+    uint64_t planned_samples() const override { return uint64_t(spp_) * pixels_; }
+
+    // Samples per pixel of round `index` of a render of `spp` over `pixels` pixels: rounds
+    // double (1, 1, 2, 4, ...) up to about 4 million samples per round.
+    static uint32_t round_spp(uint32_t done, uint32_t spp, size_t pixels);
+
+private:
+    uint32_t spp_;
+    size_t pixels_;
+    uint32_t done_ = 0;
+    uint32_t rounds_ = 0;
+};
+
+}  // namespace aliquot

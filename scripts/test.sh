@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# One command from a fresh Debian machine to every test passing: installs what is missing,
+# builds, runs the unit tests (ctest) and the integration tests; non-zero on any failure.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh
+bash scripts/build.sh
+
+failures=()
+run() {
+    local name=$1
+    shift
+    echo "=== $name"
+    if "$@"; then echo "=== $name: passed"; else echo "=== $name: FAILED"; failures+=("$name"); fi
+}
+
+run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
+run "cli" bash tests/cli/render_test.sh build/bin/aliquot
+run "validation against Mitsuba 3" bash tests/validation/run.sh build/bin/aliquot
+
+if ((${#failures[@]})); then
+    echo "failed: ${failures[*]}"
+    exit 1
+fi
+echo "all test suites passed"

@@ -1,0 +1,45 @@
+// EmbreeScene: the one RAII wrapper around Embree 3. Nothing else includes rtcore.h.
+#pragma once
+
+#include <cstdint>
+
+#include "scene.h"
+#include "vec3.h"
+
+struct RTCDeviceTy;
+struct RTCSceneTy;
+
+namespace aliquot {
+
+struct Hit {
+    float t = 0;
+    Vec3 ng;             // geometric normal, unit length, as the geometry defines it
+    uint32_t geom_id = 0;  // mesh index, or EmbreeScene::sphere_geometry() for spheres
+    uint32_t prim_id = 0;  // triangle index within the mesh, or sphere index
+};
+
+// Sets flush-to-zero / denormals-are-zero for the calling thread: Embree's traversal is
+// slow on denormals. Every thread that traces calls it first.
+void enable_flush_to_zero();
+
+class EmbreeScene {
+public:
+    explicit EmbreeScene(const Scene& scene);
+    ~EmbreeScene();
+    EmbreeScene(const EmbreeScene&) = delete;
+    EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+    // Closest hit along origin + t*dir for t in (0, tmax]. `dir` need not be unit length.
+    bool intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const;
+    // Whether anything lies along origin + t*dir for t in (0, tmax).
+    bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
+
+    uint32_t sphere_geometry() const { return sphere_geom_id_; }
+
+private:
+    RTCDeviceTy* device_ = nullptr;
+    RTCSceneTy* scene_ = nullptr;
+    uint32_t sphere_geom_id_ = ~0u;
+};
+
+}  // namespace aliquot

@@ -1,0 +1,98 @@
+#include "sample_job.h"
+
+#include <atomic>
+#include <chrono>
+#include <stdexcept>
+#include <thread>
+
+#include "camera_model.h"
+
+namespace aliquot {
+
+uint64_t SampleJobResult::total_samples() const {
+    uint64_t n = 0;
+    for (const PixelSums& p : pixels) n += p.samples;
+    return n;
+}
+uint64_t SampleJobResult::total_rays() const {
+    uint64_t n = 0;
+    for (const PixelSums& p : pixels) n += p.rays;
+    return n;
+}
+uint64_t SampleJobResult::total_nonfinite() const {
+    uint64_t n = 0;
+    for (const PixelSums& p : pixels) n += p.nonfinite;
+    return n;
+}
+
+void add_sample(PixelSums& sums, uint64_t index, const Vec3& radiance, uint32_t rays) {
+    ++sums.samples;
+    sums.rays += rays;
+    if (!is_finite(radiance)) {
+        ++sums.nonfinite;
+        return;
+    }
+    double* half = (index % 2 == 0) ? sums.even : sums.odd;
+    half[0] += radiance.x;
+    half[1] += radiance.y;
+    half[2] += radiance.z;
+    const double lum = luminance(radiance);
+    sums.sum_sq_luminance += lum * lum;
+}
+
+namespace {
+
+void trace_row(const PathTracer& tracer, const CameraModel& camera,
+               const RenderGeometry& geometry, const SampleJob& job, uint32_t row,
+               SampleJobResult& result) {
+    const PixelRect& r = job.rect;
+    for (uint32_t col = 0; col < r.width; ++col) {
+        const size_t i = size_t(row) * r.width + col;
+        const uint32_t x = r.x + col, y = r.y + row;
+        PixelSums& sums = result.pixels[i];
+        const uint64_t first = job.first_sample[i];
+        for (uint64_t k = first; k < first + job.counts[i]; ++k) {
+            SampleRng rng(geometry.seed, x, y, k);
+            // Box filter: a uniform point in the pixel, so the pixel is its area's average.
+            const float px = float(x) + rng.next_float();
+            const float py = float(y) + rng.next_float();
+            const Radiance L = tracer.radiance(camera.origin(), camera.direction(px, py), rng);
+            add_sample(sums, k, L.value, L.rays);
+        }
+    }
+}
+
+}  // namespace
+
+SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry& geometry,
+                                 const SampleJob& job, int threads) {
+    const auto start = std::chrono::steady_clock::now();
+    const PixelRect& r = job.rect;
+    if (job.counts.size() != r.size() || job.first_sample.size() != r.size())
+        throw std::invalid_argument("sample job: per-pixel arrays do not match its rectangle");
+    if (r.x + r.width > geometry.width || r.y + r.height > geometry.height)
+        throw std::invalid_argument("sample job: rectangle lies outside the image");
+
+    SampleJobResult result;
+    result.rect = r;
+    result.pixels.resize(r.size());
+    const CameraModel camera(tracer.scene().camera, geometry.width, geometry.height);
+
+    std::atomic<uint32_t> next_row{0};
+    auto work = [&] {
+        enable_flush_to_zero();
+        for (uint32_t row; (row = next_row.fetch_add(1)) < r.height;)
+            trace_row(tracer, camera, geometry, job, row, result);
+    };
+    const int extra = std::max(0, std::min<int>(threads, int(r.height)) - 1);
+    std::vector<std::jthread> pool;
+    for (int t = 0; t < extra; ++t) pool.emplace_back(work);
+    work();
+    pool.clear();  // joins
+
+    result.wall_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+}
+
+}  // namespace aliquot

@@ -1,0 +1,61 @@
+// SampleJob: the unit of work. A pixel rectangle, how many samples each pixel gets, and the
+// index of each pixel's first sample. The same function traces it for the embedded render
+// and for a networked worker.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "path_tracer.h"
+
+namespace aliquot {
+
+struct PixelRect {
+    uint32_t x = 0, y = 0, width = 0, height = 0;
+    size_t size() const { return size_t(width) * height; }
+    bool operator==(const PixelRect&) const = default;
+};
+
+struct SampleJob {
+    PixelRect rect;
+    std::vector<uint32_t> counts;        // per pixel of rect, row-major
+    std::vector<uint64_t> first_sample;  // per pixel: index of its first sample in this job
+};
+
+// What a job returns for one pixel. Sums over samples k = first .. first+count-1 in order of
+// k, so a pixel's sums depend on nothing but the job and the seed.
+struct PixelSums {
+    double even[3] = {0, 0, 0};  // RGB sum over even sample indices
+    double odd[3] = {0, 0, 0};   // RGB sum over odd sample indices
+    double sum_sq_luminance = 0;
+    uint64_t samples = 0;
+    uint64_t rays = 0;
+    // Samples whose radiance was NaN or infinite: counted in `samples` as zero radiance,
+    // so a broken sample costs its share of the budget but never poisons a sum.
+    uint64_t nonfinite = 0;
+};
+
+struct SampleJobResult {
+    PixelRect rect;
+    std::vector<PixelSums> pixels;  // per pixel of rect, row-major
+    double wall_seconds = 0;        // statistics only: nothing may decide on it
+
+    uint64_t total_samples() const;
+    uint64_t total_rays() const;
+    uint64_t total_nonfinite() const;
+};
+
+struct RenderGeometry {
+    uint32_t width = 0, height = 0;  // the whole image
+    uint64_t seed = 0;
+};
+
+// Traces a job with `threads` threads (rows are shared out; each pixel is traced by one
+// thread, so the result does not depend on the count).
+SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry& geometry,
+                                 const SampleJob& job, int threads = 1);
+
+// One sample's contribution before it is summed: exposed for tests of the NaN guard.
+void add_sample(PixelSums& sums, uint64_t index, const Vec3& radiance, uint32_t rays);
+
+}  // namespace aliquot

@@ -1,0 +1,100 @@
+#include "sample_job.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <limits>
+
+#include "scene_loader.h"
+
+namespace aliquot {
+namespace {
+
+SampleJob whole_image_job(uint32_t w, uint32_t h, uint32_t spp, uint64_t first = 0) {
+    SampleJob job;
+    job.rect = {0, 0, w, h};
+    job.counts.assign(job.rect.size(), spp);
+    job.first_sample.assign(job.rect.size(), first);
+    return job;
+}
+
+bool same_bits(const PixelSums& a, const PixelSums& b) {
+    return std::memcmp(a.even, b.even, sizeof a.even) == 0 &&
+           std::memcmp(a.odd, b.odd, sizeof a.odd) == 0 &&
+           std::memcmp(&a.sum_sq_luminance, &b.sum_sq_luminance, sizeof(double)) == 0 &&
+           a.samples == b.samples && a.rays == b.rays && a.nonfinite == b.nonfinite;
+}
+
+class SampleJobTest : public ::testing::Test {
+protected:
+    Scene scene = load_scene("cornell-box");
+    PathTracer tracer{scene};
+    RenderGeometry geometry{24, 16, 5};
+};
+
+TEST_F(SampleJobTest, ResultDoesNotDependOnThreadCount) {
+    const SampleJob job = whole_image_job(24, 16, 4);
+    const SampleJobResult one = trace_sample_job(tracer, geometry, job, 1);
+    const SampleJobResult two = trace_sample_job(tracer, geometry, job, 2);
+    for (size_t i = 0; i < one.pixels.size(); ++i) ASSERT_TRUE(same_bits(one.pixels[i], two.pixels[i]));
+}
+
+TEST_F(SampleJobTest, ResultDoesNotDependOnHowPixelsAreCut) {
+    const SampleJobResult whole = trace_sample_job(tracer, geometry, whole_image_job(24, 16, 3));
+    SampleJob part;
+    part.rect = {5, 7, 6, 4};
+    part.counts.assign(part.rect.size(), 3);
+    part.first_sample.assign(part.rect.size(), 0);
+    const SampleJobResult cut = trace_sample_job(tracer, geometry, part);
+    for (uint32_t row = 0; row < 4; ++row)
+        for (uint32_t col = 0; col < 6; ++col)
+            ASSERT_TRUE(same_bits(cut.pixels[row * 6 + col],
+                                  whole.pixels[(7 + row) * 24 + 5 + col]));
+}
+
+TEST_F(SampleJobTest, SplitsSamplesByParityOfTheirIndex) {
+    // Samples 0..3 of one pixel: 0 and 2 are even. Starting at 1 instead shifts the parity.
+    SampleJob job = whole_image_job(24, 16, 0);
+    job.counts[0] = 4;
+    const PixelSums from0 = trace_sample_job(tracer, geometry, job).pixels[0];
+    SampleJob single = whole_image_job(24, 16, 0);
+    single.counts[0] = 1;
+    const PixelSums s0 = trace_sample_job(tracer, geometry, single).pixels[0];
+    single.first_sample[0] = 2;
+    const PixelSums s2 = trace_sample_job(tracer, geometry, single).pixels[0];
+    EXPECT_DOUBLE_EQ(from0.even[0], s0.even[0] + s2.even[0]);
+    EXPECT_EQ(from0.samples, 4u);
+}
+
+TEST_F(SampleJobTest, DifferentSeedGivesDifferentSums) {
+    const SampleJob job = whole_image_job(24, 16, 2);
+    const SampleJobResult a = trace_sample_job(tracer, geometry, job);
+    const SampleJobResult b = trace_sample_job(tracer, {24, 16, 6}, job);
+    size_t differing = 0;
+    for (size_t i = 0; i < a.pixels.size(); ++i) differing += !same_bits(a.pixels[i], b.pixels[i]);
+    EXPECT_GT(differing, a.pixels.size() / 2);
+}
+
+TEST_F(SampleJobTest, RejectsJobsThatDoNotFitTheImage) {
+    SampleJob job = whole_image_job(25, 16, 1);
+    EXPECT_THROW(trace_sample_job(tracer, geometry, job), std::invalid_argument);
+    job = whole_image_job(24, 16, 1);
+    job.counts.pop_back();
+    EXPECT_THROW(trace_sample_job(tracer, geometry, job), std::invalid_argument);
+}
+
+TEST(AddSample, DropsNonFiniteRadianceButCountsIt) {
+    PixelSums sums;
+    add_sample(sums, 0, {1, 2, 3}, 4);
+    add_sample(sums, 1, {std::numeric_limits<float>::quiet_NaN(), 0, 0}, 3);
+    add_sample(sums, 2, {std::numeric_limits<float>::infinity(), 0, 0}, 2);
+    EXPECT_EQ(sums.samples, 3u);
+    EXPECT_EQ(sums.nonfinite, 2u);
+    EXPECT_EQ(sums.rays, 9u);
+    EXPECT_DOUBLE_EQ(sums.even[0], 1.0);
+    EXPECT_DOUBLE_EQ(sums.odd[0], 0.0);
+    EXPECT_TRUE(std::isfinite(sums.sum_sq_luminance));
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,52 @@
+// SampleRng: the random numbers of one pixel sample. Seeded by a hash of
+// (render seed, x, y, sample index) and nothing else, so any sample can be replayed alone and
+// a render is the same bytes however its pixels are split among threads, jobs and workers.
+#pragma once
+
+#include <cstdint>
+
+namespace aliquot {
+
+// SplitMix64's finaliser: a bijective 64-bit mix with full avalanche.
+constexpr uint64_t mix64(uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+
+constexpr uint64_t sample_hash(uint64_t seed, uint32_t x, uint32_t y, uint64_t k) {
+    uint64_t h = mix64(seed + 0x9e3779b97f4a7c15ULL);
+    h = mix64(h ^ ((uint64_t(x) << 32) | y));
+    return mix64(h ^ k);
+}
+
+// PCG32 (O'Neill, "PCG: A Family of Simple Fast Space-Efficient Statistically Good
+// Algorithms for Random Number Generation", 2014): 64-bit LCG state, XSH-RR output.
+class SampleRng {
+public:
+    SampleRng(uint64_t seed, uint32_t x, uint32_t y, uint64_t k) {
+        const uint64_t h = sample_hash(seed, x, y, k);
+        inc_ = (mix64(h ^ 0xda3e39cb94b95bdbULL) << 1) | 1u;
+        state_ = 0;
+        next_u32();
+        state_ += h;
+        next_u32();
+    }
+
+    uint32_t next_u32() {
+        const uint64_t old = state_;
+        state_ = old * 6364136223846793005ULL + inc_;
+        const uint32_t xorshifted = uint32_t(((old >> 18u) ^ old) >> 27u);
+        const uint32_t rot = uint32_t(old >> 59u);
+        return (xorshifted >> rot) | (xorshifted << ((32 - rot) & 31));
+    }
+
+    // Uniform in [0, 1): 24 random bits, so the result is never rounded up to 1.
+    float next_float() { return float(next_u32() >> 8) * 0x1p-24f; }
+
+private:
+    uint64_t state_;
+    uint64_t inc_;
+};
+
+}  // namespace aliquot

@@ -1,0 +1,43 @@
+// Vec3: the one small vector type of the renderer (positions, directions, RGB).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+namespace aliquot {
+
+struct Vec3 {
+    float x = 0, y = 0, z = 0;
+
+    constexpr Vec3() = default;
+    constexpr Vec3(float x_, float y_, float z_) : x(x_), y(y_), z(z_) {}
+    constexpr explicit Vec3(float v) : x(v), y(v), z(v) {}
+
+    constexpr float operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+    constexpr Vec3 operator+(const Vec3& o) const { return {x + o.x, y + o.y, z + o.z}; }
+    constexpr Vec3 operator-(const Vec3& o) const { return {x - o.x, y - o.y, z - o.z}; }
+    constexpr Vec3 operator-() const { return {-x, -y, -z}; }
+    constexpr Vec3 operator*(const Vec3& o) const { return {x * o.x, y * o.y, z * o.z}; }
+    constexpr Vec3 operator*(float s) const { return {x * s, y * s, z * s}; }
+    constexpr Vec3 operator/(float s) const { return {x / s, y / s, z / s}; }
+    constexpr Vec3& operator+=(const Vec3& o) { x += o.x; y += o.y; z += o.z; return *this; }
+    constexpr Vec3& operator*=(const Vec3& o) { x *= o.x; y *= o.y; z *= o.z; return *this; }
+    constexpr Vec3& operator*=(float s) { x *= s; y *= s; z *= s; return *this; }
+    constexpr bool operator==(const Vec3&) const = default;
+};
+
+constexpr Vec3 operator*(float s, const Vec3& v) { return v * s; }
+constexpr float dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline float length(const Vec3& v) { return std::sqrt(dot(v, v)); }
+inline Vec3 normalize(const Vec3& v) { return v / length(v); }
+constexpr float max_component(const Vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
+// Rec. 709 luminance, the weights Mitsuba uses for linear sRGB.
+constexpr float luminance(const Vec3& c) { return 0.212671f * c.x + 0.715160f * c.y + 0.072169f * c.z; }
+inline bool is_finite(const Vec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+}  // namespace aliquot
