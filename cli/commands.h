@@ -16,5 +16,9 @@ public:
 void register_render(CLI::App& app);
 void register_compare(CLI::App& app);
 void register_bench(CLI::App& app);
+void register_coordinator(CLI::App& app);
+void register_worker(CLI::App& app);
+void register_submit(CLI::App& app);
+void register_farm_clients(CLI::App& app);  // status, watch, fetch, cancel, workers
 
 }  // namespace aliquot::cli

@@ -10,6 +10,10 @@ int main(int argc, char** argv) {
     aliquot::cli::register_render(app);
     aliquot::cli::register_compare(app);
     aliquot::cli::register_bench(app);
+    aliquot::cli::register_coordinator(app);
+    aliquot::cli::register_worker(app);
+    aliquot::cli::register_submit(app);
+    aliquot::cli::register_farm_clients(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -7,11 +7,9 @@
 
 #include "commands.h"
 #include "exr_io.h"
-#include "local_render.h"
+#include "embedded_render.h"
 #include "progress_bar.h"
 #include "render_options.h"
-#include "scene_loader.h"
-#include "uniform_strategy.h"
 
 namespace aliquot::cli {
 
@@ -26,22 +24,25 @@ struct RenderCommand {
     void run() {
         check_render_options(options);
         check_writable(out, "--out");
-        const Scene scene = load_scene(options.scene);
-        const PathTracer tracer(scene);
-        const RenderGeometry geometry{options.width, options.height, options.seed};
-        UniformStrategy strategy(options.width, options.height, uint32_t(options.spp));
-        Accumulator merged(options.width, options.height);
+        const RenderSpec spec = make_render_spec(options);
 
         ProgressBar bar("render");
-        const RenderStats stats = render_locally(
-            tracer, geometry, strategy, merged, options.threads, [&](const RenderProgress& p) {
-                const double rate = p.seconds > 0 ? double(p.samples_done) / p.seconds : 0;
-                bar.update(p.samples_done, p.samples_planned,
-                           "round " + std::to_string(p.round + 1) + ", " +
-                               std::to_string(int64_t(rate / 1e3)) + " k samples/s");
+        const EmbeddedResult result =
+            render_embedded(spec, options.threads, aovs, [&](const RenderInfo& p) {
+                std::string note = "round " + std::to_string(p.rounds_done + 1) + ", " +
+                                   std::to_string(int64_t(p.samples_per_second / 1e3)) +
+                                   " k samples/s";
+                if (p.error_estimate >= 0)
+                    note += ", err~" + std::to_string(p.error_estimate).substr(0, 8);
+                bar.update(p.samples_done, p.samples_planned, note);
             });
         bar.finish();
-        write_exr(out, merged.image(aovs));
+        write_exr(out, result.image);
+        const RenderInfo& info = result.info;
+        struct {
+            uint64_t samples, rays, rounds;
+            double seconds;
+        } stats{info.samples_done, info.rays, info.rounds_done, info.seconds};
 
         const double sps = stats.seconds > 0 ? double(stats.samples) / stats.seconds : 0.0;
         if (json) {
@@ -50,17 +51,21 @@ struct RenderCommand {
                 {"height", options.height},   {"spp", options.spp},
                 {"seed", options.seed},       {"threads", options.threads},
                 {"samples", stats.samples},   {"rays", stats.rays},
-                {"rounds", stats.rounds},     {"nonfinite_samples", stats.nonfinite},
+                {"rounds", stats.rounds},     {"method", info.method},
+                {"error_estimate", info.error_estimate},
+                {"error_vs_reference", info.error_vs_reference},
+                {"outcome", nlohmann::json::parse(info.outcome_json)},
                 {"seconds", stats.seconds},   {"samples_per_second", sps},
                 {"output", out}};
             std::cout << summary.dump() << std::endl;
         } else {
-            std::printf("rendered %s %ux%u at %lld spp in %.2f s (%.0f samples/s); wrote %s\n",
+            std::printf("rendered %s %ux%u with %s: %llu samples in %.2f s (%.0f samples/s); "
+                        "wrote %s\n",
                         options.scene.c_str(), options.width, options.height,
-                        (long long)options.spp, stats.seconds, sps, out.c_str());
-            if (stats.nonfinite)
-                std::printf("warning: %llu samples had non-finite radiance and were dropped\n",
-                            (unsigned long long)stats.nonfinite);
+                        info.method.c_str(), (unsigned long long)stats.samples, stats.seconds,
+                        sps, out.c_str());
+            if (info.outcome_json != "{}" && !info.outcome_json.empty())
+                std::printf("outcome: %s\n", info.outcome_json.c_str());
         }
     }
 };

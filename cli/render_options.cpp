@@ -6,16 +6,40 @@
 #include <thread>
 
 #include "commands.h"
+#include "exr_io.h"
+#include "scene_loader.h"
 
 namespace aliquot::cli {
 
 void add_render_options(CLI::App& cmd, RenderOptions& o) {
+    StrategyParams& s = o.strategy;
     cmd.add_option("--scene", o.scene, "built-in scene name or a .json scene file")
         ->capture_default_str();
     cmd.add_option("--resolution", o.resolution, "image size as WxH")->capture_default_str();
-    cmd.add_option("--spp", o.spp, "samples per pixel")->capture_default_str();
+    cmd.add_option("--spp", o.spp, "samples per pixel (uniform; others: budget = spp x pixels)");
     cmd.add_option("--seed", o.seed, "render seed")->capture_default_str();
     cmd.add_option("--threads", o.threads, "tracing threads (0: all cores)");
+    cmd.add_option("--reference", o.reference, "reference EXR: error measured every round");
+    cmd.add_option("--method", s.method, "uniform | dammertz | adaptive | optimal | optimal-time")
+        ->capture_default_str();
+    cmd.add_option("--budget", s.budget, "total samples to spend");
+    cmd.add_option("--max-variance", s.max_variance, "dammertz V; adaptive max variance")
+        ->capture_default_str();
+    cmd.add_option("--samples-per-iteration", s.samples_per_iteration, "dammertz S")
+        ->capture_default_str();
+    cmd.add_option("--split-factor", s.split_factor, "dammertz split factor")->capture_default_str();
+    cmd.add_option("--min-bucket-size", s.min_bucket_size, "dammertz smallest bucket side")
+        ->capture_default_str();
+    cmd.add_option("--error-norm", s.error_norm, "dammertz error: seed | paper")
+        ->capture_default_str();
+    cmd.add_option("--initial-spp", s.initial_spp, "adaptive initial uniform pass")
+        ->capture_default_str();
+    cmd.add_option("--alpha", s.alpha, "adaptive distribution exponent")->capture_default_str();
+    cmd.add_option("--bucket-size", s.bucket_size, "adaptive bucket side")->capture_default_str();
+    cmd.add_option("--min-spp", s.min_spp, "optimal: samples every pixel gets first")
+        ->capture_default_str();
+    cmd.add_option("--max-spp", s.max_spp, "cap on any pixel's samples (0: method default)");
+    cmd.add_option("--max-samples", s.max_samples, "cap on total samples (0: method default)");
 }
 
 void check_render_options(RenderOptions& o) {
@@ -29,10 +53,29 @@ void check_render_options(RenderOptions& o) {
                            std::to_string(kMaxResolution) + ", got " + o.resolution);
     o.width = w;
     o.height = h;
-    if (o.spp < 1 || o.spp > (int64_t(1) << 31))
+    if (o.spp != kSppNotGiven && (o.spp < 1 || o.spp > (int64_t(1) << 31)))
         throw CommandError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
+    if (o.spp == kSppNotGiven) o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;
+    o.strategy.spp = uint64_t(o.spp);
     if (o.threads < 0) throw CommandError("--threads: must be 0 or more");
     if (o.threads == 0) o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+    try {
+        validate(o.strategy, o.width, o.height);
+    } catch (const std::invalid_argument& e) {
+        throw CommandError(e.what());
+    }
+}
+
+RenderSpec make_render_spec(const RenderOptions& o) {
+    RenderSpec spec;
+    spec.scene_name = o.scene;
+    spec.scene_json = self_contained_scene_json(o.scene);
+    spec.width = o.width;
+    spec.height = o.height;
+    spec.seed = o.seed;
+    spec.strategy = o.strategy;
+    if (!o.reference.empty()) spec.reference = read_exr(o.reference);
+    return spec;
 }
 
 void check_writable(const std::filesystem::path& path, const std::string& option) {

@@ -1,5 +1,5 @@
-// Options shared by every command that starts a render: parsed and checked once, with one
-// clear message naming the option that is wrong.
+// Options shared by every command that starts a render (render, submit, bench, reference):
+// parsed and checked once, with one clear message naming the option that is wrong.
 #pragma once
 
 #include <cstdint>
@@ -8,24 +8,32 @@
 
 #include <CLI/CLI.hpp>
 
+#include "render_spec.h"
+
 namespace aliquot::cli {
 
 struct RenderOptions {
     std::string scene = "cornell-box";
     std::string resolution = "256x256";
     uint32_t width = 256, height = 256;
-    int64_t spp = 64;
+    int64_t spp = -1;  // kSppNotGiven: uniform then defaults to 64
     uint64_t seed = 0;
-    int threads = 0;  // 0: all hardware threads
+    int threads = 0;     // 0: all hardware threads
+    std::string reference;  // optional reference EXR
+    StrategyParams strategy;
 };
 
-// Adds --scene, --resolution, --spp, --seed, --threads to `cmd`.
+// Adds --scene, --resolution, --spp, --seed, --threads, --method and every strategy
+// parameter (--budget, --max-variance, ...) and --reference to `cmd`.
 void add_render_options(CLI::App& cmd, RenderOptions& options);
 // Parses the resolution and checks ranges; throws CommandError.
 void check_render_options(RenderOptions& options);
+// The spec the options describe: loads the scene (inlining meshes) and the reference.
+RenderSpec make_render_spec(const RenderOptions& options);
 // Fails early, before any work, if `path` cannot be written.
 void check_writable(const std::filesystem::path& path, const std::string& option);
 
 constexpr uint32_t kMaxResolution = 8192;
+constexpr int64_t kSppNotGiven = -1;
 
 }  // namespace aliquot::cli

@@ -30,7 +30,6 @@ public:
     void merge(const SampleJobResult& result);
 
     const PixelSums& at(size_t i) const { return pixels_[i]; }
-    PixelSums& mutable_at(size_t i) { return pixels_[i]; }  // checkpoint restore only
     uint64_t samples(size_t i) const { return pixels_[i].samples; }
 
     // Mean RGB of pixel i over all its samples (0 with no samples).

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "accumulator.h"
 
 namespace aliquot {
@@ -21,6 +23,14 @@ struct Round {
     }
 };
 
+// A rectangle of pixels a strategy reasons about as one (Dammertz's tree leaves, adaptive's
+// grid); kept so dashboards can draw the boundaries.
+struct Bucket {
+    PixelRect rect;
+    double error = 0;        // the strategy's own error estimate for the bucket
+    bool converged = false;  // Dammertz: E <= V reached
+};
+
 class Strategy {
 public:
     virtual ~Strategy() = default;
@@ -30,6 +40,17 @@ public:
     // Samples the render expects to spend in all, for progress; an upper bound for
     // methods that stop early.
     virtual uint64_t planned_samples() const = 0;
+
+    // The strategy's state between rounds, so that a restarted coordinator that restores it
+    // with the checkpointed buffers makes exactly the decisions it would have made.
+    virtual nlohmann::json save_state() const = 0;
+    virtual void restore_state(const nlohmann::json& state) = 0;
+
+    // Current buckets; empty for methods that allocate per pixel.
+    virtual std::vector<Bucket> buckets() const { return {}; }
+    // What the render should report when done, e.g. how much of the image a cap stopped
+    // before it converged. Empty object when there is nothing to say.
+    virtual nlohmann::json outcome() const { return nlohmann::json::object(); }
 };
 
 }  // namespace aliquot

@@ -23,3 +23,16 @@ std::optional<Round> UniformStrategy::next_round(const Accumulator&) {
 }
 
 }  // namespace aliquot
+
+namespace aliquot {
+
+nlohmann::json UniformStrategy::save_state() const {
+    return {{"done_spp", done_}, {"rounds", rounds_}};
+}
+
+void UniformStrategy::restore_state(const nlohmann::json& state) {
+    done_ = state.at("done_spp").get<uint32_t>();
+    rounds_ = state.at("rounds").get<uint32_t>();
+}
+
+}  // namespace aliquot

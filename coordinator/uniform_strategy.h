@@ -13,9 +13,11 @@ public:
     std::string name() const override { return "uniform"; }
     std::optional<Round> next_round(const Accumulator& merged) override;
     uint64_t planned_samples() const override { return uint64_t(spp_) * pixels_; }
+    nlohmann::json save_state() const override;
+    void restore_state(const nlohmann::json& state) override;
 
-    // Samples per pixel of round `index` of a render of `spp` over `pixels` pixels: rounds
-    // double (1, 1, 2, 4, ...) up to about 4 million samples per round.
+    // Samples per pixel of the next round after `done` of `spp`: rounds double (1, 1, 2,
+    // 4, ...) up to about 4 million samples per round.
     static uint32_t round_spp(uint32_t done, uint32_t spp, size_t pixels);
 
 private:

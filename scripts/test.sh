@@ -16,6 +16,7 @@ run() {
 
 run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
 run "cli" bash tests/cli/render_test.sh build/bin/aliquot
+run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
 run "validation against Mitsuba 3" bash tests/validation/run.sh build/bin/aliquot
 
 if ((${#failures[@]})); then

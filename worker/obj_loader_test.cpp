@@ -2,6 +2,7 @@
 #include "obj_loader.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <array>
 #include <filesystem>
@@ -114,7 +115,8 @@ TEST(ObjLoader, ReportsMissingFile) {
 
 TEST(ObjLoader, ReadsAFile) {
     const std::filesystem::path file =
-        std::filesystem::path(testing::TempDir()) / "aliquot-obj-loader-test.obj";
+        std::filesystem::path(testing::TempDir()) /
+        ("aliquot-obj-loader-test-" + std::to_string(::getpid()) + ".obj");
     std::ofstream(file) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
     EXPECT_EQ(load_obj(file).triangles.size(), 1u);
     std::filesystem::remove(file);

@@ -65,7 +65,8 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
 }  // namespace
 
 SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry& geometry,
-                                 const SampleJob& job, int threads) {
+                                 const SampleJob& job, int threads,
+                                 const std::atomic<bool>* cancel) {
     const auto start = std::chrono::steady_clock::now();
     const PixelRect& r = job.rect;
     if (job.counts.size() != r.size() || job.first_sample.size() != r.size())
@@ -81,14 +82,17 @@ SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry&
     std::atomic<uint32_t> next_row{0};
     auto work = [&] {
         enable_flush_to_zero();
-        for (uint32_t row; (row = next_row.fetch_add(1)) < r.height;)
+        for (uint32_t row; (row = next_row.fetch_add(1)) < r.height;) {
+            if (cancel && cancel->load()) return;
             trace_row(tracer, camera, geometry, job, row, result);
+        }
     };
     const int extra = std::max(0, std::min<int>(threads, int(r.height)) - 1);
     std::vector<std::jthread> pool;
     for (int t = 0; t < extra; ++t) pool.emplace_back(work);
     work();
     pool.clear();  // joins
+    if (cancel && cancel->load()) throw JobCancelled();
 
     result.wall_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -3,7 +3,9 @@
 // and for a networked worker.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <stdexcept>
 #include <vector>
 
 #include "path_tracer.h"
@@ -50,10 +52,18 @@ struct RenderGeometry {
     uint64_t seed = 0;
 };
 
+class JobCancelled : public std::runtime_error {
+public:
+    JobCancelled() : std::runtime_error("sample job cancelled") {}
+};
+
 // Traces a job with `threads` threads (rows are shared out; each pixel is traced by one
-// thread, so the result does not depend on the count).
+// thread, so the result does not depend on the count). When `cancel` becomes true the
+// job stops between pixels and throws JobCancelled: a worker told to stop gives the lease
+// back instead of finishing a long job.
 SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry& geometry,
-                                 const SampleJob& job, int threads = 1);
+                                 const SampleJob& job, int threads = 1,
+                                 const std::atomic<bool>* cancel = nullptr);
 
 // One sample's contribution before it is summed: exposed for tests of the NaN guard.
 void add_sample(PixelSums& sums, uint64_t index, const Vec3& radiance, uint32_t rays);

@@ -178,6 +178,9 @@ def main(argv=None):
 
     out_dir = os.path.dirname(os.path.abspath(args.out))
     os.makedirs(out_dir, exist_ok=True)
+    # Mitsuba's EXR writer hangs when the thread pool has a single thread
+    # (seen with Mitsuba 3.9.1), so writing always gets at least two.
+    dr.set_thread_count(max(threads, 2))
     bmp = mi.Bitmap(np.ascontiguousarray(image), mi.Bitmap.PixelFormat.RGB)
     bmp.write(args.out)
 

@@ -1,0 +1,48 @@
+// ClientConnection: the CLI's channel to a coordinator's client service. Turns gRPC failures
+// into one-line CommandErrors ("cannot reach coordinator at ADDR").
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <functional>
+
+#include <grpcpp/grpcpp.h>
+#include <nlohmann/json.hpp>
+
+#include "aliquot.grpc.pb.h"
+
+namespace aliquot::cli {
+
+class ClientConnection {
+public:
+    explicit ClientConnection(const std::string& address);
+    v1::ClientService::Stub& stub() { return *stub_; }
+    // A context whose deadline is `seconds` from now.
+    std::unique_ptr<grpc::ClientContext> context(int seconds = 30) const;
+    // Throws CommandError for a failed call; `what` names the call for the message.
+    void check(const grpc::Status& status, const std::string& what) const;
+    const std::string& address() const { return address_; }
+
+private:
+    std::string address_;
+    std::unique_ptr<v1::ClientService::Stub> stub_;
+};
+
+// Human-readable one-line progress of a render, e.g. for status and watch.
+std::string describe(const v1::RenderInfo& info);
+
+}  // namespace aliquot::cli
+
+namespace aliquot::cli {
+
+// Streams the render's EXR into `path` (written whole, then renamed into place).
+void fetch_image(ClientConnection& connection, const std::string& id, const std::string& path,
+                 bool aovs);
+// Follows a render until it finishes, calling `update` for every state the coordinator
+// sends; returns the last one.
+v1::RenderInfo follow(ClientConnection& connection, const std::string& id,
+                      const std::function<void(const v1::RenderInfo&)>& update);
+nlohmann::json to_json(const v1::RenderInfo& info);
+
+}  // namespace aliquot::cli

@@ -1,0 +1,63 @@
+// aliquot coordinator: the long-running farm process. Stops cleanly on SIGTERM / SIGINT.
+#include <csignal>
+#include <cstdio>
+#include <memory>
+
+#include "commands.h"
+#include "grpc_server.h"
+
+namespace aliquot::cli {
+
+namespace {
+
+struct CoordinatorCommand {
+    std::string grpc_address = "127.0.0.1:7070";
+    std::string data_dir = "aliquot-data";
+    double lease_seconds = 30;
+    double lost_seconds = 10;
+    uint32_t max_side = 8192;
+
+    void run() {
+        if (lease_seconds <= 0) throw CommandError("--lease-seconds: must be positive");
+        // Block the stop signals before any thread starts, then wait for one below.
+        sigset_t stop;
+        sigemptyset(&stop);
+        sigaddset(&stop, SIGTERM);
+        sigaddset(&stop, SIGINT);
+        pthread_sigmask(SIG_BLOCK, &stop, nullptr);
+
+        CoordinatorOptions options;
+        options.data_dir = data_dir;
+        options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
+        options.worker_lost_after = std::chrono::milliseconds(int64_t(lost_seconds * 1000));
+        options.max_side = max_side;
+        Coordinator coordinator(options);
+        GrpcServer server(coordinator, grpc_address);
+        std::fprintf(stderr, "coordinator: gRPC on %s (port %d), data in %s\n",
+                     grpc_address.c_str(), server.port(), data_dir.c_str());
+        int sig = 0;
+        sigwait(&stop, &sig);
+        std::fprintf(stderr, "coordinator: stopping (signal %d)\n", sig);
+        coordinator.stop();
+        server.shutdown();
+    }
+};
+
+}  // namespace
+
+void register_coordinator(CLI::App& app) {
+    auto c = std::make_shared<CoordinatorCommand>();
+    CLI::App* cmd = app.add_subcommand("coordinator", "run a coordinator (gRPC, SQLite)");
+    cmd->add_option("--grpc", c->grpc_address, "listen address host:port")->capture_default_str();
+    cmd->add_option("--data", c->data_dir, "directory for SQLite, checkpoints, images")
+        ->capture_default_str();
+    cmd->add_option("--lease-seconds", c->lease_seconds, "lease length without renewal")
+        ->capture_default_str();
+    cmd->add_option("--lost-seconds", c->lost_seconds, "silence after which a worker is lost")
+        ->capture_default_str();
+    cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
+        ->capture_default_str();
+    cmd->callback([c] { c->run(); });
+}
+
+}  // namespace aliquot::cli

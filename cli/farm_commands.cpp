@@ -1,0 +1,146 @@
+// aliquot status | watch | fetch | cancel | workers: small clients of a running coordinator.
+#include <unistd.h>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "client.h"
+#include "commands.h"
+#include "progress_bar.h"
+#include "render_options.h"
+
+namespace aliquot::cli {
+
+namespace {
+
+struct FarmOptions {
+    std::string coordinator = "127.0.0.1:7070";
+    std::string id;
+    std::string out;
+    bool json = false, aovs = false;
+};
+
+CLI::App* add_common(CLI::App& app, const char* name, const char* help,
+                     const std::shared_ptr<FarmOptions>& o) {
+    CLI::App* cmd = app.add_subcommand(name, help);
+    cmd->add_option("--coordinator", o->coordinator, "coordinator address")->capture_default_str();
+    return cmd;
+}
+
+std::string eta(const v1::RenderInfo& i) {
+    if (i.samples_done() == 0 || i.samples_planned() <= i.samples_done()) return "-";
+    const double left = double(i.samples_planned() - i.samples_done()) /
+                        std::max(i.samples_per_second(), 1e-9);
+    return std::to_string(int64_t(left)) + "s";
+}
+
+}  // namespace
+
+void register_farm_clients(CLI::App& app) {
+    {
+        auto o = std::make_shared<FarmOptions>();
+        CLI::App* cmd = add_common(app, "status", "one render's state, or all renders", o);
+        cmd->add_option("id", o->id, "render id (omit for all)");
+        cmd->add_flag("--json", o->json, "print JSON");
+        cmd->callback([o] {
+            ClientConnection c(o->coordinator);
+            std::vector<v1::RenderInfo> renders;
+            if (!o->id.empty()) {
+                v1::GetRenderRequest req;
+                req.set_id(o->id);
+                v1::RenderInfo info;
+                c.check(c.stub().GetRender(c.context().get(), req, &info), "status " + o->id);
+                renders.push_back(info);
+            } else {
+                v1::ListRendersRequest req;
+                v1::ListRendersReply reply;
+                c.check(c.stub().ListRenders(c.context().get(), req, &reply), "status");
+                renders.assign(reply.renders().begin(), reply.renders().end());
+            }
+            if (o->json) {
+                nlohmann::json all = nlohmann::json::array();
+                for (const auto& r : renders) all.push_back(to_json(r));
+                std::cout << (o->id.empty() ? all : all[0]).dump() << std::endl;
+            } else {
+                for (const auto& r : renders) std::cout << describe(r) << "\n";
+            }
+        });
+    }
+    {
+        auto o = std::make_shared<FarmOptions>();
+        CLI::App* cmd = add_common(app, "watch", "follow a render live until it ends", o);
+        cmd->add_option("id", o->id, "render id")->required();
+        cmd->callback([o] {
+            ClientConnection c(o->coordinator);
+            const bool tty = isatty(STDOUT_FILENO);
+            const v1::RenderInfo last = follow(c, o->id, [&](const v1::RenderInfo& i) {
+                const std::string line = describe(i) + "  eta " + eta(i);
+                if (tty)
+                    std::printf("\r%s\x1b[K", line.c_str());
+                else
+                    std::printf("%s\n", line.c_str());
+                std::fflush(stdout);
+            });
+            if (tty) std::printf("\n");
+            if (last.state() == "failed") throw CommandError("render failed: " + last.error());
+        });
+    }
+    {
+        auto o = std::make_shared<FarmOptions>();
+        CLI::App* cmd = add_common(app, "fetch", "download a render's current image", o);
+        cmd->add_option("id", o->id, "render id")->required();
+        cmd->add_option("--out", o->out, "output .exr")->required();
+        cmd->add_flag("--aovs", o->aovs, "add channels spp and variance");
+        cmd->callback([o] {
+            check_writable(o->out, "--out");
+            ClientConnection c(o->coordinator);
+            fetch_image(c, o->id, o->out, o->aovs);
+            std::cout << "wrote " << o->out << std::endl;
+        });
+    }
+    {
+        auto o = std::make_shared<FarmOptions>();
+        CLI::App* cmd = add_common(app, "cancel", "stop a render, keeping what it merged", o);
+        cmd->add_option("id", o->id, "render id")->required();
+        cmd->callback([o] {
+            ClientConnection c(o->coordinator);
+            v1::GetRenderRequest req;
+            req.set_id(o->id);
+            v1::RenderInfo info;
+            c.check(c.stub().Cancel(c.context().get(), req, &info), "cancel " + o->id);
+            std::cout << describe(info) << std::endl;
+        });
+    }
+    {
+        auto o = std::make_shared<FarmOptions>();
+        CLI::App* cmd = add_common(app, "workers", "workers the coordinator knows", o);
+        cmd->add_flag("--json", o->json, "print JSON");
+        cmd->callback([o] {
+            ClientConnection c(o->coordinator);
+            v1::ListWorkersRequest req;
+            v1::ListWorkersReply reply;
+            c.check(c.stub().ListWorkers(c.context().get(), req, &reply), "workers");
+            nlohmann::json all = nlohmann::json::array();
+            for (const auto& w : reply.workers()) {
+                if (o->json) {
+                    all.push_back({{"name", w.name()},
+                                   {"threads", w.threads()},
+                                   {"state", w.state()},
+                                   {"leases", std::vector<std::string>(w.leases().begin(), w.leases().end())},
+                                   {"samples_traced", w.samples_traced()},
+                                   {"samples_per_second", w.samples_per_second()},
+                                   {"last_seen_ms", w.last_seen_ms()}});
+                } else {
+                    std::printf("%-24s %-5s %2u threads  %llu samples  %.0f samples/s  %d leases\n",
+                                w.name().c_str(), w.state().c_str(), w.threads(),
+                                (unsigned long long)w.samples_traced(), w.samples_per_second(),
+                                w.leases_size());
+                }
+            }
+            if (o->json) std::cout << all.dump() << std::endl;
+        });
+    }
+}
+
+}  // namespace aliquot::cli

@@ -1,0 +1,85 @@
+// aliquot submit: send a render to a coordinator; with --wait follow it to the end.
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include "client.h"
+#include "commands.h"
+#include "progress_bar.h"
+#include "render_options.h"
+#include "scene_loader.h"
+
+namespace aliquot::cli {
+
+namespace {
+
+struct SubmitCommand {
+    RenderOptions options;
+    std::string coordinator = "127.0.0.1:7070";
+    bool wait = false, json = false, aovs = false;
+    std::string out;
+
+    void run() {
+        check_render_options(options);
+        if (!out.empty()) {
+            check_writable(out, "--out");
+            wait = true;  // an output file means waiting for the image
+        }
+        v1::SubmitRequest req;
+        req.set_scene_name(options.scene);
+        req.set_scene_json(self_contained_scene_json(options.scene));
+        req.set_width(options.width);
+        req.set_height(options.height);
+        req.set_seed(options.seed);
+        req.set_strategy_json(nlohmann::json(options.strategy).dump());
+        if (!options.reference.empty()) {
+            std::ifstream in(options.reference, std::ios::binary);
+            if (!in) throw CommandError("--reference: cannot open " + options.reference);
+            std::stringstream ss;
+            ss << in.rdbuf();
+            req.set_reference_exr(ss.str());
+        }
+        ClientConnection c(coordinator);
+        v1::RenderInfo info;
+        c.check(c.stub().Submit(c.context(60).get(), req, &info), "submit");
+        if (!wait) {
+            if (json)
+                std::cout << to_json(info).dump() << std::endl;
+            else
+                std::cout << info.id() << std::endl;
+            return;
+        }
+        if (!json) std::cerr << "submitted " << info.id() << std::endl;
+        ProgressBar bar(info.id());
+        info = follow(c, info.id(), [&](const v1::RenderInfo& i) {
+            bar.update(i.samples_done(), i.samples_planned(),
+                       "round " + std::to_string(i.rounds_done()) + ", " +
+                           std::to_string(int64_t(i.samples_per_second() / 1e3)) + " k samples/s");
+        });
+        bar.finish();
+        if (!out.empty()) fetch_image(c, info.id(), out, aovs);
+        if (json)
+            std::cout << to_json(info).dump() << std::endl;
+        else
+            std::cout << describe(info) << std::endl;
+        if (info.state() == "failed") throw CommandError("render " + info.id() + " failed: " + info.error());
+    }
+};
+
+}  // namespace
+
+void register_submit(CLI::App& app) {
+    auto c = std::make_shared<SubmitCommand>();
+    CLI::App* cmd = app.add_subcommand("submit", "submit a render to a coordinator");
+    add_render_options(*cmd, c->options);
+    cmd->add_option("--coordinator", c->coordinator, "coordinator address")->capture_default_str();
+    cmd->add_flag("--wait", c->wait, "follow the render with a progress bar until it ends");
+    cmd->add_option("--out", c->out, "write the final EXR here (implies --wait)");
+    cmd->add_flag("--aovs", c->aovs, "add channels spp and variance to the EXR");
+    cmd->add_flag("--json", c->json, "print JSON");
+    cmd->callback([c] { c->run(); });
+}
+
+}  // namespace aliquot::cli

@@ -1,0 +1,34 @@
+// Allocation: turning real-valued shares of a sample budget into whole per-pixel counts
+// that spend it exactly. Shared by the budgeted strategies (adaptive, optimal,
+// optimal-time).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "strategy_params.h"
+
+namespace aliquot {
+
+// Splits `total` among items in proportion to `weights` (>= 0), no item above its `cap`,
+// where one unit of item i costs `costs[i]` (empty: every unit costs 1). Capped items
+// give their excess to the others (water-filling). Counts are whole: the floors first,
+// then one more each in order of the largest fractional part, ties broken by a hash of
+// the index so that equal shares are spread over the image rather than given to its first
+// rows. With unit costs it spends exactly `total` unless the caps cannot hold it; with
+// costs it spends as much as fits without exceeding `total`. Items of weight 0 get
+// nothing.
+std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
+                                const std::vector<uint32_t>& caps,
+                                const std::vector<double>& costs = {});
+
+// The samples a budgeted method may spend: `budget`, or spp * pixels when only spp is
+// given, and never more than `max_samples` when that is set. Assumes validate() passed.
+uint64_t sample_budget(const StrategyParams& params, size_t pixels);
+
+// Per-pixel cap for methods whose max_spp of 0 means "no cap beyond the budget".
+inline uint32_t spp_cap(const StrategyParams& params) {
+    return params.max_spp ? params.max_spp : UINT32_MAX;
+}
+
+}  // namespace aliquot

@@ -1,0 +1,445 @@
+#include "coordinator.h"
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "checkpoint.h"
+#include "exr_io.h"
+#include "scene_loader.h"
+#include "store.h"
+
+namespace aliquot {
+
+namespace {
+
+int64_t now_ms() {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+nlohmann::json spec_json(const RenderSpec& spec) {
+    return {{"scene_name", spec.scene_name}, {"width", spec.width},
+            {"height", spec.height},         {"seed", spec.seed},
+            {"strategy", spec.strategy},     {"has_reference", spec.reference.has_value()}};
+}
+
+void log_error(const std::string& what) { std::fprintf(stderr, "coordinator: %s\n", what.c_str()); }
+
+}  // namespace
+
+Coordinator::Coordinator(CoordinatorOptions options)
+    : options_(std::move(options)),
+      // Lease ids start from the clock so that a restarted coordinator never re-uses the id
+      // of a lease a worker may still be holding from before the restart.
+      next_lease_id_(uint64_t(now_ms()) << 16) {
+    if (!options_.data_dir.empty()) {
+        std::filesystem::create_directories(options_.data_dir / "renders");
+        store_ = std::make_unique<RunStore>(options_.data_dir);
+        for (const RenderRecord& r : store_->list_renders(0)) {
+            const auto dash = r.id.rfind('-');
+            if (dash != std::string::npos)
+                next_render_number_ =
+                    std::max<uint64_t>(next_render_number_, std::stoull(r.id.substr(dash + 1)) + 1);
+        }
+        resume_unfinished();
+    }
+    ticker_ = std::thread([this] {
+        while (true) {
+            {
+                std::unique_lock lock(mutex_);
+                if (progress_.wait_for(lock, std::chrono::milliseconds(200),
+                                       [this] { return stopping_; }))
+                    return;
+            }
+            tick();
+        }
+    });
+}
+
+Coordinator::~Coordinator() {
+    stop();
+    if (ticker_.joinable()) ticker_.join();
+}
+
+void Coordinator::stop() {
+    {
+        std::lock_guard lock(mutex_);
+        stopping_ = true;
+    }
+    progress_.notify_all();
+    work_ready_.notify_all();
+}
+
+std::filesystem::path Coordinator::render_dir(const std::string& id) const {
+    return options_.data_dir / "renders" / id;
+}
+
+void Coordinator::changed() {
+    ++version_;
+    progress_.notify_all();
+    work_ready_.notify_all();
+}
+
+void Coordinator::attach(std::unique_ptr<RenderSession> session) {
+    RenderSession* s = session.get();
+    s->on_round = [this](RenderSession& r, const RoundSummary& round) {
+        if (!store_) return;
+        try {
+            RoundRecord rec;
+            rec.render_id = r.id();
+            rec.idx = round.index;
+            rec.samples_in_round = int64_t(round.samples_in_round);
+            rec.samples_total = int64_t(round.samples_total);
+            rec.seconds = round.seconds;
+            rec.error_estimate = round.error_estimate;
+            if (round.error_vs_reference >= 0) rec.error_vs_reference = round.error_vs_reference;
+            nlohmann::json buckets = nlohmann::json::array();
+            for (const Bucket& b : r.strategy().buckets())
+                buckets.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.error,
+                                   b.converged});
+            if (!buckets.empty()) rec.buckets_json = buckets.dump();
+            rec.created_at = now_ms();
+            // The round is recorded before the checkpoint that includes it: a crash between
+            // the two re-runs the round, and recording it again is a no-op.
+            store_->add_round(rec);
+            Checkpoint cp{r.merged(), r.strategy().save_state(), r.rounds_done(), round.seconds};
+            save_checkpoint(render_dir(r.id()) / "checkpoint.bin", cp);
+            store_->update_render_progress(r.id(), int64_t(round.samples_total),
+                                           cp.strategy_state.dump());
+        } catch (const std::exception& e) {
+            // The render goes on; only resumability from this round is lost.
+            log_error("cannot record round " + std::to_string(round.index) + " of " + r.id() +
+                      ": " + e.what());
+        }
+    };
+    s->on_finished = [this](RenderSession& r) {
+        if (!store_) return;
+        try {
+            write_exr(render_dir(r.id()) / "image.exr", r.merged().image(true));
+            store_->finish_render(r.id(), r.state(), r.strategy().outcome().dump(), now_ms());
+            if (!r.error().empty()) store_->update_render_state(r.id(), r.state(), r.error(), now_ms());
+        } catch (const std::exception& e) {
+            log_error("cannot record the end of " + r.id() + ": " + e.what());
+        }
+    };
+    order_.push_back(s->id());
+    sessions_[s->id()] = std::move(session);
+    s->start();
+    if (store_ && s->state() == RenderState::Running)
+        store_->update_render_state(s->id(), RenderState::Running, "", now_ms());
+    changed();
+}
+
+std::string Coordinator::submit(RenderSpec spec) {
+    validate(spec, options_.max_side);
+    // Parse now so a broken scene is the submitter's error, not every worker's.
+    parse_scene(spec.scene_json, spec.scene_name.empty() ? "scene" : spec.scene_name, ".");
+    const std::string hash = scene_hash(spec.scene_json);
+    std::lock_guard lock(mutex_);
+    char id_text[32];
+    std::snprintf(id_text, sizeof id_text, "r-%06llu", (unsigned long long)next_render_number_++);
+    const std::string id = id_text;
+    const int64_t created = now_ms();
+    scenes_[hash] = spec.scene_json;
+    auto session = std::make_unique<RenderSession>(id, spec, created);
+    if (store_) {
+        std::filesystem::create_directories(render_dir(id));
+        store_->put_scene(hash, spec.scene_name, spec.scene_json, created);
+        RenderRecord rec;
+        rec.id = id;
+        rec.scene_hash = hash;
+        rec.spec_json = spec_json(spec).dump();
+        rec.created_at = created;
+        rec.samples_planned = int64_t(session->samples_planned());
+        if (spec.reference) {
+            rec.reference_path = (render_dir(id) / "reference.exr").string();
+            write_exr(rec.reference_path, *spec.reference);
+        }
+        store_->create_render(rec);
+    }
+    attach(std::move(session));
+    return id;
+}
+
+void Coordinator::resume_unfinished() {
+    for (const RenderRecord& rec : store_->unfinished_renders()) {
+        try {
+            const nlohmann::json j = nlohmann::json::parse(rec.spec_json);
+            RenderSpec spec;
+            spec.scene_name = j.at("scene_name").get<std::string>();
+            spec.width = j.at("width").get<uint32_t>();
+            spec.height = j.at("height").get<uint32_t>();
+            spec.seed = j.at("seed").get<uint64_t>();
+            spec.strategy = j.at("strategy").get<StrategyParams>();
+            const std::optional<SceneRecord> scene = store_->get_scene(rec.scene_hash);
+            if (!scene) throw std::runtime_error("its scene is missing from the store");
+            spec.scene_json = scene->json;
+            if (!rec.reference_path.empty()) spec.reference = read_exr(rec.reference_path);
+            scenes_[rec.scene_hash] = spec.scene_json;
+            auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
+            if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
+                session->restore(std::move(cp->merged), cp->strategy_state, cp->rounds_done,
+                                 cp->seconds);
+            attach(std::move(session));
+        } catch (const std::exception& e) {
+            log_error("cannot resume " + rec.id + ": " + e.what());
+            store_->finish_render(rec.id, RenderState::Failed, "{}", now_ms());
+            store_->update_render_state(rec.id, RenderState::Failed,
+                                        std::string("cannot resume: ") + e.what(), now_ms());
+        }
+    }
+}
+
+RenderInfo Coordinator::info_of(const RenderSession& s) const {
+    RenderInfo info;
+    info.id = s.id();
+    info.scene_name = s.spec().scene_name;
+    info.width = s.spec().width;
+    info.height = s.spec().height;
+    info.seed = s.spec().seed;
+    info.method = s.spec().strategy.method;
+    info.strategy_json = nlohmann::json(s.spec().strategy).dump();
+    info.state = std::string(to_string(s.state()));
+    info.error = s.error();
+    info.samples_done = s.merged().total_samples();
+    info.samples_planned = s.samples_planned();
+    info.rays = s.merged().total_rays();
+    info.rounds_done = s.rounds_done();
+    info.seconds = s.seconds();
+    info.samples_per_second = info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
+    info.error_estimate = s.error_estimate();
+    info.error_vs_reference = s.error_vs_reference();
+    info.created_ms = s.created_ms();
+    info.outcome_json = s.strategy().outcome().dump();
+    return info;
+}
+
+std::optional<RenderInfo> Coordinator::info(const std::string& id) {
+    std::lock_guard lock(mutex_);
+    if (auto it = sessions_.find(id); it != sessions_.end()) return info_of(*it->second);
+    if (!store_) return std::nullopt;
+    const std::optional<RenderRecord> rec = store_->get_render(id);
+    if (!rec) return std::nullopt;
+    // A render that finished before this coordinator started: what the store remembers.
+    RenderInfo info;
+    info.id = rec->id;
+    const nlohmann::json j = nlohmann::json::parse(rec->spec_json);
+    info.scene_name = j.value("scene_name", "");
+    info.width = j.value("width", 0u);
+    info.height = j.value("height", 0u);
+    info.seed = j.value("seed", uint64_t(0));
+    info.strategy_json = j.value("strategy", nlohmann::json::object()).dump();
+    info.method = j.value("strategy", nlohmann::json::object()).value("method", "");
+    info.state = std::string(to_string(rec->state));
+    info.error = rec->error;
+    info.samples_done = uint64_t(rec->samples_done);
+    info.samples_planned = uint64_t(rec->samples_planned);
+    const std::vector<RoundRecord> rounds = store_->rounds(id);
+    info.rounds_done = uint32_t(rounds.size());
+    if (!rounds.empty()) {
+        info.seconds = rounds.back().seconds;
+        info.error_estimate = rounds.back().error_estimate;
+        info.error_vs_reference = rounds.back().error_vs_reference.value_or(-1);
+    }
+    info.samples_per_second = info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
+    info.created_ms = rec->created_at;
+    info.finished_ms = rec->finished_at.value_or(0);
+    info.outcome_json = rec->outcome_json;
+    return info;
+}
+
+std::vector<RenderInfo> Coordinator::list(size_t limit) {
+    std::vector<std::string> ids;
+    {
+        std::lock_guard lock(mutex_);
+        if (store_) {
+            for (const RenderRecord& r : store_->list_renders(limit)) ids.push_back(r.id);
+        } else {
+            for (auto it = order_.rbegin(); it != order_.rend() && ids.size() < limit; ++it)
+                ids.push_back(*it);
+        }
+    }
+    std::vector<RenderInfo> out;
+    for (const std::string& id : ids)
+        if (auto i = info(id)) out.push_back(std::move(*i));
+    return out;
+}
+
+std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
+    {
+        std::lock_guard lock(mutex_);
+        auto it = sessions_.find(id);
+        if (it == sessions_.end()) {
+            if (!store_ || !store_->get_render(id)) return std::nullopt;
+        } else {
+            it->second->cancel();
+            changed();
+        }
+    }
+    return info(id);
+}
+
+std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
+    std::lock_guard lock(mutex_);
+    if (auto it = sessions_.find(id); it != sessions_.end())
+        return it->second->merged().image(aovs);
+    if (!store_ || !store_->get_render(id)) return std::nullopt;
+    const auto path = render_dir(id) / "image.exr";
+    if (!std::filesystem::exists(path)) return std::nullopt;
+    Image img = read_exr(path);
+    if (!aovs) img.extra.clear();
+    return img;
+}
+
+uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    progress_.wait_for(lock, timeout, [&] { return version_ > seen || stopping_; });
+    return version_;
+}
+
+Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
+    WorkerEntry& w = workers_[name];
+    const int64_t now = now_ms();
+    if (w.first_seen_ms == 0) w.first_seen_ms = now;
+    w.last_seen_ms = now;
+    if (w.lost && store_) store_->upsert_worker(name, w.threads, now);
+    w.lost = false;
+    return w;
+}
+
+uint32_t Coordinator::register_worker(const std::string& name, uint32_t threads) {
+    std::lock_guard lock(mutex_);
+    WorkerEntry& w = touch_worker(name);
+    w.threads = threads;
+    if (store_) store_->upsert_worker(name, threads, now_ms());
+    changed();
+    return uint32_t(options_.lease_time.count());
+}
+
+std::optional<LeaseGrant> Coordinator::lease(const std::string& worker,
+                                             std::chrono::milliseconds wait) {
+    std::unique_lock lock(mutex_);
+    touch_worker(worker);
+    const auto deadline = std::chrono::steady_clock::now() + wait;
+    while (!stopping_) {
+        for (const std::string& id : order_) {
+            RenderSession& s = *sessions_[id];
+            if (s.state() != RenderState::Running || !s.has_pending()) continue;
+            const uint64_t lease_id = next_lease_id_++;
+            std::optional<SampleJob> job =
+                s.issue(lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
+            if (!job) continue;
+            lease_render_[lease_id] = id;
+            changed();
+            return LeaseGrant{lease_id,
+                              id,
+                              scene_hash(s.spec().scene_json),
+                              {s.spec().width, s.spec().height, s.spec().seed},
+                              std::move(*job),
+                              uint32_t(options_.lease_time.count())};
+        }
+        if (work_ready_.wait_until(lock, deadline) == std::cv_status::timeout) break;
+    }
+    return std::nullopt;
+}
+
+CompleteOutcome Coordinator::complete(const std::string& worker, uint64_t lease_id,
+                                      const SampleJobResult& result) {
+    std::lock_guard lock(mutex_);
+    WorkerEntry& w = touch_worker(worker);
+    const auto it = lease_render_.find(lease_id);
+    if (it == lease_render_.end())
+        return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
+    RenderSession& s = *sessions_.at(it->second);
+    lease_render_.erase(it);
+    const CompleteOutcome outcome = s.complete(lease_id, result);
+    if (outcome.status == CompleteStatus::Merged) {
+        const uint64_t samples = result.total_samples();
+        w.samples += samples;
+        if (result.wall_seconds > 0) {
+            // Per-thread rate of this job, times the worker's threads, smoothed.
+            const double rate = double(samples) / result.wall_seconds * std::max(w.threads, 1u);
+            w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
+        }
+        if (store_) {
+            try {
+                store_->record_worker_samples(worker, int64_t(samples), now_ms());
+            } catch (const std::exception& e) {
+                log_error(e.what());
+            }
+        }
+    }
+    changed();
+    return outcome;
+}
+
+std::optional<std::string> Coordinator::fetch_scene(const std::string& hash) {
+    std::lock_guard lock(mutex_);
+    if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;
+    if (store_)
+        if (auto rec = store_->get_scene(hash)) return rec->json;
+    return std::nullopt;
+}
+
+bool Coordinator::renew(const std::string& worker, uint64_t lease_id) {
+    std::lock_guard lock(mutex_);
+    touch_worker(worker);
+    const auto it = lease_render_.find(lease_id);
+    if (it == lease_render_.end()) return false;
+    return sessions_.at(it->second)->renew(lease_id, worker,
+                                          RenderSession::Clock::now() + options_.lease_time);
+}
+
+bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
+    std::lock_guard lock(mutex_);
+    touch_worker(worker);
+    const auto it = lease_render_.find(lease_id);
+    if (it == lease_render_.end()) return false;
+    const bool ok = sessions_.at(it->second)->abandon(lease_id, worker);
+    lease_render_.erase(it);
+    changed();
+    return ok;
+}
+
+std::vector<WorkerStatus> Coordinator::workers() {
+    std::lock_guard lock(mutex_);
+    std::vector<WorkerStatus> out;
+    for (const auto& [name, w] : workers_) {
+        WorkerStatus st;
+        st.name = name;
+        st.threads = w.threads;
+        for (const std::string& id : order_) {
+            const RenderSession& s = *sessions_.at(id);
+            if (s.finished()) continue;
+            for (std::string& l : s.leases_of(name)) st.leases.push_back(std::move(l));
+        }
+        st.state = w.lost ? "lost" : (st.leases.empty() ? "idle" : "busy");
+        st.samples_traced = w.samples;
+        st.samples_per_second = w.lost ? 0 : w.rate;
+        st.last_seen_ms = w.last_seen_ms;
+        out.push_back(std::move(st));
+    }
+    return out;
+}
+
+void Coordinator::tick() {
+    std::lock_guard lock(mutex_);
+    const auto now = RenderSession::Clock::now();
+    bool any = false;
+    for (auto& [id, s] : sessions_)
+        if (!s->finished() && s->expire(now) > 0) any = true;
+    const int64_t wall = now_ms();
+    for (auto& [name, w] : workers_) {
+        if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
+            w.lost = true;
+            any = true;
+            if (store_) store_->mark_worker_state(name, "lost");
+        }
+    }
+    if (any) changed();
+    // Every ~10 s: keep the WAL from growing without bound.
+    if (store_ && ++ticks_ % 50 == 0) store_->checkpoint();
+}
+
+}  // namespace aliquot

@@ -1,0 +1,115 @@
+// Coordinator: every render's session, the leases handed to workers, the workers it has
+// heard from, and (with a data directory) the SQLite record and per-round checkpoints.
+// Transport-free: the gRPC services and the embedded render call the same methods.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include "render_session.h"
+
+namespace aliquot {
+
+class RunStore;
+
+struct CoordinatorOptions {
+    std::filesystem::path data_dir;  // empty: in memory only (the embedded render)
+    std::chrono::milliseconds lease_time{30000};
+    std::chrono::milliseconds worker_lost_after{10000};
+    uint32_t max_side = 8192;
+};
+
+struct RenderInfo {
+    std::string id, scene_name, method, strategy_json, state, error, outcome_json;
+    uint32_t width = 0, height = 0;
+    uint64_t seed = 0, samples_done = 0, samples_planned = 0, rays = 0;
+    uint32_t rounds_done = 0;
+    double seconds = 0, samples_per_second = 0;
+    double error_estimate = -1, error_vs_reference = -1;
+    int64_t created_ms = 0, finished_ms = 0;
+};
+
+struct WorkerStatus {
+    std::string name, state;  // idle | busy | lost
+    uint32_t threads = 0;
+    std::vector<std::string> leases;
+    uint64_t samples_traced = 0;
+    double samples_per_second = 0;
+    int64_t last_seen_ms = 0;
+};
+
+class Coordinator : public WorkerLink {
+public:
+    explicit Coordinator(CoordinatorOptions options);
+    ~Coordinator() override;
+
+    // Client side. submit throws std::invalid_argument (bad spec) or SceneError.
+    std::string submit(RenderSpec spec);
+    std::optional<RenderInfo> info(const std::string& id);
+    std::vector<RenderInfo> list(size_t limit);
+    std::optional<RenderInfo> cancel(const std::string& id);
+    std::optional<Image> image(const std::string& id, bool aovs);
+    std::vector<WorkerStatus> workers();
+    // A counter that grows whenever any render changes; waits up to `timeout` for it to
+    // pass `seen` and returns it.
+    uint64_t wait_for_change(uint64_t seen, std::chrono::milliseconds timeout);
+
+    // Worker side (WorkerLink, in-process).
+    uint32_t register_worker(const std::string& name, uint32_t threads) override;
+    std::optional<LeaseGrant> lease(const std::string& worker,
+                                    std::chrono::milliseconds wait) override;
+    CompleteOutcome complete(const std::string& worker, uint64_t lease_id,
+                             const SampleJobResult& result) override;
+    std::optional<std::string> fetch_scene(const std::string& hash) override;
+    bool renew(const std::string& worker, uint64_t lease_id) override;
+    bool abandon(const std::string& worker, uint64_t lease_id) override;
+
+    // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls it.
+    void tick();
+    // Wakes every waiting call and refuses new leases: the first step of shutting down.
+    void stop();
+
+private:
+    struct WorkerEntry {
+        uint32_t threads = 0;
+        int64_t first_seen_ms = 0, last_seen_ms = 0;
+        uint64_t samples = 0;
+        double rate = 0;  // samples/s, smoothed over recent jobs
+        bool lost = false;
+    };
+
+    void resume_unfinished();
+    void attach(std::unique_ptr<RenderSession> session);
+    RenderInfo info_of(const RenderSession& s) const;
+    std::filesystem::path render_dir(const std::string& id) const;
+    WorkerEntry& touch_worker(const std::string& name);
+    void changed();
+
+    CoordinatorOptions options_;
+    std::unique_ptr<RunStore> store_;
+    std::mutex mutex_;
+    std::condition_variable work_ready_;
+    std::condition_variable progress_;
+    uint64_t version_ = 0;
+    uint64_t next_lease_id_;
+    uint64_t next_render_number_ = 1;
+    std::map<std::string, std::unique_ptr<RenderSession>> sessions_;  // by id
+    std::vector<std::string> order_;                                   // submission order
+    std::unordered_map<uint64_t, std::string> lease_render_;          // lease -> render id
+    std::map<std::string, std::string> scenes_;                        // hash -> json
+    std::map<std::string, WorkerEntry> workers_;
+    int ticks_ = 0;
+    bool stopping_ = false;
+    std::thread ticker_;
+};
+
+}  // namespace aliquot

@@ -1,0 +1,38 @@
+#include "embedded_render.h"
+
+#include <thread>
+
+#include "worker_loop.h"
+
+namespace aliquot {
+
+EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
+                               const std::function<void(const RenderInfo&)>& progress) {
+    CoordinatorOptions options;
+    // Local threads never vanish, but keep leases long so a slow job is never re-issued.
+    options.lease_time = std::chrono::hours(24);
+    options.worker_lost_after = std::chrono::hours(24);
+    Coordinator coordinator(options);
+    const std::string id = coordinator.submit(spec);
+
+    WorkerLoop workers(coordinator, {"local", std::max(threads, 1),
+                                     std::chrono::milliseconds(500), /*quiet=*/true});
+    std::jthread pool([&] { workers.run(); });
+
+    uint64_t seen = 0;
+    RenderInfo info;
+    while (true) {
+        seen = coordinator.wait_for_change(seen, std::chrono::milliseconds(100));
+        info = *coordinator.info(id);
+        if (info.state != "running" && info.state != "queued") break;
+        if (progress) progress(info);
+    }
+    workers.stop();
+    pool.join();
+    if (progress) progress(info);
+    if (info.state == "failed") throw std::runtime_error("render failed: " + info.error);
+    EmbeddedResult result{info, *coordinator.image(id, aovs), info.rays};
+    return result;
+}
+
+}  // namespace aliquot

@@ -1,0 +1,291 @@
+#include "grpc_server.h"
+
+#include <grpcpp/grpcpp.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "aliquot.grpc.pb.h"
+#include "exr_io.h"
+#include "scene_loader.h"
+#include "wire.h"
+
+namespace aliquot {
+
+namespace {
+
+using grpc::ServerContext;
+using grpc::Status;
+using grpc::StatusCode;
+
+void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
+    out.set_id(i.id);
+    out.set_scene_name(i.scene_name);
+    out.set_width(i.width);
+    out.set_height(i.height);
+    out.set_seed(i.seed);
+    out.set_method(i.method);
+    out.set_strategy_json(i.strategy_json);
+    out.set_state(i.state);
+    out.set_error(i.error);
+    out.set_samples_done(i.samples_done);
+    out.set_samples_planned(i.samples_planned);
+    out.set_rounds_done(i.rounds_done);
+    out.set_seconds(i.seconds);
+    out.set_samples_per_second(i.samples_per_second);
+    out.set_error_estimate(i.error_estimate);
+    out.set_error_vs_reference(i.error_vs_reference);
+    out.set_created_ms(i.created_ms);
+    out.set_finished_ms(i.finished_ms);
+    out.set_outcome_json(i.outcome_json);
+    out.set_rays(i.rays);
+}
+
+// EXR bytes through a private temporary file: OpenEXR's in-memory streams are more code
+// than this path is worth.
+std::filesystem::path temp_path(const char* tag) {
+    static std::atomic<uint64_t> counter{0};
+    return std::filesystem::temp_directory_path() /
+           ("aliquot-" + std::to_string(getpid()) + "-" + tag + "-" +
+            std::to_string(counter++) + ".exr");
+}
+
+Image image_from_bytes(const std::string& bytes) {
+    const auto path = temp_path("in");
+    {
+        std::ofstream out(path, std::ios::binary);
+        out.write(bytes.data(), std::streamsize(bytes.size()));
+    }
+    try {
+        Image img = read_exr(path);
+        std::filesystem::remove(path);
+        return img;
+    } catch (...) {
+        std::filesystem::remove(path);
+        throw;
+    }
+}
+
+std::string bytes_from_image(const Image& image) {
+    const auto path = temp_path("out");
+    write_exr(path, image);
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::filesystem::remove(path);
+    return ss.str();
+}
+
+class ClientServiceImpl final : public v1::ClientService::Service {
+public:
+    explicit ClientServiceImpl(Coordinator& c) : c_(c) {}
+
+    Status Submit(ServerContext*, const v1::SubmitRequest* req, v1::RenderInfo* reply) override {
+        try {
+            RenderSpec spec;
+            spec.scene_name = req->scene_name();
+            spec.scene_json = req->scene_json();
+            spec.width = req->width();
+            spec.height = req->height();
+            spec.seed = req->seed();
+            spec.strategy = nlohmann::json::parse(
+                req->strategy_json().empty() ? "{}" : req->strategy_json());
+            if (!req->reference_exr().empty())
+                spec.reference = image_from_bytes(req->reference_exr());
+            const std::string id = c_.submit(std::move(spec));
+            to_proto(*c_.info(id), *reply);
+            return Status::OK;
+        } catch (const nlohmann::json::exception& e) {
+            return {StatusCode::INVALID_ARGUMENT, std::string("strategy: ") + e.what()};
+        } catch (const std::invalid_argument& e) {
+            return {StatusCode::INVALID_ARGUMENT, e.what()};
+        } catch (const SceneError& e) {
+            return {StatusCode::INVALID_ARGUMENT, e.what()};
+        } catch (const ImageFileError& e) {
+            return {StatusCode::INVALID_ARGUMENT, std::string("reference: ") + e.what()};
+        } catch (const std::exception& e) {
+            return {StatusCode::INTERNAL, e.what()};
+        }
+    }
+
+    Status GetRender(ServerContext*, const v1::GetRenderRequest* req,
+                     v1::RenderInfo* reply) override {
+        const auto info = c_.info(req->id());
+        if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        to_proto(*info, *reply);
+        return Status::OK;
+    }
+
+    Status ListRenders(ServerContext*, const v1::ListRendersRequest* req,
+                       v1::ListRendersReply* reply) override {
+        for (const RenderInfo& i : c_.list(req->limit() ? req->limit() : 100))
+            to_proto(i, *reply->add_renders());
+        return Status::OK;
+    }
+
+    Status Watch(ServerContext* ctx, const v1::GetRenderRequest* req,
+                 grpc::ServerWriter<v1::RenderInfo>* writer) override {
+        uint64_t seen = 0;
+        while (!ctx->IsCancelled()) {
+            const auto info = c_.info(req->id());
+            if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+            v1::RenderInfo msg;
+            to_proto(*info, msg);
+            if (!writer->Write(msg)) return Status::OK;
+            if (info->state != "running" && info->state != "queued") return Status::OK;
+            // At most a few updates a second, however fast jobs merge.
+            std::this_thread::sleep_for(std::chrono::milliseconds(250));
+            seen = c_.wait_for_change(seen, std::chrono::seconds(1));
+        }
+        return Status::OK;
+    }
+
+    Status Cancel(ServerContext*, const v1::GetRenderRequest* req,
+                  v1::RenderInfo* reply) override {
+        const auto info = c_.cancel(req->id());
+        if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        to_proto(*info, *reply);
+        return Status::OK;
+    }
+
+    Status FetchImage(ServerContext*, const v1::FetchImageRequest* req,
+                      grpc::ServerWriter<v1::FileChunk>* writer) override {
+        const auto image = c_.image(req->id(), req->aovs());
+        if (!image) return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
+        const std::string bytes = bytes_from_image(*image);
+        constexpr size_t kChunk = 1 << 20;
+        for (size_t off = 0; off < bytes.size(); off += kChunk) {
+            v1::FileChunk chunk;
+            chunk.set_data(bytes.substr(off, kChunk));
+            if (!writer->Write(chunk)) break;
+        }
+        return Status::OK;
+    }
+
+    Status ListWorkers(ServerContext*, const v1::ListWorkersRequest*,
+                       v1::ListWorkersReply* reply) override {
+        for (const WorkerStatus& w : c_.workers()) {
+            v1::WorkerInfo* out = reply->add_workers();
+            out->set_name(w.name);
+            out->set_threads(w.threads);
+            out->set_state(w.state);
+            for (const std::string& l : w.leases) out->add_leases(l);
+            out->set_samples_traced(w.samples_traced);
+            out->set_samples_per_second(w.samples_per_second);
+            out->set_last_seen_ms(w.last_seen_ms);
+        }
+        return Status::OK;
+    }
+
+private:
+    Coordinator& c_;
+};
+
+class WorkerServiceImpl final : public v1::WorkerService::Service {
+public:
+    explicit WorkerServiceImpl(Coordinator& c) : c_(c) {}
+
+    Status Register(ServerContext*, const v1::RegisterRequest* req,
+                    v1::RegisterReply* reply) override {
+        if (req->name().empty()) return {StatusCode::INVALID_ARGUMENT, "worker name is empty"};
+        reply->set_lease_ms(c_.register_worker(req->name(), req->threads()));
+        return Status::OK;
+    }
+
+    Status Lease(ServerContext*, const v1::LeaseRequest* req, v1::LeaseReply* reply) override {
+        const auto wait = std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
+        const std::optional<LeaseGrant> grant = c_.lease(req->worker(), wait);
+        if (!grant) {
+            reply->set_retry_after_ms(0);  // long-poll already waited; ask again at once
+            return Status::OK;
+        }
+        v1::Lease* l = reply->mutable_lease();
+        l->set_lease_id(grant->lease_id);
+        l->set_render_id(grant->render_id);
+        l->set_scene_hash(grant->scene_hash);
+        l->set_width(grant->geometry.width);
+        l->set_height(grant->geometry.height);
+        l->set_seed(grant->geometry.seed);
+        aliquot::to_proto(grant->job, *l->mutable_job());
+        l->set_lease_ms(grant->lease_ms);
+        return Status::OK;
+    }
+
+    Status Complete(ServerContext*, const v1::CompleteRequest* req,
+                    v1::CompleteReply* reply) override {
+        SampleJobResult result;
+        try {
+            result = from_proto(req->result());
+        } catch (const WireError& e) {
+            // Malformed: nothing is merged and the job goes back to be traced again.
+            c_.abandon(req->worker(), req->lease_id());
+            reply->set_status("rejected");
+            reply->set_message(e.what());
+            return Status::OK;
+        }
+        const CompleteOutcome outcome = c_.complete(req->worker(), req->lease_id(), result);
+        reply->set_status(outcome.status == CompleteStatus::Merged     ? "merged"
+                          : outcome.status == CompleteStatus::Rejected ? "rejected"
+                                                                       : "ignored");
+        reply->set_message(outcome.message);
+        return Status::OK;
+    }
+
+    Status FetchScene(ServerContext*, const v1::FetchSceneRequest* req,
+                      v1::FetchSceneReply* reply) override {
+        const auto json = c_.fetch_scene(req->hash());
+        if (!json) return {StatusCode::NOT_FOUND, "no scene " + req->hash()};
+        reply->set_scene_json(*json);
+        return Status::OK;
+    }
+
+    Status Renew(ServerContext*, const v1::RenewRequest* req, v1::RenewReply* reply) override {
+        reply->set_valid(c_.renew(req->worker(), req->lease_id()));
+        return Status::OK;
+    }
+
+    Status Abandon(ServerContext*, const v1::RenewRequest* req,
+                   v1::RenewReply* reply) override {
+        reply->set_valid(c_.abandon(req->worker(), req->lease_id()));
+        return Status::OK;
+    }
+
+private:
+    Coordinator& c_;
+};
+
+}  // namespace
+
+struct GrpcServer::Services {
+    ClientServiceImpl client;
+    WorkerServiceImpl worker;
+    explicit Services(Coordinator& c) : client(c), worker(c) {}
+};
+
+GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address)
+    : services_(std::make_unique<Services>(coordinator)) {
+    grpc::ServerBuilder builder;
+    builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &port_);
+    builder.RegisterService(&services_->client);
+    builder.RegisterService(&services_->worker);
+    // Keepalive matched with the workers' channel settings (worker/grpc_link.cpp).
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+    builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+    builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10000);
+    builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
+    server_ = builder.BuildAndStart();
+    if (!server_ || port_ == 0) throw std::runtime_error("cannot listen on " + address);
+}
+
+GrpcServer::~GrpcServer() { shutdown(); }
+
+void GrpcServer::shutdown() {
+    if (server_) {
+        server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+        server_.reset();
+    }
+}
+
+}  // namespace aliquot

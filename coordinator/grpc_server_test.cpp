@@ -1,0 +1,149 @@
+// The worker service over real gRPC on loopback, fed results a broken or malicious worker
+// could send. None may touch the image; every job must still be traced exactly once.
+#include "grpc_server.h"
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "aliquot.grpc.pb.h"
+#include "scene_loader.h"
+#include "wire.h"
+
+namespace aliquot {
+namespace {
+
+class WorkerServiceTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = std::filesystem::temp_directory_path() /
+               ("aliquot-grpc-test-" + std::to_string(::getpid()));
+        std::filesystem::remove_all(dir_);
+        CoordinatorOptions options;
+        options.data_dir = dir_;
+        coordinator_ = std::make_unique<Coordinator>(options);
+        server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0");
+        stub_ = v1::WorkerService::NewStub(grpc::CreateChannel(
+            "127.0.0.1:" + std::to_string(server_->port()), grpc::InsecureChannelCredentials()));
+
+        RenderSpec spec;
+        spec.scene_name = "cornell-box";
+        spec.scene_json = self_contained_scene_json("cornell-box");
+        spec.width = 8;  // one job: the whole image fits one 32x32 tile
+        spec.height = 8;
+        spec.seed = 3;
+        spec.strategy.method = "uniform";
+        spec.strategy.spp = 1;
+        scene_ = parse_scene(spec.scene_json, "test", ".");
+        tracer_ = std::make_unique<PathTracer>(scene_);
+        id_ = coordinator_->submit(spec);
+    }
+    void TearDown() override {
+        server_.reset();
+        coordinator_.reset();
+        std::filesystem::remove_all(dir_);
+    }
+
+    v1::Lease lease() {
+        grpc::ClientContext ctx;
+        v1::LeaseRequest req;
+        req.set_worker("tester");
+        req.set_wait_ms(2000);
+        v1::LeaseReply reply;
+        EXPECT_TRUE(stub_->Lease(&ctx, req, &reply).ok());
+        EXPECT_TRUE(reply.has_lease());
+        return reply.lease();
+    }
+    v1::SampleJobResult trace(const v1::Lease& l) {
+        const SampleJobResult r =
+            trace_sample_job(*tracer_, {l.width(), l.height(), l.seed()}, from_proto(l.job()));
+        v1::SampleJobResult out;
+        to_proto(r, out);
+        return out;
+    }
+    std::string complete(uint64_t lease_id, const v1::SampleJobResult& result) {
+        grpc::ClientContext ctx;
+        v1::CompleteRequest req;
+        req.set_worker("tester");
+        req.set_lease_id(lease_id);
+        *req.mutable_result() = result;
+        v1::CompleteReply reply;
+        EXPECT_TRUE(stub_->Complete(&ctx, req, &reply).ok());
+        return reply.status();
+    }
+    uint64_t samples_merged() { return coordinator_->info(id_)->samples_done; }
+
+    std::filesystem::path dir_;
+    std::unique_ptr<Coordinator> coordinator_;
+    std::unique_ptr<GrpcServer> server_;
+    std::unique_ptr<v1::WorkerService::Stub> stub_;
+    Scene scene_;
+    std::unique_ptr<PathTracer> tracer_;
+    std::string id_;
+};
+
+TEST_F(WorkerServiceTest, RejectsAResultWithTheWrongPixelCountAndReissuesTheJob) {
+    const v1::Lease first = lease();
+    v1::SampleJobResult bad = trace(first);
+    bad.mutable_samples()->RemoveLast();
+    EXPECT_EQ(complete(first.lease_id(), bad), "rejected");
+    EXPECT_EQ(samples_merged(), 0u);
+    const v1::Lease again = lease();  // the same job, under a new lease
+    EXPECT_NE(again.lease_id(), first.lease_id());
+    EXPECT_EQ(again.job().rect().width(), first.job().rect().width());
+    EXPECT_EQ(complete(again.lease_id(), trace(again)), "merged");
+    EXPECT_EQ(coordinator_->info(id_)->state, "done");
+}
+
+TEST_F(WorkerServiceTest, RejectsNegativeSampleCounts) {
+    const v1::Lease l = lease();
+    v1::SampleJobResult bad = trace(l);
+    bad.set_samples(0, uint64_t(-1));  // -1 as a worker with a sign bug would send it
+    EXPECT_EQ(complete(l.lease_id(), bad), "rejected");
+    EXPECT_EQ(samples_merged(), 0u);
+}
+
+TEST_F(WorkerServiceTest, RejectsNonFiniteSums) {
+    const v1::Lease l = lease();
+    v1::SampleJobResult bad = trace(l);
+    bad.set_sum_even(0, std::numeric_limits<double>::quiet_NaN());
+    EXPECT_EQ(complete(l.lease_id(), bad), "rejected");
+    EXPECT_EQ(samples_merged(), 0u);
+}
+
+TEST_F(WorkerServiceTest, IgnoresAResultForAnUnknownLease) {
+    const v1::Lease l = lease();
+    EXPECT_EQ(complete(l.lease_id() + 12345, trace(l)), "ignored");
+    EXPECT_EQ(samples_merged(), 0u);
+}
+
+TEST_F(WorkerServiceTest, IgnoresAResultSentTwice) {
+    const v1::Lease l = lease();
+    const v1::SampleJobResult r = trace(l);
+    EXPECT_EQ(complete(l.lease_id(), r), "merged");
+    const Image once = *coordinator_->image(id_, true);
+    EXPECT_EQ(complete(l.lease_id(), r), "ignored");
+    const Image twice = *coordinator_->image(id_, true);
+    EXPECT_EQ(once.rgb, twice.rgb);
+    EXPECT_EQ(samples_merged(), 64u);
+}
+
+TEST_F(WorkerServiceTest, IgnoresALateResultForALeaseGivenToAnotherWorker) {
+    const v1::Lease l = lease();
+    {
+        grpc::ClientContext ctx;
+        v1::RenewRequest req;
+        req.set_worker("tester");
+        req.set_lease_id(l.lease_id());
+        v1::RenewReply reply;
+        ASSERT_TRUE(stub_->Abandon(&ctx, req, &reply).ok());
+        EXPECT_TRUE(reply.valid());
+    }
+    const v1::Lease reissued = lease();
+    EXPECT_EQ(complete(l.lease_id(), trace(l)), "ignored");
+    EXPECT_EQ(complete(reissued.lease_id(), trace(reissued)), "merged");
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,248 @@
+#include "optimal_strategy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "allocation.h"
+
+// Why n_i ∝ sigma_i^(2/3). The mean of n_i samples of pixel i has standard deviation
+// sigma_i / sqrt(n_i), and for a near-normal error its expected absolute value is
+// sqrt(2/pi) times that; so the seed's E (mean absolute error over pixels) is, up to a
+// constant,
+//     F(n) = sum_i sigma_i / sqrt(n_i).
+// Minimise F subject to a budget sum_i c_i n_i = T (optimal: c_i = 1, T = B samples;
+// optimal-time: c_i = rays per sample, T = rays). With a Lagrange multiplier lambda,
+//     L = sum_i sigma_i n_i^(-1/2) + lambda (sum_i c_i n_i - T),
+//     dL/dn_i = -(1/2) sigma_i n_i^(-3/2) + lambda c_i = 0
+//     =>  n_i = (sigma_i / (2 lambda c_i))^(2/3)  ∝  (sigma_i / c_i)^(2/3).
+// F is convex (n^(-1/2) is), so this stationary point is the minimum; with the floor and
+// cap as box constraints the KKT conditions give n_i = clamp(mu w_i, lo, hi), w_i the
+// weight above and one mu for all pixels. Without the box, F_opt = (sum
+// sigma^(2/3))^(3/2) / sqrt(B) against uniform's (sum sigma) sqrt(N / B); Hölder's
+// inequality makes the ratio <= 1. (Squared error, sum sigma^2 / n, would give n ∝ sigma,
+// as in Neyman's allocation.)
+
+namespace aliquot {
+
+namespace {
+
+// Protection against sigma under-estimated at low spp. A pixel's variance is never taken
+// below half the median of its 3x3 neighbourhood: variance is spatially coherent (a
+// caustic or a light's edge covers several pixels), so a pixel whose few samples happened
+// to agree inside a noisy region is probably as noisy as the region; the median rather
+// than the mean, so that one isolated firefly does not make its eight neighbours look
+// noisy. Nor below 1/256 of the image's median variance: a pixel estimated at zero still
+// gets (1/256)^(1/3) ≈ 0.16 of a typical pixel's share and keeps being re-estimated as
+// its count grows, instead of staying at min_spp for ever. Over-estimates cost little:
+// the error is flat near the optimum.
+constexpr double kNeighbourhoodFactor = 0.5;
+constexpr double kImageFactor = 1.0 / 256;
+
+std::vector<double> median3x3(const std::vector<double>& v, uint32_t w, uint32_t h) {
+    std::vector<double> out(v.size());
+    double window[9];
+    for (uint32_t y = 0; y < h; ++y) {
+        for (uint32_t x = 0; x < w; ++x) {
+            int n = 0;
+            for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
+                for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
+                    window[n++] = v[size_t(yy) * w + xx];
+            std::nth_element(window, window + n / 2, window + n);
+            out[size_t(y) * w + x] = window[n / 2];
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32_t height,
+                                 bool cost_aware)
+    : width_(width),
+      height_(height),
+      budget_(sample_budget(p, size_t(width) * height)),
+      min_spp_(p.min_spp),
+      cap_(spp_cap(p)),
+      cost_aware_(cost_aware) {}
+
+std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged) {
+    const size_t n = merged.pixel_count();
+    std::vector<double> var(n);
+    double largest = 0;
+    for (size_t i = 0; i < n; ++i) {
+        var[i] = merged.luminance_variance(i);
+        if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
+    }
+    // Sums that overflowed say "very noisy", not NaN.
+    for (double& v : var)
+        if (!std::isfinite(v)) v = largest;
+    const std::vector<double> near = median3x3(var, merged.width(), merged.height());
+    std::vector<double> sorted = var;
+    std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+    const double median = n ? sorted[n / 2] : 0.0;
+    std::vector<double> sigma(n);
+    for (size_t i = 0; i < n; ++i)
+        sigma[i] = std::sqrt(
+            std::max({var[i], kNeighbourhoodFactor * near[i], kImageFactor * median}));
+    return sigma;
+}
+
+std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
+                                                    const std::vector<double>& costs,
+                                                    double total, double lo, double hi) {
+    const size_t n = weights.size();
+    auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
+    double floor_cost = 0, cap_cost = 0;
+    for (size_t i = 0; i < n; ++i) {
+        floor_cost += cost(i) * lo;
+        cap_cost += cost(i) * hi;
+    }
+    if (total <= floor_cost) {
+        const double scale = floor_cost > 0 ? total / floor_cost : 0.0;
+        return std::vector<double>(n, lo * scale);
+    }
+    if (total >= cap_cost) return std::vector<double>(n, hi);
+
+    // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising:
+    // pixel i starts rising at mu = lo / w_i and stops at hi / w_i. Sweep those events.
+    struct Event {
+        double mu, slope, constant;
+    };
+    std::vector<Event> events;
+    events.reserve(2 * n);
+    for (size_t i = 0; i < n; ++i) {
+        if (!(weights[i] > 0)) continue;
+        const double cw = cost(i) * weights[i];
+        events.push_back({lo / weights[i], cw, -cost(i) * lo});
+        events.push_back({hi / weights[i], -cw, cost(i) * hi});
+    }
+    std::sort(events.begin(), events.end(),
+              [](const Event& a, const Event& b) { return a.mu < b.mu; });
+    double constant = floor_cost, slope = 0;
+    double mu = std::numeric_limits<double>::infinity();
+    for (const Event& e : events) {
+        if (slope > 0 && constant + slope * e.mu >= total) {
+            mu = (total - constant) / slope;
+            break;
+        }
+        slope += e.slope;
+        constant += e.constant;
+    }
+    std::vector<double> counts(n);
+    for (size_t i = 0; i < n; ++i)
+        counts[i] = weights[i] > 0 ? std::clamp(mu * weights[i], lo, hi) : lo;
+    return counts;
+}
+
+std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
+    if (finished_) return std::nullopt;
+    const size_t pixels = size_t(width_) * height_;
+    Round round{rounds_, {}};
+
+    if (!piloted_) {
+        piloted_ = true;
+        const uint64_t pilot = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
+        if (pilot > 0) {
+            round.spp.assign(pixels, uint32_t(pilot));
+        } else {
+            // Less than a sample per pixel: nothing can be estimated, so the budget is
+            // spread evenly (hash-ordered, not the first rows) in one round.
+            round.spp = apportion(std::vector<double>(pixels, 1.0), double(budget_),
+                                  std::vector<uint32_t>(pixels, cap_));
+            finished_ = true;
+        }
+    } else {
+        if (cost_aware_ && ray_budget_ == 0) {
+            // The budget is given in samples; in rays it is what those samples would cost
+            // at the pilot's mean rays per sample.
+            const double per_sample =
+                merged.total_samples() && merged.total_rays()
+                    ? double(merged.total_rays()) / merged.total_samples()
+                    : 1.0;
+            ray_budget_ = double(budget_) * per_sample;
+        }
+        const double spent =
+            cost_aware_ ? double(merged.total_rays()) : double(merged.total_samples());
+        const double limit = cost_aware_ ? ray_budget_ : double(budget_);
+        const double remaining = limit - spent;
+        if (!(remaining >= 1)) {
+            finished_ = true;
+            return std::nullopt;
+        }
+        // Each round spends as much as all before it (at most what is left), so the
+        // estimates that steer a round rest on at least half of the render so far.
+        const double share = std::min(remaining, std::max(spent, 1.0));
+
+        const std::vector<double> sigma = sigma_estimates(merged);
+        std::vector<double> cost;
+        if (cost_aware_) {
+            const double mean_cost =
+                merged.total_samples() && merged.total_rays()
+                    ? double(merged.total_rays()) / merged.total_samples()
+                    : 1.0;
+            cost.resize(pixels);
+            for (size_t i = 0; i < pixels; ++i) {
+                const PixelSums& p = merged.at(i);
+                cost[i] =
+                    p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
+            }
+        }
+        std::vector<double> weight(pixels);
+        bool any = false;
+        for (size_t i = 0; i < pixels; ++i) {
+            weight[i] = std::cbrt(cost_aware_ ? std::pow(sigma[i] / cost[i], 2.0)
+                                              : sigma[i] * sigma[i]);
+            any = any || weight[i] > 0;
+        }
+        if (!any) std::fill(weight.begin(), weight.end(), 1.0);  // no noise seen anywhere
+
+        const std::vector<double> target =
+            optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
+        // The round closes the gap between what each pixel has and its target; pixels
+        // already past their target get nothing, so the gaps are scaled to the share.
+        std::vector<double> gap(pixels);
+        std::vector<uint32_t> room(pixels);
+        for (size_t i = 0; i < pixels; ++i) {
+            const uint64_t have = merged.samples(i);
+            gap[i] = std::max(0.0, target[i] - double(have));
+            room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
+        }
+        round.spp = apportion(gap, share, room, cost);
+    }
+    const uint64_t total = round.total();
+    if (total == 0) {
+        finished_ = true;
+        return std::nullopt;
+    }
+    issued_ += total;
+    ++rounds_;
+    return round;
+}
+
+nlohmann::json OptimalStrategy::outcome() const {
+    nlohmann::json out = {{"budget", budget_}, {"samples", issued_}, {"rounds", rounds_}};
+    if (cost_aware_)
+        out["ray_budget"] = ray_budget_;
+    else
+        out["unspent"] = budget_ > issued_ ? budget_ - issued_ : 0;
+    return out;
+}
+
+nlohmann::json OptimalStrategy::save_state() const {
+    return {{"ray_budget", ray_budget_},
+            {"rounds", rounds_},
+            {"issued", issued_},
+            {"piloted", piloted_},
+            {"finished", finished_}};
+}
+
+void OptimalStrategy::restore_state(const nlohmann::json& state) {
+    ray_budget_ = state.at("ray_budget").get<double>();
+    rounds_ = state.at("rounds").get<uint32_t>();
+    issued_ = state.at("issued").get<uint64_t>();
+    piloted_ = state.at("piloted").get<bool>();
+    finished_ = state.at("finished").get<bool>();
+}
+
+}  // namespace aliquot

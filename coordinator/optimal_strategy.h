@@ -1,0 +1,53 @@
+// OptimalStrategy: our method. Progressive rounds that give pixel i a share of the budget
+// proportional to sigma_i^(2/3), the allocation that minimises the expected mean absolute
+// error; `optimal-time` weighs by (sigma_i / c_i)^(2/3) with c_i the pixel's rays per
+// sample, minimising the error for a fixed time (rays) instead of a fixed sample count.
+#pragma once
+
+#include "strategy.h"
+#include "strategy_params.h"
+
+namespace aliquot {
+
+class OptimalStrategy : public Strategy {
+  public:
+    // Uses budget (or spp), min_spp and max_spp.
+    OptimalStrategy(const StrategyParams& params, uint32_t width, uint32_t height,
+                    bool cost_aware);
+
+    std::string name() const override { return cost_aware_ ? "optimal-time" : "optimal"; }
+    std::optional<Round> next_round(const Accumulator& merged) override;
+    uint64_t planned_samples() const override { return budget_; }
+    nlohmann::json save_state() const override;
+    void restore_state(const nlohmann::json& state) override;
+    nlohmann::json outcome() const override;
+
+    // optimal-time's budget in rays (budget * the pilot's mean rays per sample); 0 before
+    // the pilot is merged.
+    double ray_budget() const { return ray_budget_; }
+
+    // Per-pixel standard deviation of one sample's luminance, protected against estimates
+    // that are too low at low sample counts (see the .cpp).
+    static std::vector<double> sigma_estimates(const Accumulator& merged);
+
+    // The real-valued optimum n_i = clamp(lambda * w_i, lo, hi) with sum_i c_i n_i =
+    // total (c_i = costs[i], or 1 when costs is empty). Below the floor's cost the floors
+    // are scaled down; above the caps' cost every pixel is at its cap.
+    static std::vector<double> optimal_counts(const std::vector<double>& weights,
+                                              const std::vector<double>& costs,
+                                              double total, double lo, double hi);
+
+  private:
+    uint32_t width_, height_;
+    uint64_t budget_;
+    uint32_t min_spp_, cap_;
+    bool cost_aware_;
+
+    double ray_budget_ = 0;
+    uint32_t rounds_ = 0;
+    uint64_t issued_ = 0;  // samples handed out in all rounds
+    bool piloted_ = false;
+    bool finished_ = false;
+};
+
+}  // namespace aliquot

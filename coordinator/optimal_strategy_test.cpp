@@ -1,0 +1,233 @@
+#include "optimal_strategy.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "strategy_params.h"
+#include "synthetic_source.h"
+#include "uniform_strategy.h"
+
+namespace aliquot {
+namespace {
+
+StrategyParams optimal(uint64_t budget, const char* method = "optimal") {
+    StrategyParams p;
+    p.method = method;
+    p.budget = budget;
+    return p;
+}
+
+// Four vertical bands of 16 columns whose noise doubles from one band to the next.
+SyntheticImage banded_image() {
+    SyntheticImage image(64, 64, 21);
+    for (uint32_t y = 0; y < 64; ++y)
+        for (uint32_t x = 0; x < 64; ++x)
+            image.at(x, y) = {0.5, 0.1 * double(1 << (x / 16))};
+    return image;
+}
+
+// sum_i sigma_i / sqrt(n_i): the expected mean absolute error up to a constant.
+double expected_error(const Accumulator& merged, const SyntheticImage& image) {
+    double f = 0;
+    for (size_t i = 0; i < merged.pixel_count(); ++i)
+        f += image.sigma(i) / std::sqrt(double(merged.samples(i)));
+    return f;
+}
+
+TEST(Optimal, OptimalCountsMeetTheLagrangeConditions) {
+    const std::vector<double> w = {0.01, 0.5, 1, 2, 4, 100};
+    const auto n = OptimalStrategy::optimal_counts(w, {}, 200, 4, 60);
+    double sum = 0;
+    for (double v : n) sum += v;
+    EXPECT_NEAR(sum, 200, 1e-9);
+    EXPECT_DOUBLE_EQ(n[0], 4);   // floor
+    EXPECT_DOUBLE_EQ(n[5], 60);  // cap
+    const double mu = n[3] / w[3];
+    for (size_t i = 1; i < 5; ++i)
+        EXPECT_NEAR(n[i], std::clamp(mu * w[i], 4.0, 60.0), 1e-9);
+}
+
+TEST(Optimal, OptimalCountsWithCostsSpendTheCostBudget) {
+    const std::vector<double> w = {1, 1, 1}, c = {1, 2, 4};
+    const auto n = OptimalStrategy::optimal_counts(w, c, 70, 0, 1e9);
+    EXPECT_NEAR(n[0] * 1 + n[1] * 2 + n[2] * 4, 70, 1e-9);
+    EXPECT_NEAR(n[0], 10, 1e-9);
+}
+
+TEST(Optimal, AllocationMatchesTheAnalyticOptimumForKnownVariances) {
+    const SyntheticImage image = banded_image();
+    const uint64_t budget = 4096 * 64;
+    OptimalStrategy strategy(optimal(budget), 64, 64, false);
+    Accumulator merged(64, 64);
+    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
+    ASSERT_EQ(merged.total_samples(), budget);
+
+    std::vector<double> weight(4096);
+    for (size_t i = 0; i < 4096; ++i)
+        weight[i] = std::cbrt(image.sigma(i) * image.sigma(i));
+    const auto best = OptimalStrategy::optimal_counts(weight, {}, double(budget), 4, 1e9);
+    for (uint32_t band = 0; band < 4; ++band) {
+        double got = 0, want = 0;
+        for (uint32_t y = 0; y < 64; ++y)
+            for (uint32_t x = band * 16; x < band * 16 + 16; ++x) {
+                got += double(merged.samples(y * 64 + x));
+                want += best[y * 64 + x];
+            }
+        EXPECT_NEAR(got / want, 1.0, 0.05) << "band " << band;
+    }
+}
+
+TEST(Optimal, ExpectedErrorBeatsUniformByThePredictedRatio) {
+    const SyntheticImage image = banded_image();
+    const uint64_t budget = 4096 * 64;
+    OptimalStrategy strategy(optimal(budget), 64, 64, false);
+    Accumulator merged(64, 64);
+    run_synthetic(strategy, image, merged);
+    // Uniform: sum sigma * sqrt(N / B). Optimum: (sum sigma^(2/3))^(3/2) / sqrt(B).
+    double sum_sigma = 0, sum_23 = 0;
+    for (size_t i = 0; i < 4096; ++i) {
+        sum_sigma += image.sigma(i);
+        sum_23 += std::cbrt(image.sigma(i) * image.sigma(i));
+    }
+    const double uniform = sum_sigma * std::sqrt(4096.0 / double(budget));
+    const double predicted = std::pow(sum_23, 1.5) / std::sqrt(double(budget)) / uniform;
+    const double measured = expected_error(merged, image) / uniform;
+    EXPECT_LT(predicted, 0.95);
+    EXPECT_NEAR(measured, predicted, 0.01 * predicted);
+}
+
+TEST(Optimal, MeasuredErrorBeatsUniformWithAFewHighVariancePixels) {
+    SyntheticImage image(64, 64, 8, {0.5, 0.05});
+    for (uint32_t i = 0; i < 4096; i += 97) image.at(i % 64, i / 64).sigma = 5.0;
+    const uint64_t budget = 4096 * 16;
+    Accumulator uniform_merged(64, 64), optimal_merged(64, 64);
+    UniformStrategy uniform(64, 64, 16);
+    OptimalStrategy strategy(optimal(budget), 64, 64, false);
+    run_synthetic(uniform, image, uniform_merged);
+    run_synthetic(strategy, image, optimal_merged);
+    const double e_uniform = mean_absolute_error(uniform_merged, image);
+    const double e_optimal = mean_absolute_error(optimal_merged, image);
+    // Predicted ratio of expected errors here is about 0.7.
+    EXPECT_LT(e_optimal, 0.8 * e_uniform) << e_optimal << " vs " << e_uniform;
+}
+
+TEST(Optimal, SpendsExactlyItsBudget) {
+    const SyntheticImage image = banded_image();
+    for (uint64_t budget : {4096u * 4, 4096u * 9 + 1, 4096u * 33 + 4095}) {
+        OptimalStrategy strategy(optimal(budget), 64, 64, false);
+        Accumulator merged(64, 64);
+        ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
+        EXPECT_EQ(merged.total_samples(), budget);
+        EXPECT_EQ(strategy.outcome()["unspent"], 0);
+    }
+}
+
+TEST(Optimal, EveryPixelGetsTheFloorAndNoneExceedsTheCap) {
+    StrategyParams p = optimal(4096 * 32);
+    p.min_spp = 8;
+    p.max_spp = 100;
+    const SyntheticImage image = banded_image();
+    OptimalStrategy strategy(p, 64, 64, false);
+    Accumulator merged(64, 64);
+    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
+    for (size_t i = 0; i < 4096; ++i) {
+        ASSERT_GE(merged.samples(i), 8u);
+        ASSERT_LE(merged.samples(i), 100u);
+    }
+}
+
+TEST(Optimal, AZeroVarianceEstimateIsRaisedToItsNeighbourhood) {
+    // 5x5 pixels with sample variance 2 (values 0 and 2 on even and odd samples) except
+    // the centre, whose two samples agree.
+    Accumulator merged(5, 5);
+    SampleJobResult r;
+    r.rect = {0, 0, 5, 5};
+    r.pixels.resize(25);
+    for (size_t i = 0; i < 25; ++i) {
+        PixelSums& p = r.pixels[i];
+        const double odd = i == 12 ? 0.0 : 2.0;
+        for (int c = 0; c < 3; ++c) p.odd[c] = odd;
+        p.sum_sq_luminance = odd * odd;
+        p.samples = 2;
+    }
+    merged.merge(r);
+    const auto sigma = OptimalStrategy::sigma_estimates(merged);
+    EXPECT_NEAR(sigma[0], std::sqrt(2.0), 1e-5);
+    EXPECT_NEAR(sigma[12], std::sqrt(0.5 * 2.0), 1e-5);
+}
+
+TEST(Optimal, AnIsolatedNoisyPixelDoesNotRaiseItsNeighbours) {
+    Accumulator merged(5, 5);
+    SampleJobResult r;
+    r.rect = {0, 0, 5, 5};
+    r.pixels.resize(25);
+    for (PixelSums& p : r.pixels) p.samples = 2;
+    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
+    r.pixels[12].sum_sq_luminance = 100;
+    merged.merge(r);
+    const auto sigma = OptimalStrategy::sigma_estimates(merged);
+    EXPECT_GT(sigma[12], 5.0);
+    EXPECT_EQ(sigma[11], 0.0);  // the image median is 0 too
+}
+
+TEST(OptimalTime, GivesCheapPixelsMoreSamplesAsSigmaOverCostToTheTwoThirds) {
+    // Equal noise; the right half costs 8 rays per sample: n_left / n_right = 8^(2/3)
+    // = 4.
+    SyntheticImage image(32, 32, 4, {0.5, 0.3});
+    for (uint32_t y = 0; y < 32; ++y)
+        for (uint32_t x = 16; x < 32; ++x) image.at(x, y).rays = 8;
+    const uint64_t budget = 1024 * 64;
+    OptimalStrategy strategy(optimal(budget, "optimal-time"), 32, 32, true);
+    Accumulator merged(32, 32);
+    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
+    double left = 0, right = 0;
+    for (uint32_t y = 0; y < 32; ++y)
+        for (uint32_t x = 0; x < 32; ++x)
+            (x < 16 ? left : right) += double(merged.samples(y * 32 + x));
+    EXPECT_NEAR(left / right, 4.0, 0.2);
+    // The budget in rays is the samples' cost at the pilot's mean of 4.5 rays per sample.
+    EXPECT_DOUBLE_EQ(strategy.ray_budget(), 4.5 * double(budget));
+    EXPECT_LE(double(merged.total_rays()), strategy.ray_budget());
+    EXPECT_GT(double(merged.total_rays()), strategy.ray_budget() - 8);
+}
+
+TEST(OptimalTime, BeatsOptimalOnExpectedErrorForTheSameRays) {
+    SyntheticImage image(32, 32, 4, {0.5, 0.3});
+    for (uint32_t y = 0; y < 32; ++y)
+        for (uint32_t x = 16; x < 32; ++x) image.at(x, y).rays = 8;
+    const uint64_t budget = 1024 * 64;
+    OptimalStrategy by_samples(optimal(budget), 32, 32, false);
+    OptimalStrategy by_time(optimal(budget, "optimal-time"), 32, 32, true);
+    Accumulator a(32, 32), b(32, 32);
+    run_synthetic(by_samples, image, a);
+    run_synthetic(by_time, image, b);
+    EXPECT_NEAR(double(a.total_rays()), double(b.total_rays()),
+                0.01 * double(a.total_rays()));
+    // Predicted: 0.75 sqrt(6) / sqrt(4.5) = 0.866 of the sample-optimal (here uniform)
+    // error.
+    EXPECT_NEAR(expected_error(b, image) / expected_error(a, image), 0.866, 0.01);
+}
+
+TEST(Optimal, RestoredStateMakesTheSameDecisions) {
+    const SyntheticImage image = banded_image();
+    OptimalStrategy whole(optimal(4096 * 40), 64, 64, false);
+    Accumulator a(64, 64);
+    std::vector<std::vector<uint32_t>> rounds;
+    run_synthetic(whole, image, a, 100,
+                  [&](const Round& r, const Accumulator&) { rounds.push_back(r.spp); });
+    OptimalStrategy first(optimal(4096 * 40), 64, 64, false);
+    Accumulator b(64, 64);
+    run_synthetic(first, image, b, 2);
+    OptimalStrategy resumed(optimal(4096 * 40), 64, 64, false);
+    resumed.restore_state(nlohmann::json::parse(first.save_state().dump()));
+    size_t r = 2;
+    run_synthetic(resumed, image, b, 100, [&](const Round& round, const Accumulator&) {
+        ASSERT_LT(r, rounds.size());
+        EXPECT_EQ(round.spp, rounds[r++]);
+    });
+    EXPECT_EQ(r, rounds.size());
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,198 @@
+#include "render_session.h"
+
+#include <cmath>
+
+#include "error_estimate.h"
+#include "error_metric.h"
+#include "round_cutter.h"
+
+namespace aliquot {
+
+RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms)
+    : id_(std::move(id)),
+      spec_(std::move(spec)),
+      created_ms_(created_ms),
+      strategy_(make_strategy(spec_.strategy, spec_.width, spec_.height)),
+      merged_(spec_.width, spec_.height) {}
+
+void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_state,
+                            uint32_t rounds_done, double seconds_before) {
+    merged_ = std::move(merged);
+    strategy_->restore_state(strategy_state);
+    rounds_done_ = rounds_done;
+    round_index_ = rounds_done;
+    seconds_before_ = seconds_before;
+    last_round_.index = rounds_done;
+    last_round_.samples_total = merged_.total_samples();
+    last_round_.error_estimate = estimate_mean_abs_error(merged_);
+}
+
+void RenderSession::start() {
+    if (finished()) return;
+    started_ = Clock::now();
+    state_ = RenderState::Running;
+    plan_next_round();
+}
+
+double RenderSession::seconds() const {
+    if (final_seconds_) return *final_seconds_;
+    if (!started_) return seconds_before_;
+    return seconds_before_ + std::chrono::duration<double>(Clock::now() - *started_).count();
+}
+
+void RenderSession::plan_next_round() {
+    jobs_.clear();
+    pending_.clear();
+    lease_to_job_.clear();
+    merged_jobs_ = 0;
+    // A strategy may plan a round with no samples; skip such rounds rather than stall.
+    while (true) {
+        std::optional<Round> round = strategy_->next_round(merged_);
+        if (!round) {
+            finish(RenderState::Done);
+            return;
+        }
+        std::vector<SampleJob> jobs = cut_round(*round, merged_);
+        if (jobs.empty()) continue;
+        round_index_ = round->index;
+        round_samples_ = round->total();
+        for (SampleJob& job : jobs) {
+            pending_.push_back(jobs_.size());
+            jobs_.push_back({std::move(job)});
+        }
+        return;
+    }
+}
+
+std::optional<SampleJob> RenderSession::issue(uint64_t lease_id, const std::string& worker,
+                                              Clock::time_point deadline) {
+    if (state_ != RenderState::Running || pending_.empty()) return std::nullopt;
+    const size_t j = pending_.front();
+    pending_.pop_front();
+    JobSlot& slot = jobs_[j];
+    slot.stage = JobSlot::Stage::Leased;
+    slot.lease_id = lease_id;
+    slot.worker = worker;
+    slot.deadline = deadline;
+    lease_to_job_[lease_id] = j;
+    return slot.job;
+}
+
+std::string RenderSession::check_result(const JobSlot& slot,
+                                        const SampleJobResult& result) const {
+    const SampleJob& job = slot.job;
+    if (!(result.rect == job.rect)) return "result rectangle differs from the job's";
+    if (result.pixels.size() != job.rect.size())
+        return "result has " + std::to_string(result.pixels.size()) + " pixels, job has " +
+               std::to_string(job.rect.size());
+    for (size_t i = 0; i < result.pixels.size(); ++i) {
+        const PixelSums& p = result.pixels[i];
+        if (p.samples != job.counts[i])
+            return "pixel " + std::to_string(i) + " has " + std::to_string(p.samples) +
+                   " samples, job asked for " + std::to_string(job.counts[i]);
+        if (p.nonfinite > p.samples) return "more non-finite samples than samples";
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(p.even[c]) || !std::isfinite(p.odd[c]))
+                return "non-finite sum at pixel " + std::to_string(i);
+        if (!std::isfinite(p.sum_sq_luminance) || p.sum_sq_luminance < 0)
+            return "bad sum of squares at pixel " + std::to_string(i);
+    }
+    return {};
+}
+
+CompleteOutcome RenderSession::complete(uint64_t lease_id, const SampleJobResult& result) {
+    if (state_ != RenderState::Running)
+        return {CompleteStatus::Ignored, "render is " + std::string(to_string(state_))};
+    const auto it = lease_to_job_.find(lease_id);
+    if (it == lease_to_job_.end())
+        return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
+    JobSlot& slot = jobs_[it->second];
+    lease_to_job_.erase(it);
+    if (std::string why = check_result(slot, result); !why.empty()) {
+        // The job is traced again by whoever asks next; nothing was merged.
+        slot.stage = JobSlot::Stage::Pending;
+        slot.lease_id = 0;
+        pending_.push_front(size_t(&slot - jobs_.data()));
+        return {CompleteStatus::Rejected, why};
+    }
+    merged_.merge(result);
+    slot.stage = JobSlot::Stage::Merged;
+    slot.lease_id = 0;
+    if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
+
+    ++rounds_done_;
+    RoundSummary summary;
+    summary.index = round_index_;
+    summary.samples_in_round = round_samples_;
+    summary.samples_total = merged_.total_samples();
+    summary.seconds = seconds();
+    summary.error_estimate = estimate_mean_abs_error(merged_);
+    if (spec_.reference)
+        summary.error_vs_reference = compare_images(merged_.image(), *spec_.reference).mean_abs;
+    last_round_ = summary;
+    if (on_round) on_round(*this, summary);
+    plan_next_round();
+    return {CompleteStatus::Merged, {}};
+}
+
+bool RenderSession::renew(uint64_t lease_id, const std::string& worker,
+                          Clock::time_point deadline) {
+    const auto it = lease_to_job_.find(lease_id);
+    if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
+    jobs_[it->second].deadline = deadline;
+    return true;
+}
+
+bool RenderSession::abandon(uint64_t lease_id, const std::string& worker) {
+    const auto it = lease_to_job_.find(lease_id);
+    if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
+    JobSlot& slot = jobs_[it->second];
+    lease_to_job_.erase(it);
+    slot.stage = JobSlot::Stage::Pending;
+    slot.lease_id = 0;
+    pending_.push_front(size_t(&slot - jobs_.data()));
+    return true;
+}
+
+size_t RenderSession::expire(Clock::time_point now) {
+    size_t n = 0;
+    for (auto it = lease_to_job_.begin(); it != lease_to_job_.end();) {
+        JobSlot& slot = jobs_[it->second];
+        if (slot.deadline <= now) {
+            slot.stage = JobSlot::Stage::Pending;
+            slot.lease_id = 0;
+            pending_.push_front(it->second);
+            it = lease_to_job_.erase(it);
+            ++n;
+        } else {
+            ++it;
+        }
+    }
+    return n;
+}
+
+std::vector<std::string> RenderSession::leases_of(const std::string& worker) const {
+    std::vector<std::string> out;
+    for (const auto& [lease, j] : lease_to_job_)
+        if (jobs_[j].worker == worker) out.push_back(id_ + "/" + std::to_string(j));
+    return out;
+}
+
+void RenderSession::cancel() {
+    if (!finished()) finish(RenderState::Cancelled);
+}
+
+void RenderSession::fail(const std::string& message) {
+    error_ = message;
+    if (!finished()) finish(RenderState::Failed);
+}
+
+void RenderSession::finish(RenderState state) {
+    final_seconds_ = seconds();
+    state_ = state;
+    pending_.clear();
+    lease_to_job_.clear();
+    if (on_finished) on_finished(*this);
+}
+
+}  // namespace aliquot

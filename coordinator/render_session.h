@@ -1,0 +1,117 @@
+// RenderSession: one render's life on the coordinator. It owns the render's buffers and
+// strategy, cuts each round into sample jobs, hands them out under leases and merges what
+// comes back. No I/O and no locking here: the Coordinator serialises calls and persists.
+#pragma once
+
+#include <chrono>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "accumulator.h"
+#include "lease.h"
+#include "render_spec.h"
+#include "render_state.h"
+#include "strategy.h"
+
+namespace aliquot {
+
+
+struct RoundSummary {
+    uint32_t index = 0;
+    uint64_t samples_in_round = 0;
+    uint64_t samples_total = 0;
+    double seconds = 0;                // wall time since the render started
+    double error_estimate = -1;        // see error_estimate.h
+    double error_vs_reference = -1;    // the seed's E against the reference, if any
+};
+
+
+class RenderSession {
+public:
+    using Clock = std::chrono::steady_clock;
+
+    RenderSession(std::string id, RenderSpec spec, int64_t created_ms);
+
+    // Continues from a checkpoint taken at a round boundary: the merged buffers and the
+    // strategy's state then. Call before start().
+    void restore(Accumulator merged, const nlohmann::json& strategy_state,
+                 uint32_t rounds_done, double seconds_before);
+    // Plans the first (or next, after restore) round; the render is then Running or Done.
+    void start();
+
+    // Hands out the next pending job under `lease_id`, or nullopt when none is pending.
+    std::optional<SampleJob> issue(uint64_t lease_id, const std::string& worker,
+                                   Clock::time_point deadline);
+    CompleteOutcome complete(uint64_t lease_id, const SampleJobResult& result);
+    bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
+    bool abandon(uint64_t lease_id, const std::string& worker);
+    // Returns leases whose deadline passed to the pending queue; how many.
+    size_t expire(Clock::time_point now);
+    void cancel();
+    void fail(const std::string& message);
+
+    bool has_pending() const { return !pending_.empty(); }
+    bool finished() const { return is_terminal(state_); }
+    // "render/job" for each lease `worker` holds.
+    std::vector<std::string> leases_of(const std::string& worker) const;
+
+    const std::string& id() const { return id_; }
+    const RenderSpec& spec() const { return spec_; }
+    RenderState state() const { return state_; }
+    const std::string& error() const { return error_; }
+    const Accumulator& merged() const { return merged_; }
+    const Strategy& strategy() const { return *strategy_; }
+    uint32_t rounds_done() const { return rounds_done_; }
+    uint64_t samples_planned() const { return strategy_->planned_samples(); }
+    double seconds() const;
+    double error_estimate() const { return last_round_.error_estimate; }
+    double error_vs_reference() const { return last_round_.error_vs_reference; }
+    int64_t created_ms() const { return created_ms_; }
+
+    // Called after a round is fully merged, before the next is planned: the moment a
+    // checkpoint captures (the strategy's state still describes the merged buffers).
+    std::function<void(RenderSession&, const RoundSummary&)> on_round;
+    // Called once when the render reaches Done, Cancelled or Failed.
+    std::function<void(RenderSession&)> on_finished;
+
+private:
+    struct JobSlot {
+        SampleJob job;
+        enum class Stage { Pending, Leased, Merged } stage = Stage::Pending;
+        uint64_t lease_id = 0;
+        std::string worker;
+        Clock::time_point deadline;
+    };
+
+    void plan_next_round();
+    void finish(RenderState state);
+    std::string check_result(const JobSlot& slot, const SampleJobResult& result) const;
+
+    std::string id_;
+    RenderSpec spec_;
+    int64_t created_ms_;
+    std::unique_ptr<Strategy> strategy_;
+    Accumulator merged_;
+    RenderState state_ = RenderState::Queued;
+    std::string error_;
+
+    uint32_t round_index_ = 0;
+    uint64_t round_samples_ = 0;
+    std::vector<JobSlot> jobs_;
+    std::deque<size_t> pending_;
+    std::unordered_map<uint64_t, size_t> lease_to_job_;
+    size_t merged_jobs_ = 0;
+    uint32_t rounds_done_ = 0;
+    RoundSummary last_round_;
+
+    double seconds_before_ = 0;
+    std::optional<Clock::time_point> started_;
+    std::optional<double> final_seconds_;
+};
+
+}  // namespace aliquot

@@ -1,0 +1,30 @@
+// RenderSpec: everything that defines a render's output bytes (scene, size, seed, method),
+// plus an optional reference image that errors are measured against.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "image.h"
+#include "strategy_params.h"
+
+namespace aliquot {
+
+struct RenderSpec {
+    std::string scene_name;   // for people: built-in name or file
+    std::string scene_json;   // self-contained (meshes inlined)
+    uint32_t width = 0, height = 0;
+    uint64_t seed = 0;
+    StrategyParams strategy;
+    std::optional<Image> reference;
+};
+
+// Hex SHA-256 of the scene JSON: scenes are stored and cached by it.
+std::string scene_hash(const std::string& scene_json);
+
+// Throws std::invalid_argument naming what is wrong: resolution 0 or above `max_side`,
+// strategy parameters, a reference of another resolution.
+void validate(const RenderSpec& spec, uint32_t max_side = 8192);
+
+}  // namespace aliquot

@@ -1,0 +1,667 @@
+// RunStore on the SQLite C API: one connection, cached prepared statements, numbered
+// migrations. The schema and the reasons for the pragmas are in docs/STORE.md.
+#include "store.h"
+
+#include <sqlite3.h>
+
+#include <chrono>
+#include <cmath>
+#include <concepts>
+#include <system_error>
+#include <unordered_map>
+
+namespace aliquot {
+
+namespace {
+
+// The schema, one migration per entry; migration N is entry N-1 and is applied once, in
+// its own transaction, recorded in schema_migrations. Append only: a migration that has
+// shipped is never edited, because databases in the field have already run it.
+const char* const kMigrations[] = {
+    // 1: scenes, renders and their rounds, workers.
+    R"sql(
+CREATE TABLE scenes (
+    hash TEXT PRIMARY KEY,
+    name TEXT NOT NULL,
+    json TEXT NOT NULL,
+    created_at INTEGER NOT NULL
+) STRICT;
+
+CREATE TABLE renders (
+    id TEXT PRIMARY KEY,
+    scene_hash TEXT NOT NULL REFERENCES scenes(hash),
+    spec_json TEXT NOT NULL,
+    state TEXT NOT NULL
+        CHECK (state IN ('queued', 'running', 'done', 'cancelled', 'failed')),
+    error TEXT,
+    created_at INTEGER NOT NULL,
+    started_at INTEGER,
+    finished_at INTEGER,
+    samples_planned INTEGER NOT NULL CHECK (samples_planned >= 0),
+    samples_done INTEGER NOT NULL CHECK (samples_done >= 0),
+    strategy_state_json TEXT,
+    outcome_json TEXT,
+    reference_path TEXT
+) STRICT;
+CREATE INDEX renders_by_created ON renders(created_at);
+CREATE INDEX renders_by_state ON renders(state, created_at);
+CREATE INDEX renders_by_scene ON renders(scene_hash);
+
+CREATE TABLE rounds (
+    render_id TEXT NOT NULL REFERENCES renders(id) ON DELETE CASCADE,
+    idx INTEGER NOT NULL CHECK (idx >= 0),
+    samples_in_round INTEGER NOT NULL CHECK (samples_in_round >= 0),
+    samples_total INTEGER NOT NULL CHECK (samples_total >= 0),
+    seconds REAL NOT NULL,
+    error_estimate REAL NOT NULL,
+    error_vs_reference REAL,
+    buckets_json TEXT,
+    created_at INTEGER NOT NULL,
+    PRIMARY KEY (render_id, idx)
+) STRICT;
+
+CREATE TABLE workers (
+    name TEXT PRIMARY KEY,
+    threads INTEGER NOT NULL CHECK (threads >= 0),
+    first_seen INTEGER NOT NULL,
+    last_seen INTEGER NOT NULL,
+    samples_traced INTEGER NOT NULL DEFAULT 0 CHECK (samples_traced >= 0),
+    state TEXT NOT NULL
+) STRICT;
+)sql",
+    // 2: studies, groups of renders compared against each other.
+    R"sql(
+CREATE TABLE studies (
+    id TEXT PRIMARY KEY,
+    name TEXT NOT NULL,
+    definition_json TEXT NOT NULL,
+    created_at INTEGER NOT NULL
+) STRICT;
+
+CREATE TABLE study_renders (
+    study_id TEXT NOT NULL REFERENCES studies(id) ON DELETE CASCADE,
+    render_id TEXT NOT NULL REFERENCES renders(id) ON DELETE CASCADE,
+    PRIMARY KEY (study_id, render_id)
+) STRICT;
+CREATE INDEX study_renders_by_render ON study_renders(render_id);
+)sql",
+};
+
+constexpr int kLatestVersion = int(sizeof(kMigrations) / sizeof(kMigrations[0]));
+
+const std::string kRenderColumns =
+    "id, scene_hash, spec_json, state, error, created_at, started_at, finished_at, "
+    "samples_planned, samples_done, strategy_state_json, outcome_json, reference_path";
+
+const std::string kRoundColumns =
+    "render_id, idx, samples_in_round, samples_total, seconds, error_estimate, "
+    "error_vs_reference, buckets_json, created_at";
+
+// Optional text: empty in the records, NULL in the database.
+std::optional<std::string_view> or_null(const std::string& text) {
+    if (text.empty()) return std::nullopt;
+    return text;
+}
+
+}  // namespace
+
+int64_t unix_millis_now() {
+    using namespace std::chrono;
+    return duration_cast<milliseconds>(system_clock::now().time_since_epoch()).count();
+}
+
+// The connection and its prepared statements, finalized before the connection closes.
+struct RunStore::Connection {
+    sqlite3* db = nullptr;
+    std::unordered_map<std::string, sqlite3_stmt*> statements;
+
+    ~Connection() {
+        for (auto& [sql, stmt] : statements) sqlite3_finalize(stmt);
+        // Closing the last connection checkpoints the WAL and removes it.
+        sqlite3_close_v2(db);
+    }
+};
+
+// One use of a cached statement: binds parameters in order, steps, reads columns, and
+// resets the statement when it goes out of scope. Failures throw StoreError naming the
+// purpose.
+class RunStore::Query {
+public:
+    Query(sqlite3* db, sqlite3_stmt* stmt, std::string purpose)
+        : db_(db), stmt_(stmt), purpose_(std::move(purpose)) {}
+    ~Query() {
+        sqlite3_reset(stmt_);
+        sqlite3_clear_bindings(stmt_);
+    }
+    Query(const Query&) = delete;
+    Query& operator=(const Query&) = delete;
+
+    template <std::integral T>
+    Query& bind(T value) {
+        check(sqlite3_bind_int64(stmt_, ++index_, static_cast<sqlite3_int64>(value)));
+        return *this;
+    }
+    Query& bind(double value) {
+        check(sqlite3_bind_double(stmt_, ++index_, value));
+        return *this;
+    }
+    Query& bind(std::string_view text) {
+        // A null data pointer would bind NULL, not the empty string.
+        check(sqlite3_bind_text(stmt_, ++index_, text.data() ? text.data() : "",
+                                static_cast<int>(text.size()), SQLITE_TRANSIENT));
+        return *this;
+    }
+    Query& bind(const char* text) { return bind(std::string_view(text)); }
+    Query& bind(const std::string& text) { return bind(std::string_view(text)); }
+    Query& bind(std::nullopt_t) {
+        check(sqlite3_bind_null(stmt_, ++index_));
+        return *this;
+    }
+    template <class T>
+    Query& bind(const std::optional<T>& value) {
+        return value ? bind(*value) : bind(std::nullopt);
+    }
+
+    // True while a row is available.
+    bool step() {
+        const int rc = sqlite3_step(stmt_);
+        if (rc == SQLITE_ROW) return true;
+        if (rc == SQLITE_DONE) return false;
+        fail(rc);
+    }
+    // Runs a statement to completion; returns the number of rows it changed.
+    int run() {
+        while (step()) {
+        }
+        return sqlite3_changes(db_);
+    }
+
+    int64_t int64(int col) const { return sqlite3_column_int64(stmt_, col); }
+    double real(int col) const { return sqlite3_column_double(stmt_, col); }
+    std::string text(int col) const {
+        const auto* p = sqlite3_column_text(stmt_, col);
+        if (!p) return {};
+        return std::string(reinterpret_cast<const char*>(p),
+                           static_cast<size_t>(sqlite3_column_bytes(stmt_, col)));
+    }
+    bool is_null(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
+    std::optional<int64_t> maybe_int64(int col) const {
+        if (is_null(col)) return std::nullopt;
+        return int64(col);
+    }
+    std::optional<double> maybe_real(int col) const {
+        if (is_null(col)) return std::nullopt;
+        return real(col);
+    }
+
+    // The store refuses for a reason of its own.
+    [[noreturn]] void refuse(const std::string& why) const {
+        throw StoreError("store: cannot " + purpose_ + ": " + why);
+    }
+
+private:
+    void check(int rc) const {
+        if (rc != SQLITE_OK) fail(rc);
+    }
+    [[noreturn]] void fail(int rc) const {
+        throw StoreError(
+            "store: cannot " + purpose_ + ": " + sqlite3_errmsg(db_),
+            sqlite3_extended_errcode(db_) ? sqlite3_extended_errcode(db_) : rc);
+    }
+
+    sqlite3* db_;
+    sqlite3_stmt* stmt_;
+    std::string purpose_;
+    int index_ = 0;
+};
+
+RunStore::Query RunStore::query(const std::string& sql, std::string purpose) {
+    auto it = db_->statements.find(sql);
+    if (it == db_->statements.end()) {
+        sqlite3_stmt* stmt = nullptr;
+        const int rc =
+            sqlite3_prepare_v3(db_->db, sql.c_str(), static_cast<int>(sql.size()),
+                               SQLITE_PREPARE_PERSISTENT, &stmt, nullptr);
+        if (rc != SQLITE_OK) {
+            sqlite3_finalize(stmt);
+            throw StoreError("store: cannot " + purpose + ": " + sqlite3_errmsg(db_->db),
+                             sqlite3_extended_errcode(db_->db));
+        }
+        it = db_->statements.emplace(sql, stmt).first;
+    }
+    return Query(db_->db, it->second, std::move(purpose));
+}
+
+void RunStore::exec(const std::string& sql, const std::string& purpose) {
+    char* message = nullptr;
+    const int rc = sqlite3_exec(db_->db, sql.c_str(), nullptr, nullptr, &message);
+    if (rc != SQLITE_OK) {
+        std::string text = message ? message : sqlite3_errstr(rc);
+        sqlite3_free(message);
+        throw StoreError("store: cannot " + purpose + ": " + text,
+                         sqlite3_extended_errcode(db_->db));
+    }
+}
+
+namespace {
+
+// BEGIN IMMEDIATE takes the write lock at once, so a transaction never fails half-way on
+// a lock upgrade; a transaction not committed is rolled back.
+class Transaction {
+public:
+    Transaction(sqlite3* db, const std::string& purpose) : db_(db) {
+        run("BEGIN IMMEDIATE", purpose);
+    }
+    ~Transaction() {
+        if (open_) sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    }
+    void commit(const std::string& purpose) {
+        run("COMMIT", purpose);
+        open_ = false;
+    }
+
+private:
+    void run(const char* sql, const std::string& purpose) {
+        const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, nullptr);
+        if (rc != SQLITE_OK)
+            throw StoreError("store: cannot " + purpose + ": " + sqlite3_errmsg(db_),
+                             sqlite3_extended_errcode(db_));
+        open_ = true;
+    }
+
+    sqlite3* db_;
+    bool open_ = false;
+};
+
+}  // namespace
+
+RunStore::RunStore(const std::filesystem::path& data_dir)
+    : path_(data_dir / "aliquot.db"), db_(std::make_unique<Connection>()) {
+    std::error_code ec;
+    std::filesystem::create_directories(data_dir, ec);
+    if (ec)
+        throw StoreError("store: cannot create data directory " + data_dir.string() +
+                         ": " + ec.message());
+
+    // The connection is used by one thread at a time (mutex_), so SQLite's own mutex
+    // would only cost.
+    const int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
+    const int rc = sqlite3_open_v2(path_.c_str(), &db_->db, flags, nullptr);
+    if (rc != SQLITE_OK) {
+        const std::string message =
+            db_->db ? sqlite3_errmsg(db_->db) : sqlite3_errstr(rc);
+        throw StoreError("store: cannot open " + path_.string() + ": " + message, rc);
+    }
+    sqlite3_extended_result_codes(db_->db, 1);
+
+    configure();
+    check_integrity();
+    migrate();
+}
+
+RunStore::~RunStore() = default;
+
+void RunStore::configure() {
+    const std::string where = " on " + path_.string();
+    // First, so that the pragmas below wait for another process's lock instead of
+    // failing.
+    query("PRAGMA busy_timeout = 5000", "set the busy timeout" + where).run();
+    {
+        Query q = query("PRAGMA journal_mode = WAL", "set WAL journal mode" + where);
+        const std::string mode = q.step() ? q.text(0) : "";
+        if (mode != "wal")
+            q.refuse("the journal mode is '" + mode +
+                     "' (WAL needs a local file system with shared memory)");
+    }
+    query("PRAGMA synchronous = NORMAL", "set synchronous mode" + where).run();
+    // A per-connection setting, off by default in SQLite, and a no-op inside a
+    // transaction.
+    query("PRAGMA foreign_keys = ON", "enable foreign keys" + where).run();
+}
+
+void RunStore::check_integrity() {
+    Query q = query("PRAGMA integrity_check", "check the integrity of " + path_.string());
+    std::string problems;
+    int count = 0;
+    while (q.step()) {
+        const std::string line = q.text(0);
+        if (line == "ok") continue;
+        if (++count <= 5) problems += (problems.empty() ? "" : "; ") + line;
+    }
+    if (count > 5) problems += "; and " + std::to_string(count - 5) + " more";
+    if (count > 0)
+        q.refuse("the database is damaged (" + problems +
+                 "); restore a backup or move the file aside to start afresh");
+}
+
+void RunStore::migrate() {
+    exec(
+        "CREATE TABLE IF NOT EXISTS schema_migrations ("
+        " version INTEGER PRIMARY KEY, applied_at INTEGER NOT NULL) STRICT",
+        "create schema_migrations in " + path_.string());
+    const int current = schema_version();
+    if (current > kLatestVersion)
+        throw StoreError("store: " + path_.string() + " has schema version " +
+                         std::to_string(current) + " but this build knows only up to " +
+                         std::to_string(kLatestVersion) + "; run a newer aliquot");
+
+    const auto applied = [this](int version, const std::string& purpose) {
+        Query q = query("SELECT 1 FROM schema_migrations WHERE version = ?", purpose);
+        return q.bind(version).step();
+    };
+    for (int version = 1; version <= kLatestVersion; ++version) {
+        const std::string purpose =
+            "apply migration " + std::to_string(version) + " to " + path_.string();
+        if (applied(version, purpose)) continue;
+        Transaction tx(db_->db, purpose);
+        // Asked again under the write lock: another process may have just applied it.
+        if (applied(version, purpose)) continue;
+        exec(kMigrations[version - 1], purpose);
+        {
+            Query q = query("PRAGMA foreign_key_check", purpose);
+            if (q.step())
+                q.refuse("it leaves a row of " + q.text(0) + " violating a foreign key");
+        }
+        query("INSERT INTO schema_migrations (version, applied_at) VALUES (?, ?)",
+              purpose)
+            .bind(version)
+            .bind(unix_millis_now())
+            .run();
+        tx.commit(purpose);
+    }
+}
+
+int RunStore::latest_schema_version() { return kLatestVersion; }
+
+int RunStore::schema_version() {
+    std::lock_guard lock(mutex_);
+    Query q = query("SELECT COALESCE(MAX(version), 0) FROM schema_migrations",
+                    "read the schema version");
+    return q.step() ? static_cast<int>(q.int64(0)) : 0;
+}
+
+CheckpointResult RunStore::checkpoint() {
+    std::lock_guard lock(mutex_);
+    Query q = query("PRAGMA wal_checkpoint(TRUNCATE)", "checkpoint the WAL");
+    CheckpointResult result;
+    if (q.step()) {
+        result.busy = q.int64(0) != 0;
+        result.wal_frames = static_cast<int>(q.int64(1));
+        result.checkpointed = static_cast<int>(q.int64(2));
+    }
+    return result;
+}
+
+// --- scenes
+
+bool RunStore::put_scene(const std::string& hash, const std::string& name,
+                         const std::string& json, int64_t now_ms) {
+    std::lock_guard lock(mutex_);
+    const std::string purpose = "store scene " + hash;
+    const int inserted = query(
+                             "INSERT INTO scenes (hash, name, json, created_at) "
+                             "VALUES (?, ?, ?, ?) ON CONFLICT (hash) DO NOTHING",
+                             purpose)
+                             .bind(hash)
+                             .bind(name)
+                             .bind(json)
+                             .bind(now_ms)
+                             .run();
+    if (inserted) return true;
+    Query q = query("SELECT json FROM scenes WHERE hash = ?", purpose);
+    if (q.bind(hash).step() && q.text(0) != json)
+        q.refuse("a different scene is already stored under this hash");
+    return false;
+}
+
+std::optional<SceneRecord> RunStore::get_scene(const std::string& hash) {
+    std::lock_guard lock(mutex_);
+    Query q = query("SELECT hash, name, json, created_at FROM scenes WHERE hash = ?",
+                    "read scene " + hash);
+    if (!q.bind(hash).step()) return std::nullopt;
+    return SceneRecord{q.text(0), q.text(1), q.text(2), q.int64(3)};
+}
+
+// --- renders
+
+namespace {
+
+template <class Q>
+RenderRecord read_render(const Q& q) {
+    RenderRecord r;
+    r.id = q.text(0);
+    r.scene_hash = q.text(1);
+    r.spec_json = q.text(2);
+    const std::string state = q.text(3);
+    const auto parsed = parse_render_state(state);
+    if (!parsed) q.refuse("render " + r.id + " has unknown state '" + state + "'");
+    r.state = *parsed;
+    r.error = q.text(4);
+    r.created_at = q.int64(5);
+    r.started_at = q.maybe_int64(6);
+    r.finished_at = q.maybe_int64(7);
+    r.samples_planned = q.int64(8);
+    r.samples_done = q.int64(9);
+    r.strategy_state_json = q.text(10);
+    r.outcome_json = q.text(11);
+    r.reference_path = q.text(12);
+    return r;
+}
+
+}  // namespace
+
+void RunStore::create_render(const RenderRecord& r) {
+    std::lock_guard lock(mutex_);
+    static const std::string sql = "INSERT INTO renders (" + kRenderColumns +
+                                   ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
+    query(sql, "create render " + r.id)
+        .bind(r.id)
+        .bind(r.scene_hash)
+        .bind(r.spec_json)
+        .bind(to_string(r.state))
+        .bind(or_null(r.error))
+        .bind(r.created_at)
+        .bind(r.started_at)
+        .bind(r.finished_at)
+        .bind(r.samples_planned)
+        .bind(r.samples_done)
+        .bind(or_null(r.strategy_state_json))
+        .bind(or_null(r.outcome_json))
+        .bind(or_null(r.reference_path))
+        .run();
+}
+
+void RunStore::update_render_state(const std::string& id, RenderState state,
+                                   const std::string& error, int64_t now_ms) {
+    std::lock_guard lock(mutex_);
+    Query q = query(
+        "UPDATE renders SET state = ?, error = ?,"
+        " started_at = CASE WHEN ? THEN COALESCE(started_at, ?) ELSE started_at END,"
+        " finished_at = ? WHERE id = ?",
+        "set render " + id + " " + std::string(to_string(state)));
+    q.bind(to_string(state))
+        .bind(or_null(error))
+        .bind(state == RenderState::Running)
+        .bind(now_ms);
+    if (is_terminal(state))
+        q.bind(now_ms);
+    else
+        q.bind(std::nullopt);
+    if (q.bind(id).run() == 0) q.refuse("no such render");
+}
+
+void RunStore::update_render_progress(const std::string& id, int64_t samples_done,
+                                      const std::string& strategy_state_json) {
+    std::lock_guard lock(mutex_);
+    Query q =
+        query("UPDATE renders SET samples_done = ?, strategy_state_json = ? WHERE id = ?",
+              "record progress of render " + id);
+    if (q.bind(samples_done).bind(or_null(strategy_state_json)).bind(id).run() == 0)
+        q.refuse("no such render");
+}
+
+void RunStore::finish_render(const std::string& id, RenderState state,
+                             const std::string& outcome_json, int64_t now_ms) {
+    std::lock_guard lock(mutex_);
+    Query q = query(
+        "UPDATE renders SET state = ?, outcome_json = ?, finished_at = ? WHERE id = ?",
+        "finish render " + id + " as " + std::string(to_string(state)));
+    if (!is_terminal(state))
+        q.refuse("a finished render must be done, cancelled or failed");
+    if (q.bind(to_string(state))
+            .bind(or_null(outcome_json))
+            .bind(now_ms)
+            .bind(id)
+            .run() == 0)
+        q.refuse("no such render");
+}
+
+std::optional<RenderRecord> RunStore::get_render(const std::string& id) {
+    std::lock_guard lock(mutex_);
+    static const std::string sql =
+        "SELECT " + kRenderColumns + " FROM renders WHERE id = ?";
+    Query q = query(sql, "read render " + id);
+    if (!q.bind(id).step()) return std::nullopt;
+    return read_render(q);
+}
+
+std::vector<RenderRecord> RunStore::list_renders(size_t limit,
+                                                 std::optional<RenderState> state) {
+    std::lock_guard lock(mutex_);
+    static const std::string all = "SELECT " + kRenderColumns +
+                                   " FROM renders ORDER BY created_at DESC, rowid DESC"
+                                   " LIMIT ?";
+    static const std::string filtered = "SELECT " + kRenderColumns +
+                                        " FROM renders WHERE state = ?"
+                                        " ORDER BY created_at DESC, rowid DESC LIMIT ?";
+    Query q = query(state ? filtered : all, "list renders");
+    if (state) q.bind(to_string(*state));
+    // LIMIT -1: no limit.
+    q.bind(limit == 0 ? int64_t{-1} : static_cast<int64_t>(limit));
+    std::vector<RenderRecord> renders;
+    while (q.step()) renders.push_back(read_render(q));
+    return renders;
+}
+
+std::vector<RenderRecord> RunStore::unfinished_renders() {
+    std::lock_guard lock(mutex_);
+    static const std::string sql = "SELECT " + kRenderColumns +
+                                   " FROM renders WHERE state IN ('queued', 'running')"
+                                   " ORDER BY created_at, rowid";
+    Query q = query(sql, "list unfinished renders");
+    std::vector<RenderRecord> renders;
+    while (q.step()) renders.push_back(read_render(q));
+    return renders;
+}
+
+// --- rounds
+
+bool RunStore::add_round(const RoundRecord& r) {
+    std::lock_guard lock(mutex_);
+    static const std::string sql = "INSERT INTO rounds (" + kRoundColumns +
+                                   ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)"
+                                   " ON CONFLICT (render_id, idx) DO NOTHING";
+    Query q =
+        query(sql, "add round " + std::to_string(r.idx) + " of render " + r.render_id);
+    // SQLite stores NaN as NULL; refuse it here with a message that says so.
+    if (!std::isfinite(r.seconds)) q.refuse("its seconds are not finite");
+    if (!std::isfinite(r.error_estimate)) q.refuse("its error estimate is not finite");
+    if (r.error_vs_reference && !std::isfinite(*r.error_vs_reference))
+        q.refuse("its error against the reference is not finite");
+    const int inserted = q.bind(r.render_id)
+                             .bind(r.idx)
+                             .bind(r.samples_in_round)
+                             .bind(r.samples_total)
+                             .bind(r.seconds)
+                             .bind(r.error_estimate)
+                             .bind(r.error_vs_reference)
+                             .bind(or_null(r.buckets_json))
+                             .bind(r.created_at)
+                             .run();
+    if (inserted) return true;
+
+    Query old = query(
+        "SELECT samples_in_round, samples_total FROM rounds WHERE render_id = ? AND idx "
+        "= ?",
+        "add round " + std::to_string(r.idx) + " of render " + r.render_id);
+    if (old.bind(r.render_id).bind(r.idx).step() &&
+        (old.int64(0) != r.samples_in_round || old.int64(1) != r.samples_total))
+        old.refuse("it is already recorded with " + std::to_string(old.int64(0)) +
+                   " samples (total " + std::to_string(old.int64(1)) + "), not " +
+                   std::to_string(r.samples_in_round) + " (total " +
+                   std::to_string(r.samples_total) + ")");
+    return false;
+}
+
+std::vector<RoundRecord> RunStore::rounds(const std::string& render_id) {
+    std::lock_guard lock(mutex_);
+    static const std::string sql =
+        "SELECT " + kRoundColumns + " FROM rounds WHERE render_id = ? ORDER BY idx";
+    Query q = query(sql, "read rounds of render " + render_id);
+    q.bind(render_id);
+    std::vector<RoundRecord> rounds;
+    while (q.step()) {
+        RoundRecord r;
+        r.render_id = q.text(0);
+        r.idx = q.int64(1);
+        r.samples_in_round = q.int64(2);
+        r.samples_total = q.int64(3);
+        r.seconds = q.real(4);
+        r.error_estimate = q.real(5);
+        r.error_vs_reference = q.maybe_real(6);
+        r.buckets_json = q.text(7);
+        r.created_at = q.int64(8);
+        rounds.push_back(std::move(r));
+    }
+    return rounds;
+}
+
+// --- workers
+
+void RunStore::upsert_worker(const std::string& name, int64_t threads, int64_t now_ms) {
+    std::lock_guard lock(mutex_);
+    query(
+        "INSERT INTO workers (name, threads, first_seen, last_seen, samples_traced, "
+        "state)"
+        " VALUES (?, ?, ?, ?, 0, 'online') ON CONFLICT (name) DO UPDATE SET"
+        " threads = excluded.threads, last_seen = excluded.last_seen, state = 'online'",
+        "register worker " + name)
+        .bind(name)
+        .bind(threads)
+        .bind(now_ms)
+        .bind(now_ms)
+        .run();
+}
+
+void RunStore::record_worker_samples(const std::string& name, int64_t samples,
+                                     int64_t now_ms) {
+    std::lock_guard lock(mutex_);
+    Query q = query(
+        "UPDATE workers SET samples_traced = samples_traced + ?,"
+        " last_seen = MAX(last_seen, ?) WHERE name = ?",
+        "record " + std::to_string(samples) + " samples of worker " + name);
+    if (samples < 0) q.refuse("a sample count cannot be negative");
+    if (q.bind(samples).bind(now_ms).bind(name).run() == 0) q.refuse("no such worker");
+}
+
+void RunStore::mark_worker_state(const std::string& name, const std::string& state) {
+    std::lock_guard lock(mutex_);
+    Query q = query("UPDATE workers SET state = ? WHERE name = ?",
+                    "mark worker " + name + " " + state);
+    if (q.bind(state).bind(name).run() == 0) q.refuse("no such worker");
+}
+
+std::vector<WorkerRecord> RunStore::workers() {
+    std::lock_guard lock(mutex_);
+    Query q = query(
+        "SELECT name, threads, first_seen, last_seen, samples_traced, state"
+        " FROM workers ORDER BY name",
+        "list workers");
+    std::vector<WorkerRecord> workers;
+    while (q.step())
+        workers.push_back(WorkerRecord{q.text(0), q.int64(1), q.int64(2), q.int64(3),
+                                       q.int64(4), q.text(5)});
+    return workers;
+}
+
+}  // namespace aliquot

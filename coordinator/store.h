@@ -1,0 +1,178 @@
+// RunStore: the coordinator's durable record of scenes, renders, rounds and workers, kept
+// in one SQLite database (DIR/aliquot.db, WAL). No SQL lives outside store.cpp; see
+// docs/STORE.md.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "render_state.h"
+
+struct sqlite3;
+
+namespace aliquot {
+
+// Every failure of the store: the SQLite message prefixed by what the store was doing,
+// e.g. "store: cannot add round 3 of render r-12: FOREIGN KEY constraint failed".
+class StoreError : public std::runtime_error {
+public:
+    StoreError(const std::string& message, int sqlite_code = 0)
+        : std::runtime_error(message), sqlite_code_(sqlite_code) {}
+    // The extended SQLite result code, or 0 when the store itself refused (bad argument,
+    // conflicting data, failed integrity check).
+    int sqlite_code() const { return sqlite_code_; }
+
+private:
+    int sqlite_code_;
+};
+
+// Times in the store are unix milliseconds, always supplied by the caller (records carry
+// them, methods that stamp a row take `now_ms`), so the store has no hidden clock and
+// tests choose their times. This is the value the coordinator passes.
+int64_t unix_millis_now();
+
+// Optional text columns are NULL in the database and empty strings here.
+struct SceneRecord {
+    std::string hash;  // content hash of `json`: the scene's identity
+    std::string name;
+    std::string json;
+    int64_t created_at = 0;
+};
+
+struct RenderRecord {
+    std::string id;
+    std::string scene_hash;  // must name a stored scene
+    std::string spec_json;   // method, parameters, budget, resolution, seed
+    RenderState state = RenderState::Queued;
+    std::string error;  // why it failed; empty otherwise
+    int64_t created_at = 0;
+    std::optional<int64_t> started_at;   // first time it became Running
+    std::optional<int64_t> finished_at;  // when it reached a terminal state
+    int64_t samples_planned = 0;
+    int64_t samples_done = 0;
+    std::string strategy_state_json;  // what the strategy needs to resume
+    std::string outcome_json;         // final statistics, written by finish_render
+    std::string reference_path;  // reference EXR the per-round error is measured against
+};
+
+struct RoundRecord {
+    std::string render_id;
+    int64_t idx = 0;  // 0-based round number within the render
+    int64_t samples_in_round = 0;
+    int64_t samples_total = 0;  // samples merged into the render after this round
+    double seconds = 0;         // wall time since the render started
+    double error_estimate = 0;  // the strategy's own estimate (even/odd halves)
+    std::optional<double> error_vs_reference;
+    std::string buckets_json;  // per-bucket state, when the strategy has buckets
+    int64_t created_at = 0;
+};
+
+struct WorkerRecord {
+    std::string name;
+    int64_t threads = 0;
+    int64_t first_seen = 0;
+    int64_t last_seen = 0;
+    int64_t samples_traced = 0;
+    std::string state;  // "online" after upsert_worker; others ("lost", "left") are the
+                        // coordinator's to choose
+};
+
+// The outcome of `PRAGMA wal_checkpoint(TRUNCATE)`.
+struct CheckpointResult {
+    // Another connection kept it from completing; the next call tries again.
+    bool busy = false;
+    // Frames in the WAL before the checkpoint (-1 if the database is not in WAL mode).
+    int wal_frames = 0;
+    // Frames copied into the database.
+    int checkpointed = 0;
+};
+
+// One connection, guarded by a mutex: every method may be called from any thread. Each
+// method is one transaction; a method that returns has made its change durable against a
+// process crash (a power loss may lose the last commits: synchronous=NORMAL).
+class RunStore {
+public:
+    // Opens (creating if needed) `data_dir`/aliquot.db, sets WAL, foreign keys, busy
+    // timeout and synchronous=NORMAL, refuses a database whose integrity check fails or
+    // whose schema is newer than this build, and applies pending migrations.
+    explicit RunStore(const std::filesystem::path& data_dir);
+    ~RunStore();
+    RunStore(const RunStore&) = delete;
+    RunStore& operator=(const RunStore&) = delete;
+
+    const std::filesystem::path& path() const { return path_; }
+    // Highest migration applied; equals latest_schema_version() after construction.
+    int schema_version();
+    static int latest_schema_version();
+
+    // Copies the WAL into the database and truncates it to zero bytes, so the WAL cannot
+    // grow without bound. The coordinator calls it periodically.
+    CheckpointResult checkpoint();
+
+    // Stores a scene once. Returns false (and changes nothing) if `hash` is already
+    // stored with the same json; throws if it is stored with different json.
+    bool put_scene(const std::string& hash, const std::string& name,
+                   const std::string& json, int64_t now_ms);
+    std::optional<SceneRecord> get_scene(const std::string& hash);
+
+    // Inserts a new render; throws if the id exists or the scene is unknown.
+    void create_render(const RenderRecord& render);
+    // Sets the state and error (empty: none). Running stamps started_at once; a terminal
+    // state stamps finished_at; a non-terminal one clears it. The coordinator owns which
+    // transitions are allowed. Throws if the render is unknown.
+    void update_render_state(const std::string& id, RenderState state,
+                             const std::string& error, int64_t now_ms);
+    void update_render_progress(const std::string& id, int64_t samples_done,
+                                const std::string& strategy_state_json);
+    // Moves a render to a terminal state (throws for Queued/Running) with its outcome.
+    void finish_render(const std::string& id, RenderState state,
+                       const std::string& outcome_json, int64_t now_ms);
+    std::optional<RenderRecord> get_render(const std::string& id);
+    // Newest first (created_at, then insertion order); limit 0 means all.
+    std::vector<RenderRecord> list_renders(
+        size_t limit, std::optional<RenderState> state = std::nullopt);
+    // Queued and Running renders, oldest first: what a restarted coordinator resumes.
+    std::vector<RenderRecord> unfinished_renders();
+
+    // Records a round. Recording (render_id, idx) again is a no-op returning false, so a
+    // restarted coordinator may re-record a round; wall-clock fields (seconds,
+    // created_at) may differ, but different sample counts mean a different round and
+    // throw.
+    bool add_round(const RoundRecord& round);
+    // In round order.
+    std::vector<RoundRecord> rounds(const std::string& render_id);
+
+    // Registers a worker or refreshes it: threads, last_seen and state "online".
+    void upsert_worker(const std::string& name, int64_t threads, int64_t now_ms);
+    // Adds to a known worker's samples_traced and refreshes last_seen.
+    void record_worker_samples(const std::string& name, int64_t samples, int64_t now_ms);
+    // Sets the state only; last_seen keeps the time the worker was last heard from.
+    void mark_worker_state(const std::string& name, const std::string& state);
+    // By name.
+    std::vector<WorkerRecord> workers();
+
+private:
+    class Query;
+    struct Connection;
+
+    // A cached prepared statement for `sql`; `purpose` names it in errors ("add round 3
+    // of render r-12").
+    Query query(const std::string& sql, std::string purpose);
+    void exec(const std::string& sql, const std::string& purpose);
+    void configure();
+    void check_integrity();
+    void migrate();
+
+    std::filesystem::path path_;
+    std::mutex mutex_;
+    std::unique_ptr<Connection> db_;
+};
+
+}  // namespace aliquot

@@ -1,0 +1,57 @@
+// StrategyParams: which sampling method a render uses and its parameters, with the seed
+// report's defaults. One struct for every method so specs store and travel as one thing.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace aliquot {
+
+class Strategy;
+
+struct StrategyParams {
+    std::string method = "uniform";  // uniform | dammertz | adaptive | optimal | optimal-time
+
+    // uniform: spp, or budget (total samples; spp = floor(budget / pixels)). Adaptive,
+    // optimal and optimal-time spend `budget` (or spp * pixels when only spp is given).
+    uint64_t spp = 0;
+    uint64_t budget = 0;
+
+    // dammertz (seed: max variance V, samples per iteration S, split factor 64)
+    double max_variance = 0.0064;
+    uint32_t samples_per_iteration = 16;
+    double split_factor = 64;
+    uint32_t min_bucket_size = 4;        // a bucket side below which it is never split
+    std::string error_norm = "seed";     // "seed": mean |even - odd|; "paper": Dammertz et al.
+
+    // adaptive (seed: initial samples, max variance, alpha; 16x16 buckets)
+    uint32_t initial_spp = 16;
+    double alpha = 1.0;
+    uint32_t bucket_size = 16;
+
+    // optimal / optimal-time
+    uint32_t min_spp = 4;  // floor every pixel gets before the allocation trusts its sigma
+
+    // Caps that guarantee termination for every method (0: the method's default).
+    uint32_t max_spp = 0;
+    uint64_t max_samples = 0;
+};
+
+void to_json(nlohmann::json& j, const StrategyParams& p);
+void from_json(const nlohmann::json& j, StrategyParams& p);
+
+// Throws std::invalid_argument with a message naming the parameter that is wrong
+// (unknown method, spp and budget both zero, alpha < 0, ...).
+void validate(const StrategyParams& params, uint32_t width, uint32_t height);
+
+std::unique_ptr<Strategy> make_strategy(const StrategyParams& params, uint32_t width,
+                                        uint32_t height);
+
+const std::vector<std::string>& strategy_methods();
+
+}  // namespace aliquot

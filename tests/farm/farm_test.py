@@ -1,0 +1,281 @@
+#!/usr/bin/env python3
+"""The farm with real processes on loopback: a coordinator, workers, and the CLI clients.
+
+Every render is compared byte for byte with the same render made by `aliquot render`
+embedded: determinism is what makes worker deaths and coordinator restarts testable.
+Usage: farm_test.py [path/to/aliquot]   (standard library only)
+"""
+import concurrent.futures
+import filecmp
+import json
+import os
+import shutil
+import signal
+import socket
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import time
+
+ALIQUOT = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else "build/bin/aliquot")
+TMP = tempfile.mkdtemp(prefix="aliquot-farm-")
+PROCS = []
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def spawn(*args, log):
+    p = subprocess.Popen([ALIQUOT, *args], stdout=open(log, "w"), stderr=subprocess.STDOUT)
+    PROCS.append(p)
+    return p
+
+
+def run(*args, check=True, timeout=300):
+    r = subprocess.run([ALIQUOT, *args], capture_output=True, text=True, timeout=timeout)
+    if check and r.returncode != 0:
+        raise AssertionError(f"aliquot {' '.join(args)} failed: {r.stderr.strip()}")
+    return r
+
+
+class Farm:
+    def __init__(self, name, lease_seconds=2, lost_seconds=3):
+        self.dir = os.path.join(TMP, name)
+        os.makedirs(self.dir, exist_ok=True)
+        self.port = free_port()
+        self.addr = f"127.0.0.1:{self.port}"
+        self.lease_seconds, self.lost_seconds = lease_seconds, lost_seconds
+        self.coordinator = None
+        self.workers = {}
+
+    def start_coordinator(self):
+        self.coordinator = spawn("coordinator", "--grpc", self.addr, "--data",
+                                 os.path.join(self.dir, "data"),
+                                 "--lease-seconds", str(self.lease_seconds),
+                                 "--lost-seconds", str(self.lost_seconds),
+                                 log=os.path.join(self.dir, "coordinator.log"))
+        deadline = time.time() + 20
+        while time.time() < deadline:
+            if run("status", "--coordinator", self.addr, check=False).returncode == 0:
+                return
+            time.sleep(0.1)
+        raise AssertionError("coordinator did not start")
+
+    def start_worker(self, name, threads=1):
+        self.workers[name] = spawn("worker", "--coordinator", self.addr, "--threads",
+                                   str(threads), "--name", name,
+                                   log=os.path.join(self.dir, f"worker-{name}.log"))
+
+    def submit(self, *render_args, out=None):
+        args = ["submit", "--coordinator", self.addr, "--json", *render_args]
+        if out:
+            args += ["--out", out]
+        return json.loads(run(*args).stdout)
+
+    def status(self, render_id):
+        return json.loads(run("status", render_id, "--coordinator", self.addr, "--json").stdout)
+
+    def wait_until(self, render_id, predicate, timeout=120):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            s = self.status(render_id)
+            if predicate(s):
+                return s
+            time.sleep(0.05)
+        raise AssertionError(f"timed out waiting on {render_id}: {s}")
+
+    def stop(self):
+        for p in list(self.workers.values()) + [self.coordinator]:
+            if p and p.poll() is None:
+                p.terminate()
+        for p in list(self.workers.values()) + [self.coordinator]:
+            if p:
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+
+
+EMBEDDED = {}
+
+
+def embedded(render_args):
+    key = tuple(render_args)
+    if key not in EMBEDDED:
+        path = os.path.join(TMP, f"embedded-{len(EMBEDDED)}.exr")
+        run("render", *render_args, "--threads", "2", "--out", path)
+        EMBEDDED[key] = path
+    return EMBEDDED[key]
+
+
+SMALL = ["--scene", "cornell-box", "--resolution", "48x40", "--spp", "24", "--seed", "7"]
+# Long enough (a few seconds on 2 cores) that things can happen in the middle of it.
+LONG = ["--scene", "cornell-box", "--resolution", "96x96", "--spp", "512", "--seed", "11"]
+
+
+def same(a, b):
+    return filecmp.cmp(a, b, shallow=False)
+
+
+def test_one_and_three_workers_match_embedded():
+    for n in (1, 3):
+        farm = Farm(f"workers-{n}")
+        try:
+            farm.start_coordinator()
+            for i in range(n):
+                farm.start_worker(f"w{i}")
+            out = os.path.join(farm.dir, "farm.exr")
+            info = farm.submit(*SMALL, out=out)
+            assert info["state"] == "done", info
+            assert same(out, embedded(SMALL)), f"{n} workers differ from embedded"
+        finally:
+            farm.stop()
+
+
+def test_worker_killed_mid_round_still_matches():
+    farm = Farm("kill-worker")
+    try:
+        farm.start_coordinator()
+        farm.start_worker("doomed")
+        farm.start_worker("survivor")
+        render_id = farm.submit(*LONG)["id"]
+        farm.wait_until(render_id, lambda s: s["samples"] > 0)
+        farm.workers["doomed"].send_signal(signal.SIGKILL)
+        farm.wait_until(render_id, lambda s: s["state"] == "done", timeout=300)
+        out = os.path.join(farm.dir, "farm.exr")
+        run("fetch", render_id, "--out", out, "--coordinator", farm.addr)
+        assert same(out, embedded(LONG)), "render after a worker's death differs"
+        workers = json.loads(run("workers", "--json", "--coordinator", farm.addr).stdout)
+        time.sleep(farm.lost_seconds + 0.5)
+        workers = json.loads(run("workers", "--json", "--coordinator", farm.addr).stdout)
+        states = {w["name"]: w["state"] for w in workers}
+        assert states["doomed"] == "lost", states
+    finally:
+        farm.stop()
+
+
+def test_coordinator_restart_resumes_from_checkpoint():
+    farm = Farm("restart")
+    try:
+        farm.start_coordinator()
+        farm.start_worker("w0", threads=2)
+        render_id = farm.submit(*LONG)["id"]
+        farm.wait_until(render_id, lambda s: s["rounds"] >= 3)
+        farm.coordinator.send_signal(signal.SIGKILL)
+        farm.coordinator.wait()
+        farm.start_coordinator()
+        resumed = farm.status(render_id)
+        assert resumed["rounds"] >= 3, f"restart lost the checkpointed rounds: {resumed}"
+        final = farm.wait_until(render_id, lambda s: s["state"] == "done", timeout=300)
+        out = os.path.join(farm.dir, "farm.exr")
+        run("fetch", render_id, "--out", out, "--coordinator", farm.addr)
+        assert same(out, embedded(LONG)), "resumed render differs"
+        db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
+        idx = [r[0] for r in db.execute(
+            "SELECT idx FROM rounds WHERE render_id = ? ORDER BY idx", (render_id,))]
+        assert idx == list(range(final["rounds"])), f"rounds in SQLite: {idx}"
+    finally:
+        farm.stop()
+
+
+def test_twenty_concurrent_submissions_all_complete():
+    farm = Farm("twenty")
+    try:
+        farm.start_coordinator()
+        farm.start_worker("w0")
+        farm.start_worker("w1")
+        variants = [["--scene", "cornell-box", "--resolution", "16x12", "--spp", "8",
+                     "--seed", str(100 + i)] for i in range(20)]
+
+        def one(i):
+            out = os.path.join(farm.dir, f"r{i}.exr")
+            info = farm.submit(*variants[i], out=out)
+            return info, out
+
+        with concurrent.futures.ThreadPoolExecutor(20) as pool:
+            results = list(pool.map(one, range(20)))
+        for i, (info, out) in enumerate(results):
+            assert info["state"] == "done", info
+            assert same(out, embedded(variants[i])), f"render {i} differs from its twin"
+        db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
+        done = db.execute("SELECT COUNT(*) FROM renders WHERE state = 'done'").fetchone()[0]
+        assert done == 20, f"{done} renders done in SQLite"
+    finally:
+        farm.stop()
+
+
+def test_early_and_late_workers_get_work():
+    farm = Farm("early-late")
+    try:
+        farm.start_worker("early")  # before any coordinator listens
+        time.sleep(1.0)
+        farm.start_coordinator()
+        render_id = farm.submit(*LONG)["id"]
+        farm.wait_until(render_id, lambda s: s["samples"] > 0)
+        farm.start_worker("late")
+        farm.wait_until(render_id, lambda s: s["state"] == "done", timeout=300)
+        workers = json.loads(run("workers", "--json", "--coordinator", farm.addr).stdout)
+        traced = {w["name"]: w["samples_traced"] for w in workers}
+        assert traced.get("early", 0) > 0 and traced.get("late", 0) > 0, traced
+    finally:
+        farm.stop()
+
+
+def test_client_errors_are_one_line():
+    farm = Farm("errors")
+    try:
+        farm.start_coordinator()
+        bad_scene = os.path.join(farm.dir, "bad.json")
+        with open(bad_scene, "w") as f:
+            f.write('{"camera": {"position": [0,0,1], "target": [0,0,0], "up": [0,1,0], '
+                    '"fov": 500}, "materials": {}, "shapes": []}')
+        cases = [
+            (["--scene", bad_scene], "/camera/fov"),
+            (["--method", "magic"], "method"),
+            (["--resolution", "0x10"], "--resolution"),
+            (["--resolution", "9000x10"], "--resolution"),
+            (["--method", "uniform", "--budget", "18446744073709551615"], "budget"),
+        ]
+        for args, expected in cases:
+            r = run("submit", "--coordinator", farm.addr, *args, check=False)
+            lines = r.stderr.strip().splitlines()
+            assert r.returncode != 0 and len(lines) == 1 and expected in lines[0], (args, r.stderr)
+        r = run("status", "--coordinator", f"127.0.0.1:{free_port()}", check=False)
+        assert r.returncode != 0 and "cannot reach coordinator" in r.stderr, r.stderr
+        assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+    finally:
+        farm.stop()
+
+
+def main():
+    tests = [(n, f) for n, f in sorted(globals().items()) if n.startswith("test_")]
+    only = os.environ.get("FARM_TEST")
+    passed = failed = 0
+    for name, fn in tests:
+        if only and only not in name:
+            continue
+        start = time.time()
+        try:
+            fn()
+            passed += 1
+            print(f"ok   {name} ({time.time() - start:.1f}s)", flush=True)
+        except Exception as e:  # report and go on: one failure should not hide the others
+            failed += 1
+            print(f"FAIL {name}: {e}", flush=True)
+    for p in PROCS:
+        if p.poll() is None:
+            p.kill()
+    if failed == 0:
+        shutil.rmtree(TMP, ignore_errors=True)
+    else:
+        print(f"logs kept in {TMP}")
+    print(f"{passed} passed, {failed} failed")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

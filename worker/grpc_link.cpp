@@ -1,0 +1,115 @@
+#include "grpc_link.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include "aliquot.grpc.pb.h"
+#include "wire.h"
+
+namespace aliquot {
+
+namespace {
+
+constexpr auto kCallDeadline = std::chrono::seconds(10);
+
+std::unique_ptr<grpc::ClientContext> context(std::chrono::milliseconds extra = {}) {
+    auto ctx = std::make_unique<grpc::ClientContext>();
+    ctx->set_deadline(std::chrono::system_clock::now() + kCallDeadline + extra);
+    return ctx;
+}
+
+}  // namespace
+
+struct GrpcLink::Stub {
+    std::shared_ptr<grpc::Channel> channel;
+    std::unique_ptr<v1::WorkerService::Stub> stub;
+};
+
+GrpcLink::GrpcLink(const std::string& address) : stub_(new Stub), address_(address) {
+    grpc::ChannelArguments args;
+    // Keepalive matched with the coordinator's server settings (coordinator/grpc_server.cpp).
+    args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
+    args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+    args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
+    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+    stub_->channel = grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+    stub_->stub = v1::WorkerService::NewStub(stub_->channel);
+}
+
+GrpcLink::~GrpcLink() = default;
+
+static void check(const grpc::Status& status, const std::string& address) {
+    if (status.ok()) return;
+    if (status.error_code() == grpc::StatusCode::UNAVAILABLE ||
+        status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
+        status.error_code() == grpc::StatusCode::CANCELLED)
+        throw LinkUnavailable(address + ": " + status.error_message());
+    throw std::runtime_error("coordinator " + address + ": " + status.error_message());
+}
+
+uint32_t GrpcLink::register_worker(const std::string& name, uint32_t threads) {
+    v1::RegisterRequest req;
+    req.set_name(name);
+    req.set_threads(threads);
+    v1::RegisterReply reply;
+    check(stub_->stub->Register(context().get(), req, &reply), address_);
+    return reply.lease_ms();
+}
+
+std::optional<LeaseGrant> GrpcLink::lease(const std::string& worker,
+                                          std::chrono::milliseconds wait) {
+    v1::LeaseRequest req;
+    req.set_worker(worker);
+    req.set_wait_ms(uint32_t(wait.count()));
+    v1::LeaseReply reply;
+    check(stub_->stub->Lease(context(wait).get(), req, &reply), address_);
+    if (!reply.has_lease()) return std::nullopt;
+    const v1::Lease& l = reply.lease();
+    return LeaseGrant{l.lease_id(),       l.render_id(),
+                      l.scene_hash(),     {l.width(), l.height(), l.seed()},
+                      from_proto(l.job()), l.lease_ms()};
+}
+
+CompleteOutcome GrpcLink::complete(const std::string& worker, uint64_t lease_id,
+                                   const SampleJobResult& result) {
+    v1::CompleteRequest req;
+    req.set_worker(worker);
+    req.set_lease_id(lease_id);
+    to_proto(result, *req.mutable_result());
+    v1::CompleteReply reply;
+    check(stub_->stub->Complete(context().get(), req, &reply), address_);
+    const CompleteStatus status = reply.status() == "merged"     ? CompleteStatus::Merged
+                                  : reply.status() == "rejected" ? CompleteStatus::Rejected
+                                                                 : CompleteStatus::Ignored;
+    return {status, reply.message()};
+}
+
+std::optional<std::string> GrpcLink::fetch_scene(const std::string& hash) {
+    v1::FetchSceneRequest req;
+    req.set_hash(hash);
+    v1::FetchSceneReply reply;
+    const grpc::Status status = stub_->stub->FetchScene(context().get(), req, &reply);
+    if (status.error_code() == grpc::StatusCode::NOT_FOUND) return std::nullopt;
+    check(status, address_);
+    return reply.scene_json();
+}
+
+bool GrpcLink::renew(const std::string& worker, uint64_t lease_id) {
+    v1::RenewRequest req;
+    req.set_worker(worker);
+    req.set_lease_id(lease_id);
+    v1::RenewReply reply;
+    check(stub_->stub->Renew(context().get(), req, &reply), address_);
+    return reply.valid();
+}
+
+bool GrpcLink::abandon(const std::string& worker, uint64_t lease_id) {
+    v1::RenewRequest req;
+    req.set_worker(worker);
+    req.set_lease_id(lease_id);
+    v1::RenewReply reply;
+    check(stub_->stub->Abandon(context().get(), req, &reply), address_);
+    return reply.valid();
+}
+
+}  // namespace aliquot

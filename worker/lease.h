@@ -1,0 +1,50 @@
+// Lease and WorkerLink: what a worker holds while it traces a job, and the five calls it
+// makes to a coordinator. The link is gRPC for a remote worker and a direct call for the
+// embedded render's local threads; the worker loop cannot tell them apart.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "sample_job.h"
+
+namespace aliquot {
+
+struct LeaseGrant {
+    uint64_t lease_id = 0;
+    std::string render_id;
+    std::string scene_hash;
+    RenderGeometry geometry;
+    SampleJob job;
+    uint32_t lease_ms = 0;
+};
+
+enum class CompleteStatus { Merged, Ignored, Rejected };
+struct CompleteOutcome {
+    CompleteStatus status;
+    std::string message;
+};
+
+// Thrown by a link when the coordinator cannot be reached; the worker backs off and retries.
+class LinkUnavailable : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+class WorkerLink {
+public:
+    virtual ~WorkerLink() = default;
+    // Returns the lease duration in milliseconds.
+    virtual uint32_t register_worker(const std::string& name, uint32_t threads) = 0;
+    virtual std::optional<LeaseGrant> lease(const std::string& worker,
+                                            std::chrono::milliseconds wait) = 0;
+    virtual CompleteOutcome complete(const std::string& worker, uint64_t lease_id,
+                                     const SampleJobResult& result) = 0;
+    virtual std::optional<std::string> fetch_scene(const std::string& hash) = 0;
+    virtual bool renew(const std::string& worker, uint64_t lease_id) = 0;
+    virtual bool abandon(const std::string& worker, uint64_t lease_id) = 0;
+};
+
+}  // namespace aliquot

@@ -1,0 +1,51 @@
+// WorkerLoop: a worker's life. Each of its threads asks for a lease, traces the job and
+// returns the sums; a keeper thread renews held leases. A coordinator that goes away is
+// waited for with backoff, never a crash; stop() gives held leases back.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <set>
+#include <string>
+
+#include "lease.h"
+#include "scene_cache.h"
+
+namespace aliquot {
+
+struct WorkerOptions {
+    std::string name;
+    int threads = 1;
+    std::chrono::milliseconds lease_wait{2000};  // long-poll length
+    bool quiet = false;                           // no log lines (embedded render)
+};
+
+class WorkerLoop {
+public:
+    WorkerLoop(WorkerLink& link, WorkerOptions options);
+
+    // Runs until stop() is called. Thread-safe to call stop() from any thread.
+    void run();
+    void stop() { stopping_ = true; }
+
+    uint64_t samples_traced() const { return samples_traced_; }
+    uint64_t jobs_done() const { return jobs_done_; }
+
+private:
+    void thread_main();
+    void keeper_main();
+    void log(const std::string& line) const;
+    void backoff(std::chrono::milliseconds& delay);
+
+    WorkerLink& link_;
+    WorkerOptions options_;
+    SceneCache scenes_;
+    std::atomic<bool> stopping_{false};
+    std::atomic<uint32_t> lease_ms_{30000};
+    std::atomic<uint64_t> samples_traced_{0}, jobs_done_{0};
+    std::mutex held_mutex_;
+    std::set<uint64_t> held_;
+};
+
+}  // namespace aliquot
