@@ -1,18 +1,40 @@
 // aliquot coordinator: the long-running farm process. Stops cleanly on SIGTERM / SIGINT.
 #include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 
 #include "commands.h"
 #include "grpc_server.h"
+#include "http_server.h"
 
 namespace aliquot::cli {
 
 namespace {
 
+namespace fs = std::filesystem;
+
+// The directory of the running executable, to find files shipped beside it.
+fs::path executable_dir() {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? fs::current_path() : exe.parent_path();
+}
+
+// The built dashboard: the source tree's web/dist seen from build/bin, or an installed
+// share/aliquot/web seen from bin/.
+fs::path default_web_dir() {
+    const fs::path bin = executable_dir();
+    for (const fs::path& p : {bin / ".." / ".." / "web" / "dist", bin / ".." / "share" / "aliquot" / "web"})
+        if (fs::exists(p / "index.html")) return fs::weakly_canonical(p);
+    return bin / ".." / ".." / "web" / "dist";
+}
+
 struct CoordinatorCommand {
     std::string grpc_address = "127.0.0.1:7070";
     std::string data_dir = "aliquot-data";
+    std::string http_address;  // empty: no HTTP API or dashboard
+    std::string web_dir;       // empty: default_web_dir()
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
@@ -35,10 +57,23 @@ struct CoordinatorCommand {
         GrpcServer server(coordinator, grpc_address);
         std::fprintf(stderr, "coordinator: gRPC on %s (port %d), data in %s\n",
                      grpc_address.c_str(), server.port(), data_dir.c_str());
+        std::unique_ptr<HttpServer> http;
+        if (!http_address.empty()) {
+            HttpOptions http_options;
+            http_options.web_dir = web_dir.empty() ? default_web_dir() : fs::path(web_dir);
+            http_options.study_dirs = {{"data", fs::path(data_dir) / "studies"}};
+            const fs::path docs = executable_dir() / ".." / ".." / "docs" / "studies";
+            if (fs::is_directory(docs)) http_options.study_dirs.emplace_back("docs", docs);
+            http = std::make_unique<HttpServer>(coordinator, http_address, http_options);
+            std::fprintf(stderr, "coordinator: HTTP on %s (port %d), dashboard from %s\n",
+                         http_address.c_str(), http->port(),
+                         http_options.web_dir.string().c_str());
+        }
         int sig = 0;
         sigwait(&stop, &sig);
         std::fprintf(stderr, "coordinator: stopping (signal %d)\n", sig);
         coordinator.stop();
+        if (http) http->shutdown();
         server.shutdown();
     }
 };
@@ -49,6 +84,10 @@ void register_coordinator(CLI::App& app) {
     auto c = std::make_shared<CoordinatorCommand>();
     CLI::App* cmd = app.add_subcommand("coordinator", "run a coordinator (gRPC, SQLite)");
     cmd->add_option("--grpc", c->grpc_address, "listen address host:port")->capture_default_str();
+    cmd->add_option("--http", c->http_address,
+                    "HTTP address host:port for the JSON API and dashboard (default: off)");
+    cmd->add_option("--web", c->web_dir,
+                    "built dashboard directory (default: web/dist of the source tree)");
     cmd->add_option("--data", c->data_dir, "directory for SQLite, checkpoints, images")
         ->capture_default_str();
     cmd->add_option("--lease-seconds", c->lease_seconds, "lease length without renewal")

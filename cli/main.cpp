@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
     aliquot::cli::register_worker(app);
     aliquot::cli::register_submit(app);
     aliquot::cli::register_farm_clients(app);
+    aliquot::cli::register_reference(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -84,6 +84,7 @@ void Coordinator::changed() {
 void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     RenderSession* s = session.get();
     s->on_round = [this](RenderSession& r, const RoundSummary& round) {
+        round_history_[r.id()].push_back(round);  // for rounds(): see the end of this file
         if (!store_) return;
         try {
             RoundRecord rec;
@@ -440,6 +441,69 @@ void Coordinator::tick() {
     if (any) changed();
     // Every ~10 s: keep the WAL from growing without bound.
     if (store_ && ++ticks_ % 50 == 0) store_->checkpoint();
+}
+
+// ---- Read-only views for the HTTP API and dashboard ----
+
+namespace {
+
+RoundSummary summary_of(const RoundRecord& rec) {
+    RoundSummary r;
+    r.index = uint32_t(rec.idx);
+    r.samples_in_round = uint64_t(rec.samples_in_round);
+    r.samples_total = uint64_t(rec.samples_total);
+    r.seconds = rec.seconds;
+    r.error_estimate = rec.error_estimate;
+    r.error_vs_reference = rec.error_vs_reference.value_or(-1);
+    return r;
+}
+
+}  // namespace
+
+std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& id) {
+    std::lock_guard lock(mutex_);
+    const auto live = sessions_.find(id);
+    if (live != sessions_.end()) {
+        std::vector<RoundSummary>& history = round_history_[id];
+        // A resumed render's history in memory starts at its checkpoint: fill it in from
+        // the store once.
+        if (history.size() < live->second->rounds_done() && store_) {
+            std::vector<RoundSummary> all;
+            for (const RoundRecord& rec : store_->rounds(id)) all.push_back(summary_of(rec));
+            if (all.size() > history.size()) history = std::move(all);
+        }
+        return history;
+    }
+    if (!store_ || !store_->get_render(id)) return std::nullopt;
+    std::vector<RoundSummary> out;
+    for (const RoundRecord& rec : store_->rounds(id)) out.push_back(summary_of(rec));
+    return out;
+}
+
+std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
+    std::lock_guard lock(mutex_);
+    if (auto it = sessions_.find(id); it != sessions_.end())
+        return it->second->strategy().buckets();
+    if (!store_ || !store_->get_render(id)) return std::nullopt;
+    std::vector<Bucket> out;
+    const std::vector<RoundRecord> recs = store_->rounds(id);
+    if (recs.empty() || recs.back().buckets_json.empty()) return out;
+    // Rows as on_round writes them: [x, y, width, height, error, converged].
+    const nlohmann::json rows = nlohmann::json::parse(recs.back().buckets_json, nullptr, false);
+    if (!rows.is_array()) return out;
+    for (const nlohmann::json& row : rows) {
+        if (!row.is_array() || row.size() < 6 || !row[0].is_number_unsigned() ||
+            !row[1].is_number_unsigned() || !row[2].is_number_unsigned() ||
+            !row[3].is_number_unsigned())
+            continue;
+        Bucket b;
+        b.rect = {row[0].get<uint32_t>(), row[1].get<uint32_t>(), row[2].get<uint32_t>(),
+                  row[3].get<uint32_t>()};
+        b.error = row[4].is_number() ? row[4].get<double>() : 0.0;
+        b.converged = row[5].is_boolean() ? row[5].get<bool>() : row[5] == 1;
+        out.push_back(b);
+    }
+    return out;
 }
 
 }  // namespace aliquot

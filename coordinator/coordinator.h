@@ -110,6 +110,19 @@ private:
     int ticks_ = 0;
     bool stopping_ = false;
     std::thread ticker_;
+
+    // ---- Read-only views for the HTTP API and dashboard (http_server.h) ----
+public:
+    // The completed rounds of `id` in order, or nullopt for an unknown render. A live
+    // render's come from memory; a render resumed or finished before this process started
+    // reads the store's record (once, then cached for a live one).
+    std::optional<std::vector<RoundSummary>> rounds(const std::string& id);
+    // The strategy's current buckets for a live render, or those recorded with the last
+    // round of an older one; empty for per-pixel methods; nullopt for an unknown render.
+    std::optional<std::vector<Bucket>> buckets(const std::string& id);
+
+private:
+    std::map<std::string, std::vector<RoundSummary>> round_history_;  // by render id
 };
 
 }  // namespace aliquot

@@ -10,7 +10,13 @@
 namespace aliquot {
 
 // Tiles of `tile` x `tile` pixels (smaller at the edges); tiles with no samples are skipped.
+// With tile 0 the side follows the round's mean spp (see job_tile_side).
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
-                                 uint32_t tile = 32);
+                                 uint32_t tile = 0);
+
+// Tile side for a round of `mean_spp` samples per pixel: jobs of roughly 8k-32k samples,
+// so a job's fixed cost (a lease and a result message) stays small beside its tracing,
+// and at most 128x128 pixels, so a result message stays near 1 MiB, far below gRPC's 4 MiB.
+uint32_t job_tile_side(double mean_spp);
 
 }  // namespace aliquot

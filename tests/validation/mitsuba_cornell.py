@@ -100,6 +100,9 @@ def main(argv=None):
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--rr-depth", type=int, default=5)
     ap.add_argument("--out", required=True, help="output .exr path")
+    ap.add_argument("--max-seconds", type=float, default=None,
+                    help="stop after the pass that takes the render time past this; the "
+                         "image then has fewer spp than asked (reported as spp)")
     ap.add_argument("--progress", action="store_true",
                     help="print per-pass progress to stderr")
     args = ap.parse_args(argv)
@@ -154,6 +157,7 @@ def main(argv=None):
 
     accum = np.zeros((h, w, 3), dtype=np.float64)
     seconds = 0.0
+    passes_done = 0
     for i in range(passes):
         seed = args.seed + i
         if variant.startswith("scalar"):
@@ -171,10 +175,14 @@ def main(argv=None):
             print(f"error: unexpected image shape {arr.shape}", file=sys.stderr)
             return 2
         accum += arr
+        passes_done += 1
         if args.progress:
             print(f"pass {i + 1}/{passes} seed {seed}: {seconds:.1f} s so far",
                   file=sys.stderr, flush=True)
-    image = (accum / passes).astype(np.float32)
+        if args.max_seconds is not None and seconds >= args.max_seconds:
+            break
+    image = (accum / passes_done).astype(np.float32)
+    spp_done = passes_done * spp_per_pass
 
     out_dir = os.path.dirname(os.path.abspath(args.out))
     os.makedirs(out_dir, exist_ok=True)
@@ -184,7 +192,7 @@ def main(argv=None):
     bmp = mi.Bitmap(np.ascontiguousarray(image), mi.Bitmap.PixelFormat.RGB)
     bmp.write(args.out)
 
-    samples = w * h * args.spp
+    samples = w * h * spp_done
     print(json.dumps({
         "samples": samples,
         "seconds": seconds,
@@ -193,9 +201,11 @@ def main(argv=None):
         "mitsuba_version": mi.__version__,
         "variant": variant,
         "resolution": [w, h],
-        "spp": args.spp,
+        "spp": spp_done,
+        "spp_requested": args.spp,
         "seed": args.seed,
-        "passes": passes,
+        "passes": passes_done,
+        "spp_per_pass": spp_per_pass,
         "threads": threads,
         "max_depth": args.max_depth,
         "rr_depth": args.rr_depth,

@@ -1,0 +1,331 @@
+#include "http_api.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+
+#include "png_encoder.h"
+#include "scene_loader.h"
+
+namespace aliquot::http_api {
+
+using nlohmann::json;
+
+namespace {
+
+// -1 is how the coordinator says "not measured"; JSON says null.
+json measured(double v) { return (v >= 0 && std::isfinite(v)) ? json(v) : json(nullptr); }
+
+json parse_or_empty(const std::string& text) {
+    if (text.empty()) return json::object();
+    const json j = json::parse(text, nullptr, false);
+    return j.is_discarded() ? json::object() : j;
+}
+
+const Image::Channel* channel(const Image& image, const std::string& name) {
+    for (const Image::Channel& c : image.extra)
+        if (c.name == name) return &c;
+    return nullptr;
+}
+
+// Box-filters a one-value-per-pixel plane by an integer factor so the longer side fits.
+struct Plane {
+    uint32_t width = 0, height = 0;
+    std::vector<double> values;
+};
+
+uint32_t shrink_factor(uint32_t width, uint32_t height, uint32_t max_side) {
+    const uint32_t side = std::max(width, height);
+    max_side = std::max<uint32_t>(max_side, 1);
+    return std::max<uint32_t>(1, (side + max_side - 1) / max_side);
+}
+
+template <typename Get>
+Plane downsample(uint32_t width, uint32_t height, uint32_t factor, Get get) {
+    Plane p;
+    p.width = (width + factor - 1) / factor;
+    p.height = (height + factor - 1) / factor;
+    p.values.assign(size_t(p.width) * p.height, 0.0);
+    std::vector<uint32_t> counts(p.values.size(), 0);
+    for (uint32_t y = 0; y < height; ++y)
+        for (uint32_t x = 0; x < width; ++x) {
+            const size_t o = size_t(y / factor) * p.width + x / factor;
+            p.values[o] += get(size_t(y) * width + x);
+            ++counts[o];
+        }
+    for (size_t i = 0; i < p.values.size(); ++i) p.values[i] /= counts[i];
+    return p;
+}
+
+uint8_t srgb_byte(double linear) {
+    if (!(linear > 0)) return 0;  // also NaN
+    const double v = linear <= 0.0031308 ? 12.92 * linear
+                                         : 1.055 * std::pow(linear, 1.0 / 2.4) - 0.055;
+    return uint8_t(std::lround(std::clamp(v, 0.0, 1.0) * 255.0));
+}
+
+void require(bool ok, const std::string& message) {
+    if (!ok) throw ApiError(400, message);
+}
+
+uint64_t whole_number(const json& v, const std::string& field, uint64_t top) {
+    if (v.is_number_unsigned() && v.get<uint64_t>() <= top) return v.get<uint64_t>();
+    if (v.is_number_integer() && v.get<int64_t>() >= 0 && uint64_t(v.get<int64_t>()) <= top)
+        return uint64_t(v.get<int64_t>());
+    if (v.is_number_float()) {
+        const double d = v.get<double>();
+        if (d >= 0 && d <= double(top) && d == std::floor(d)) return uint64_t(d);
+    }
+    throw ApiError(400, "'" + field + "' must be a whole number from 0 to " +
+                            std::to_string(top));
+}
+
+}  // namespace
+
+BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t width,
+                               uint32_t height) {
+    BucketProgress p;
+    p.total = buckets.size();
+    uint64_t area = 0;
+    for (const Bucket& b : buckets)
+        if (b.converged) {
+            ++p.converged;
+            area += b.rect.size();
+        }
+    const uint64_t pixels = uint64_t(width) * height;
+    p.converged_area = pixels ? double(area) / double(pixels) : 0;
+    return p;
+}
+
+json render_summary(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {
+    double progress = 0;
+    if (info.state == "done") {
+        progress = 1;
+    } else if (buckets && buckets->total > 0) {
+        // Dammertz stops where buckets converge: its planned samples are only a cap.
+        progress = buckets->converged_area;
+    } else if (info.samples_planned > 0) {
+        progress = std::min(1.0, double(info.samples_done) / double(info.samples_planned));
+    }
+    json j = {{"id", info.id},
+              {"scene", info.scene_name},
+              {"method", info.method},
+              {"state", info.state},
+              {"width", info.width},
+              {"height", info.height},
+              {"seed", info.seed},
+              {"samples_done", info.samples_done},
+              {"samples_planned", info.samples_planned},
+              {"rounds", info.rounds_done},
+              {"seconds", info.seconds},
+              {"samples_per_second", info.samples_per_second},
+              {"error_estimate", measured(info.error_estimate)},
+              {"error_vs_reference", measured(info.error_vs_reference)},
+              {"created_ms", info.created_ms},
+              {"progress", progress}};
+    if (!info.error.empty()) j["error"] = info.error;
+    if (info.finished_ms) j["finished_ms"] = info.finished_ms;
+    if (buckets && buckets->total > 0) {
+        j["buckets_converged"] = buckets->converged;
+        j["buckets_total"] = buckets->total;
+    }
+    return j;
+}
+
+json render_detail(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {
+    json j = render_summary(info, buckets);
+    j["strategy"] = parse_or_empty(info.strategy_json);
+    j["outcome"] = parse_or_empty(info.outcome_json);
+    j["rays"] = info.rays;
+    return j;
+}
+
+json round_json(const RoundSummary& r) {
+    return {{"index", r.index},
+            {"samples_in_round", r.samples_in_round},
+            {"samples_total", r.samples_total},
+            {"seconds", r.seconds},
+            {"error_estimate", measured(r.error_estimate)},
+            {"error_vs_reference", measured(r.error_vs_reference)}};
+}
+
+json worker_json(const WorkerStatus& w) {
+    return {{"name", w.name},
+            {"threads", w.threads},
+            {"state", w.state},
+            {"leases", w.leases},
+            {"samples_traced", w.samples_traced},
+            {"samples_per_second", w.samples_per_second},
+            {"last_seen_ms", w.last_seen_ms}};
+}
+
+json buckets_json(const std::vector<Bucket>& buckets) {
+    json rows = json::array();
+    for (const Bucket& b : buckets)
+        rows.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height,
+                        std::isfinite(b.error) ? json(float(b.error)) : json(nullptr),
+                        b.converged ? 1 : 0});
+    return rows;
+}
+
+RenderSpec parse_render_request(const std::string& body) {
+    const json j = json::parse(body, nullptr, false);
+    require(!j.is_discarded(), "request body is not valid JSON");
+    require(j.is_object(), "request body must be a JSON object");
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    bool have_resolution = false, have_width = false, have_height = false;
+    for (const auto& [key, v] : j.items()) {
+        if (key == "scene") {
+            require(v.is_string(), "'scene' must be a string");
+            spec.scene_name = v.get<std::string>();
+        } else if (key == "resolution") {
+            require(v.is_string(), "'resolution' must be a string like \"256x256\"");
+            const std::string text = v.get<std::string>();
+            unsigned long w = 0, h = 0;
+            char* end = nullptr;
+            const char* s = text.c_str();
+            bool ok = !text.empty() && std::isdigit((unsigned char)s[0]);
+            if (ok) w = std::strtoul(s, &end, 10);
+            ok = ok && *end == 'x' && std::isdigit((unsigned char)end[1]);
+            if (ok) h = std::strtoul(end + 1, &end, 10);
+            ok = ok && *end == '\0' && w <= UINT32_MAX && h <= UINT32_MAX;
+            require(ok, "'resolution' must look like \"256x256\", got \"" + text + "\"");
+            spec.width = uint32_t(w);
+            spec.height = uint32_t(h);
+            have_resolution = true;
+        } else if (key == "width") {
+            spec.width = uint32_t(whole_number(v, key, UINT32_MAX));
+            have_width = true;
+        } else if (key == "height") {
+            spec.height = uint32_t(whole_number(v, key, UINT32_MAX));
+            have_height = true;
+        } else if (key == "seed") {
+            spec.seed = whole_number(v, key, std::numeric_limits<uint64_t>::max());
+        } else if (key == "strategy") {
+            try {
+                spec.strategy = v.get<StrategyParams>();
+            } catch (const std::exception& e) {
+                throw ApiError(400, std::string("strategy: ") + e.what());
+            }
+        } else {
+            throw ApiError(400, "unknown field '" + key +
+                                    "'; expected scene, resolution (or width and height), "
+                                    "seed, strategy");
+        }
+    }
+    require(!(have_resolution && (have_width || have_height)),
+            "give 'resolution' or 'width' and 'height', not both");
+    if (!have_resolution) {
+        require(have_width == have_height, "'width' and 'height' go together");
+        if (!have_width) spec.width = spec.height = 256;
+    }
+    // As on the command line: a uniform render with no budget gets 64 samples per pixel.
+    if (spec.strategy.method == "uniform" && spec.strategy.spp == 0 && spec.strategy.budget == 0)
+        spec.strategy.spp = 64;
+
+    const std::vector<std::string> names = builtin_scene_names();
+    if (std::find(names.begin(), names.end(), spec.scene_name) == names.end()) {
+        std::string list;
+        for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+        throw ApiError(400, "unknown scene '" + spec.scene_name + "'; built-in scenes: " + list);
+    }
+    spec.scene_json = self_contained_scene_json(spec.scene_name);
+    return spec;
+}
+
+std::string preview_png(const Image& image, double exposure, uint32_t max_side) {
+    const double scale = std::exp2(exposure);
+    const uint32_t f = shrink_factor(image.width, image.height, max_side);
+    std::vector<Plane> planes;
+    for (int c = 0; c < 3; ++c)
+        planes.push_back(downsample(image.width, image.height, f,
+                                    [&](size_t i) { return double(image.rgb[i * 3 + c]); }));
+    const Plane& r = planes[0];
+    std::vector<uint8_t> bytes(r.values.size() * 3);
+    for (size_t i = 0; i < r.values.size(); ++i)
+        for (int c = 0; c < 3; ++c) bytes[i * 3 + c] = srgb_byte(planes[c].values[i] * scale);
+    return encode_png(bytes, r.width, r.height, 3);
+}
+
+json pixel_map(const Image& image, MapKind kind, uint32_t max_side) {
+    const Image::Channel* spp = channel(image, "spp");
+    const Image::Channel* variance = channel(image, "variance");
+    if (!spp || !variance) throw ApiError(404, "the image has no per-pixel sample counts");
+    const uint32_t f = shrink_factor(image.width, image.height, max_side);
+    const Plane p =
+        kind == MapKind::Spp
+            ? downsample(image.width, image.height, f,
+                         [&](size_t i) { return double(spp->values[i]); })
+            : downsample(image.width, image.height, f, [&](size_t i) {
+                  const double v = variance->values[i];
+                  return std::isfinite(v) && v > 0 ? std::sqrt(v) : 0.0;
+              });
+
+    double hi = 0, sum = 0, max = 0;
+    for (double v : p.values) {
+        sum += v;
+        max = std::max(max, v);
+    }
+    if (kind == MapKind::Spp) {
+        hi = max;
+    } else {
+        // Fireflies would squash a linear scale; clip at the 99th percentile.
+        std::vector<double> sorted = p.values;
+        const size_t k = std::min(sorted.size() - 1, size_t(double(sorted.size()) * 0.99));
+        std::nth_element(sorted.begin(), sorted.begin() + ptrdiff_t(k), sorted.end());
+        hi = sorted[k];
+    }
+    if (!(hi > 0)) hi = 1;
+    std::string bytes(p.values.size(), '\0');
+    for (size_t i = 0; i < p.values.size(); ++i)
+        bytes[i] = char(uint8_t(std::lround(std::clamp(p.values[i] / hi, 0.0, 1.0) * 255.0)));
+    return {{"kind", kind == MapKind::Spp ? "spp" : "error"},
+            {"width", p.width},
+            {"height", p.height},
+            {"image_width", image.width},
+            {"image_height", image.height},
+            {"lo", 0.0},
+            {"hi", hi},
+            {"mean", p.values.empty() ? 0.0 : sum / double(p.values.size())},
+            {"max", max},
+            {"data", base64(bytes)}};
+}
+
+double number_param(const std::string& name, const std::string& text, double lo, double hi) {
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || *end != '\0' || !std::isfinite(v) || v < lo || v > hi)
+        throw ApiError(400, "'" + name + "' must be a number from " + json(lo).dump() +
+                                " to " + json(hi).dump() + ", got \"" + text + "\"");
+    return v;
+}
+
+std::string base64(const std::string& in) {
+    static const char* table =
+        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::string out;
+    out.reserve((in.size() + 2) / 3 * 4);
+    size_t i = 0;
+    for (; i + 2 < in.size(); i += 3) {
+        const uint32_t v = uint32_t(uint8_t(in[i])) << 16 | uint32_t(uint8_t(in[i + 1])) << 8 |
+                           uint8_t(in[i + 2]);
+        out += table[v >> 18];
+        out += table[(v >> 12) & 63];
+        out += table[(v >> 6) & 63];
+        out += table[v & 63];
+    }
+    if (i < in.size()) {
+        uint32_t v = uint32_t(uint8_t(in[i])) << 16;
+        if (i + 1 < in.size()) v |= uint32_t(uint8_t(in[i + 1])) << 8;
+        out += table[v >> 18];
+        out += table[(v >> 12) & 63];
+        out += i + 1 < in.size() ? table[(v >> 6) & 63] : '=';
+        out += '=';
+    }
+    return out;
+}
+
+}  // namespace aliquot::http_api

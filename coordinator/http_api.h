@@ -1,0 +1,69 @@
+// The documents of the coordinator's HTTP API (docs/API.md), apart from any transport:
+// renders, rounds, buckets and workers as JSON, the submit request's parsing, and the
+// compact images the dashboard draws (a tone-mapped PNG preview, quantised per-pixel maps).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "coordinator.h"
+
+namespace aliquot::http_api {
+
+// A request the API refuses, with the HTTP status to answer (400, 404, ...).
+class ApiError : public std::runtime_error {
+public:
+    ApiError(int status, const std::string& message)
+        : std::runtime_error(message), status_(status) {}
+    int status() const { return status_; }
+
+private:
+    int status_;
+};
+
+// How much of the image the strategy's buckets have declared converged (Dammertz).
+struct BucketProgress {
+    size_t converged = 0, total = 0;
+    double converged_area = 0;  // fraction of the image's pixels
+};
+BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t width,
+                               uint32_t height);
+
+// The compact form used in lists and live events: no strategy parameters, no pixels.
+nlohmann::json render_summary(const RenderInfo& info,
+                              const std::optional<BucketProgress>& buckets = std::nullopt);
+// The summary plus strategy parameters, outcome and rays traced.
+nlohmann::json render_detail(const RenderInfo& info,
+                             const std::optional<BucketProgress>& buckets = std::nullopt);
+nlohmann::json round_json(const RoundSummary& round);
+nlohmann::json worker_json(const WorkerStatus& worker);
+// Buckets as [x, y, width, height, error, converged] rows.
+nlohmann::json buckets_json(const std::vector<Bucket>& buckets);
+
+// Parses the body of POST /api/renders into a spec (built-in scenes only: an HTTP client
+// must not make the coordinator read its own files). Throws ApiError(400) naming the field.
+// Ranges (resolution, budget, method parameters) are the coordinator's to check on submit.
+RenderSpec parse_render_request(const std::string& body);
+
+// An 8-bit sRGB PNG of the image scaled by 2^exposure, box-filtered down so that its longer
+// side is at most `max_side`.
+std::string preview_png(const Image& image, double exposure, uint32_t max_side);
+
+enum class MapKind { Spp, Error };
+// A per-pixel map, box-filtered to at most `max_side` on the longer side and quantised to
+// bytes: value = lo + (hi - lo) * byte / 255, as base64 in "data". `image` must carry the
+// "spp" and "variance" channels (Accumulator::image(true)); the error is the standard error
+// of each pixel's mean luminance, sqrt(variance).
+nlohmann::json pixel_map(const Image& image, MapKind kind, uint32_t max_side);
+
+// Query-parameter parsing that answers 400 rather than throwing anything else.
+double number_param(const std::string& name, const std::string& text, double lo, double hi);
+
+std::string base64(const std::string& bytes);
+
+}  // namespace aliquot::http_api

@@ -1,0 +1,578 @@
+#include "http_server.h"
+
+#include <httplib.h>
+
+#include <algorithm>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+#include "http_api.h"
+#include "scene_loader.h"
+
+namespace aliquot {
+
+using nlohmann::json;
+using http_api::ApiError;
+
+namespace {
+
+int64_t now_ms() {
+    return std::chrono::duration_cast<std::chrono::milliseconds>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+}
+
+// Live updates: the broadcaster publishes numbered messages, each event stream sends those
+// it has not sent yet. A stream that falls further behind than the ring holds is told to
+// resynchronise (fetch everything again) instead of being queued for without bound.
+class EventHub {
+public:
+    void publish(std::string message) {
+        {
+            std::lock_guard lock(mutex_);
+            ring_.emplace_back(next_++, std::move(message));
+            if (ring_.size() > kRing) ring_.pop_front();
+        }
+        cv_.notify_all();
+    }
+    uint64_t next() {
+        std::lock_guard lock(mutex_);
+        return next_;
+    }
+    // Waits up to `timeout` for messages numbered `from` or later and appends them to
+    // `out`, advancing `from`. Returns false once the hub has stopped.
+    bool wait(uint64_t& from, std::chrono::milliseconds timeout, std::vector<std::string>& out,
+              bool& missed) {
+        std::unique_lock lock(mutex_);
+        cv_.wait_for(lock, timeout, [&] { return stopping_ || next_ > from; });
+        if (stopping_) return false;
+        missed = !ring_.empty() && ring_.front().first > from;
+        for (const auto& [seq, message] : ring_)
+            if (seq >= from) out.push_back(message);
+        from = next_;
+        return true;
+    }
+    void stop() {
+        {
+            std::lock_guard lock(mutex_);
+            stopping_ = true;
+        }
+        cv_.notify_all();
+    }
+    bool stopping() {
+        std::lock_guard lock(mutex_);
+        return stopping_;
+    }
+    // Sleeps `d` unless the hub stops first.
+    void pause(std::chrono::milliseconds d) {
+        std::unique_lock lock(mutex_);
+        cv_.wait_for(lock, d, [&] { return stopping_; });
+    }
+
+private:
+    static constexpr size_t kRing = 256;
+    std::mutex mutex_;
+    std::condition_variable cv_;
+    std::deque<std::pair<uint64_t, std::string>> ring_;
+    uint64_t next_ = 1;
+    bool stopping_ = false;
+};
+
+void send_json(httplib::Response& res, const json& body, int status = 200) {
+    res.status = status;
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(body.dump(), "application/json");
+}
+
+void send_error(httplib::Response& res, int status, const std::string& message) {
+    send_json(res, {{"error", message}}, status);
+}
+
+std::string content_type_of(const std::filesystem::path& p) {
+    static const std::map<std::string, std::string> types = {
+        {".md", "text/markdown; charset=utf-8"},
+        {".txt", "text/plain; charset=utf-8"},
+        {".csv", "text/csv; charset=utf-8"},
+        {".json", "application/json"},
+        {".png", "image/png"},
+        {".jpg", "image/jpeg"},
+        {".jpeg", "image/jpeg"},
+        {".svg", "image/svg+xml"},
+        {".html", "text/plain; charset=utf-8"},  // shown as source, never run as a page
+    };
+    const auto it = types.find(p.extension().string());
+    return it == types.end() ? "" : it->second;
+}
+
+std::string first_heading(const std::filesystem::path& md) {
+    std::ifstream in(md);
+    std::string line;
+    for (int n = 0; n < 40 && std::getline(in, line); ++n)
+        if (line.rfind("# ", 0) == 0) return line.substr(2);
+    return {};
+}
+
+std::string query(const httplib::Request& req, const std::string& name,
+                  const std::string& fallback) {
+    return req.has_param(name.c_str()) ? req.get_param_value(name.c_str()) : fallback;
+}
+
+}  // namespace
+
+struct HttpServer::Impl {
+    Coordinator& coordinator;
+    HttpOptions options;
+    httplib::Server server;
+    EventHub hub;
+    std::thread listener, broadcaster;
+    int port = 0;
+    std::once_flag stopped;
+
+    // What the broadcaster last told the browsers, to send only what changed.
+    struct Seen {
+        std::string state;
+        uint64_t samples = 0;
+        uint32_t rounds = 0;
+        double error = -1, reference = -1;
+        size_t converged = 0;
+        bool operator==(const Seen&) const = default;
+    };
+    std::map<std::string, Seen> seen_renders;
+    std::string seen_workers;
+    uint64_t seen_worker_samples = 0;
+    std::chrono::steady_clock::time_point workers_sent;
+
+    Impl(Coordinator& c, HttpOptions o) : coordinator(c), options(std::move(o)) {}
+
+    // ---- renders ----
+
+    std::optional<http_api::BucketProgress> progress_of(const RenderInfo& info) {
+        // Only running renders: a finished one reports progress 1 and may live only in the
+        // store, where its buckets cost a read of every round.
+        if (info.state != "running" && info.state != "queued") return std::nullopt;
+        if (info.method != "dammertz") return std::nullopt;
+        const auto b = coordinator.buckets(info.id);
+        if (!b || b->empty()) return std::nullopt;
+        return http_api::bucket_progress(*b, info.width, info.height);
+    }
+
+    RenderInfo render_or_404(const std::string& id) {
+        if (id.size() > 64) throw ApiError(404, "no render '" + id.substr(0, 64) + "...'");
+        std::optional<RenderInfo> info = coordinator.info(id);
+        if (!info) throw ApiError(404, "no render '" + id + "'");
+        return *info;
+    }
+
+    json list_renders(size_t limit) {
+        json out = json::array();
+        for (const RenderInfo& info : coordinator.list(limit))
+            out.push_back(http_api::render_summary(info, progress_of(info)));
+        return out;
+    }
+
+    json workers_json() {
+        json out = json::array();
+        for (const WorkerStatus& w : coordinator.workers()) out.push_back(http_api::worker_json(w));
+        return out;
+    }
+
+    // ---- live updates ----
+
+    void snapshot(bool publish) {
+        const std::vector<RenderInfo> renders = coordinator.list(options.max_list);
+        json changed = json::array(), rounds = json::array();
+        std::set<std::string> present;
+        for (const RenderInfo& info : renders) {
+            present.insert(info.id);
+            const auto progress = progress_of(info);
+            Seen now{info.state,          info.samples_done,       info.rounds_done,
+                     info.error_estimate, info.error_vs_reference, progress ? progress->converged : 0};
+            auto it = seen_renders.find(info.id);
+            const uint32_t rounds_before = it == seen_renders.end() ? 0 : it->second.rounds;
+            if (it != seen_renders.end() && it->second == now) continue;
+            changed.push_back(http_api::render_summary(info, progress));
+            if (info.rounds_done > rounds_before && publish) {
+                if (auto all = coordinator.rounds(info.id)) {
+                    const size_t fresh = std::min<size_t>(all->size(), info.rounds_done - rounds_before);
+                    for (size_t i = all->size() - fresh; i < all->size(); ++i) {
+                        json r = http_api::round_json((*all)[i]);
+                        r["id"] = info.id;
+                        r["position"] = i;
+                        rounds.push_back(std::move(r));
+                    }
+                }
+            }
+            seen_renders[info.id] = now;
+        }
+        for (auto it = seen_renders.begin(); it != seen_renders.end();)
+            it = present.count(it->first) ? std::next(it) : seen_renders.erase(it);
+
+        const std::vector<WorkerStatus> workers = coordinator.workers();
+        std::string key;
+        uint64_t samples = 0;
+        for (const WorkerStatus& w : workers) {
+            key += w.name + '|' + w.state + '|' + std::to_string(w.threads) + '|';
+            for (const std::string& l : w.leases) key += l + ',';
+            key += '\n';
+            samples += w.samples_traced;
+        }
+        const auto now = std::chrono::steady_clock::now();
+        // Membership, state or leases at once; sample counters and rates every 2 s at most.
+        const bool workers_changed =
+            key != seen_workers ||
+            (samples != seen_worker_samples && now - workers_sent > std::chrono::seconds(2));
+        seen_workers = key;
+        if (!publish) {
+            seen_worker_samples = samples;
+            return;
+        }
+        if (!changed.empty())
+            hub.publish(json{{"type", "render"}, {"renders", changed}}.dump());
+        if (!rounds.empty()) hub.publish(json{{"type", "round"}, {"rounds", rounds}}.dump());
+        if (workers_changed) {
+            seen_worker_samples = samples;
+            workers_sent = now;
+            json list = json::array();
+            for (const WorkerStatus& w : workers) list.push_back(http_api::worker_json(w));
+            hub.publish(json{{"type", "workers"}, {"workers", list}, {"now_ms", now_ms()}}.dump());
+        }
+    }
+
+    void broadcast() {
+        uint64_t version = 0;
+        while (!hub.stopping()) {
+            version = coordinator.wait_for_change(version, std::chrono::milliseconds(1000));
+            if (hub.stopping()) break;
+            try {
+                snapshot(true);
+            } catch (const std::exception& e) {
+                std::fprintf(stderr, "http: live update failed: %s\n", e.what());
+            }
+            hub.pause(options.event_interval);
+        }
+    }
+
+    void events(const httplib::Request&, httplib::Response& res) {
+        res.set_header("Cache-Control", "no-store");
+        res.set_header("X-Accel-Buffering", "no");
+        auto from = std::make_shared<uint64_t>(hub.next());
+        auto greeted = std::make_shared<bool>(false);
+        res.set_chunked_content_provider(
+            "text/event-stream", [this, from, greeted](size_t, httplib::DataSink& sink) {
+                std::string out;
+                if (!*greeted) {
+                    *greeted = true;
+                    out = "retry: 2000\n\ndata: " +
+                          json{{"type", "hello"}, {"now_ms", now_ms()}}.dump() + "\n\n";
+                    return sink.write(out.data(), out.size());
+                }
+                std::vector<std::string> messages;
+                bool missed = false;
+                if (!hub.wait(*from, std::chrono::seconds(15), messages, missed)) {
+                    sink.done();
+                    return true;
+                }
+                if (missed) out += "data: {\"type\":\"resync\"}\n\n";
+                for (const std::string& m : messages) out += "data: " + m + "\n\n";
+                // A comment keeps proxies from closing an idle stream and finds dead peers.
+                if (out.empty()) out = ": idle\n\n";
+                return sink.write(out.data(), out.size());
+            });
+    }
+
+    // ---- studies ----
+
+    json list_studies() {
+        namespace fs = std::filesystem;
+        json out = json::array();
+        for (const auto& [label, dir] : options.study_dirs) {
+            std::error_code ec;
+            if (!fs::is_directory(dir, ec)) continue;
+            std::vector<fs::path> studies;
+            for (const fs::directory_entry& e : fs::directory_iterator(dir, ec))
+                if (e.is_directory()) studies.push_back(e.path());
+            std::sort(studies.begin(), studies.end());
+            for (const fs::path& s : studies) {
+                json files = json::array();
+                std::vector<std::string> names;
+                int64_t modified = 0;
+                for (auto it = fs::recursive_directory_iterator(s, ec);
+                     it != fs::recursive_directory_iterator() && names.size() < 200; ++it) {
+                    if (it.depth() > 2) it.disable_recursion_pending();
+                    if (!it->is_regular_file() || content_type_of(it->path()).empty()) continue;
+                    names.push_back(fs::relative(it->path(), s).generic_string());
+                    const auto t = fs::last_write_time(it->path(), ec);
+                    if (!ec)
+                        modified = std::max<int64_t>(
+                            modified, std::chrono::duration_cast<std::chrono::milliseconds>(
+                                          t.time_since_epoch())
+                                          .count());
+                }
+                if (names.empty()) continue;
+                std::sort(names.begin(), names.end());
+                std::string report;
+                for (const std::string& n : names)
+                    if (n == "report.md" || (report.empty() && n.ends_with(".md") &&
+                                             n.find('/') == std::string::npos))
+                        report = n;
+                std::string title = report.empty() ? "" : first_heading(s / report);
+                out.push_back({{"source", label},
+                               {"name", s.filename().string()},
+                               {"title", title.empty() ? s.filename().string() : title},
+                               {"report", report.empty() ? json(nullptr) : json(report)},
+                               {"files", names}});
+            }
+        }
+        return out;
+    }
+
+    void study_file(const std::string& label, const std::string& name, const std::string& rel,
+                    httplib::Response& res) {
+        namespace fs = std::filesystem;
+        const auto source = std::find_if(options.study_dirs.begin(), options.study_dirs.end(),
+                                         [&](const auto& d) { return d.first == label; });
+        if (source == options.study_dirs.end()) throw ApiError(404, "no study source '" + label + "'");
+        if (name.find("..") != std::string::npos || rel.find("..") != std::string::npos)
+            throw ApiError(400, "study paths may not contain '..'");
+        std::error_code ec;
+        const fs::path root = fs::weakly_canonical(source->second / name, ec);
+        const fs::path file = fs::weakly_canonical(source->second / name / rel, ec);
+        const std::string type = content_type_of(file);
+        if (ec || type.empty() || !fs::is_regular_file(file, ec) ||
+            file.string().rfind(root.string() + "/", 0) != 0)
+            throw ApiError(404, "no study file '" + name + "/" + rel + "'");
+        std::ifstream in(file, std::ios::binary);
+        std::ostringstream body;
+        body << in.rdbuf();
+        res.set_header("Cache-Control", "no-cache");
+        res.set_content(body.str(), type.c_str());
+    }
+
+    // ---- routing ----
+
+    // Runs a handler; every refusal becomes a JSON error with a 4xx status.
+    template <typename Fn>
+    httplib::Server::Handler guarded(Fn fn) {
+        return [fn](const httplib::Request& req, httplib::Response& res) {
+            try {
+                fn(req, res);
+            } catch (const ApiError& e) {
+                send_error(res, e.status(), e.what());
+            } catch (const std::invalid_argument& e) {  // spec validation
+                send_error(res, 400, e.what());
+            } catch (const SceneError& e) {
+                send_error(res, 400, e.what());
+            } catch (const json::exception& e) {
+                send_error(res, 400, std::string("malformed request: ") + e.what());
+            } catch (const std::exception& e) {
+                std::fprintf(stderr, "http: %s %s: %s\n", req.method.c_str(), req.path.c_str(),
+                             e.what());
+                send_error(res, 500, std::string("internal error: ") + e.what());
+            }
+        };
+    }
+
+    void routes() {
+        server.Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
+            send_json(res, {{"ok", true}});
+        });
+        server.Get("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
+            const size_t limit = size_t(http_api::number_param(
+                "limit", query(req, "limit", "200"), 1, double(options.max_list)));
+            send_json(res, {{"renders", list_renders(limit)}, {"now_ms", now_ms()}});
+        }));
+        server.Post("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
+            RenderSpec spec = http_api::parse_render_request(req.body);
+            const std::string id = coordinator.submit(std::move(spec));
+            const RenderInfo info = render_or_404(id);
+            res.set_header("Location", "/api/renders/" + id);
+            send_json(res, http_api::render_detail(info, progress_of(info)), 201);
+        }));
+        server.Get(R"(/api/renders/([^/]+))",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const RenderInfo info = render_or_404(req.matches[1]);
+                       send_json(res, http_api::render_detail(info, progress_of(info)));
+                   }));
+        server.Post(R"(/api/renders/([^/]+)/cancel)",
+                    guarded([this](const httplib::Request& req, auto& res) {
+                        render_or_404(req.matches[1]);
+                        const auto info = coordinator.cancel(req.matches[1]);
+                        if (!info) throw ApiError(404, "no render '" + req.matches[1].str() + "'");
+                        send_json(res, http_api::render_detail(*info));
+                    }));
+        server.Get(R"(/api/renders/([^/]+)/rounds)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const auto since = size_t(http_api::number_param(
+                           "since", query(req, "since", "0"), 0, 1e12));
+                       const auto all = coordinator.rounds(id);
+                       if (!all) throw ApiError(404, "no render '" + id + "'");
+                       json rows = json::array();
+                       for (size_t i = since; i < all->size(); ++i)
+                           rows.push_back(http_api::round_json((*all)[i]));
+                       send_json(res, {{"id", id}, {"since", since}, {"rounds", rows},
+                                       {"count", all->size()}});
+                   }));
+        server.Get(R"(/api/renders/([^/]+)/preview\.png)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const double exposure = http_api::number_param(
+                           "exposure", query(req, "exposure", "0"), -20, 20);
+                       const auto size = uint32_t(http_api::number_param(
+                           "size", query(req, "size", "1024"), 16, 8192));
+                       render_or_404(id);
+                       const std::optional<Image> image = coordinator.image(id, false);
+                       if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
+                       res.set_header("Cache-Control", "no-store");
+                       res.set_content(http_api::preview_png(*image, exposure, size), "image/png");
+                   }));
+        server.Get(R"(/api/renders/([^/]+)/maps)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const std::string kind = query(req, "kind", "spp");
+                       if (kind != "spp" && kind != "error")
+                           throw ApiError(400, "'kind' must be spp or error, got \"" + kind + "\"");
+                       const auto size = uint32_t(http_api::number_param(
+                           "size", query(req, "size", "256"), 8, 256));
+                       render_or_404(id);
+                       const std::optional<Image> image = coordinator.image(id, true);
+                       if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
+                       json map = http_api::pixel_map(
+                           *image, kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error,
+                           size);
+                       map["id"] = id;
+                       send_json(res, map);
+                   }));
+        server.Get(R"(/api/renders/([^/]+)/buckets)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const RenderInfo info = render_or_404(id);
+                       const auto buckets = coordinator.buckets(id);
+                       if (!buckets) throw ApiError(404, "no render '" + id + "'");
+                       const auto p = http_api::bucket_progress(*buckets, info.width, info.height);
+                       send_json(res, {{"id", id},
+                                       {"width", info.width},
+                                       {"height", info.height},
+                                       {"converged", p.converged},
+                                       {"converged_area", p.converged_area},
+                                       {"buckets", http_api::buckets_json(*buckets)}});
+                   }));
+        server.Get("/api/workers", guarded([this](const httplib::Request&, auto& res) {
+            send_json(res, {{"workers", workers_json()}, {"now_ms", now_ms()}});
+        }));
+        server.Get("/api/scenes", guarded([](const httplib::Request&, auto& res) {
+            send_json(res, {{"scenes", builtin_scene_names()},
+                            {"methods", strategy_methods()},
+                            {"defaults", StrategyParams{}}});
+        }));
+        server.Get("/api/events", [this](const httplib::Request& req, httplib::Response& res) {
+            events(req, res);
+        });
+        server.Get("/api/studies", guarded([this](const httplib::Request&, auto& res) {
+            send_json(res, {{"studies", list_studies()}});
+        }));
+        server.Get(R"(/api/studies/([^/]+)/([^/]+)/(.+))",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       study_file(req.matches[1], req.matches[2], req.matches[3], res);
+                   }));
+
+        // Whatever else went wrong (no such route, a body too large, a request httplib could
+        // not parse) still answers JSON with a message.
+        server.set_error_handler(httplib::Server::HandlerWithResponse(
+            [](const httplib::Request& req, httplib::Response& res) {
+            if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+            std::string message = "no such endpoint: " + req.method + " " + req.path;
+            if (res.status == 413) message = "request body too large";
+            else if (res.status == 400) message = "malformed HTTP request";
+            else if (res.status != 404) message = "request refused (HTTP " + std::to_string(res.status) + ")";
+            send_error(res, res.status, message);
+            return httplib::Server::HandlerResponse::Handled;
+        }));
+        server.set_exception_handler(
+            [](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
+                send_error(res, 500, "internal error");
+            });
+
+        namespace fs = std::filesystem;
+        std::error_code ec;
+        if (!options.web_dir.empty() && fs::exists(options.web_dir / "index.html", ec)) {
+            server.set_mount_point("/", options.web_dir.string());
+        } else {
+            const std::string where = options.web_dir.empty() ? "(none given)" : options.web_dir.string();
+            server.Get("/", [where](const httplib::Request&, httplib::Response& res) {
+                res.set_content(
+                    "<!doctype html><title>Aliquot</title><p>The dashboard is not built "
+                    "(looked in " + where + "): run <code>web/build.sh</code>, or pass "
+                    "<code>--web DIR</code>. The JSON API is at <a href=\"/api/renders\">"
+                    "/api/renders</a>.",
+                    "text/html");
+            });
+        }
+    }
+
+    void start(const std::string& address) {
+        const size_t colon = address.rfind(':');
+        if (colon == std::string::npos)
+            throw std::runtime_error("http: address must be host:port, got \"" + address + "\"");
+        std::string host = address.substr(0, colon);
+        if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+            host = host.substr(1, host.size() - 2);
+        if (host.empty()) host = "0.0.0.0";
+        int wanted = -1;
+        try {
+            size_t used = 0;
+            wanted = std::stoi(address.substr(colon + 1), &used);
+            if (used != address.size() - colon - 1) wanted = -1;
+        } catch (const std::exception&) {
+        }
+        if (wanted < 0 || wanted > 65535)
+            throw std::runtime_error("http: bad port in \"" + address + "\"");
+
+        // Event streams hold a thread each and browsers keep a few idle connections open.
+        server.new_task_queue = [] { return new httplib::ThreadPool(32); };
+        server.set_payload_max_length(1 << 20);
+        server.set_keep_alive_timeout(5);
+        routes();
+        if (wanted == 0) {
+            port = server.bind_to_any_port(host);
+            if (port <= 0) throw std::runtime_error("http: cannot listen on " + address);
+        } else {
+            if (!server.bind_to_port(host, wanted))
+                throw std::runtime_error("http: cannot listen on " + address);
+            port = wanted;
+        }
+        snapshot(false);  // later updates say what changed since now
+        listener = std::thread([this] { server.listen_after_bind(); });
+        broadcaster = std::thread([this] { broadcast(); });
+    }
+
+    void stop() {
+        std::call_once(stopped, [this] {
+            hub.stop();
+            server.stop();
+            if (listener.joinable()) listener.join();
+            if (broadcaster.joinable()) broadcaster.join();
+        });
+    }
+};
+
+HttpServer::HttpServer(Coordinator& coordinator, const std::string& address, HttpOptions options)
+    : impl_(std::make_unique<Impl>(coordinator, std::move(options))) {
+    impl_->start(address);
+}
+
+HttpServer::~HttpServer() { shutdown(); }
+
+int HttpServer::port() const { return impl_->port; }
+
+void HttpServer::shutdown() { impl_->stop(); }
+
+}  // namespace aliquot

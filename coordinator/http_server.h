@@ -1,0 +1,49 @@
+// The coordinator's HTTP face: the JSON API of docs/API.md, live updates as server-sent
+// events, study reports, and the built dashboard's static files. Thin over Coordinator,
+// like GrpcServer.
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "coordinator.h"
+
+namespace aliquot {
+
+struct HttpOptions {
+    // The built dashboard (web/dist); when it has no index.html, / explains how to build it
+    // and the API works alone.
+    std::filesystem::path web_dir;
+    // Where `aliquot study` reports live, each with the label the API names it by
+    // ("data", "docs"): every subdirectory is one study.
+    std::vector<std::pair<std::string, std::filesystem::path>> study_dirs;
+    // The shortest gap between two live updates: the browser never gets more than a few
+    // per second however fast results arrive.
+    std::chrono::milliseconds event_interval{250};
+    // Listed renders per request at most (GET /api/renders?limit=).
+    size_t max_list = 1000;
+};
+
+class HttpServer {
+public:
+    // Listens on `address` (host:port; port 0 picks a free one); throws std::runtime_error
+    // if it cannot.
+    HttpServer(Coordinator& coordinator, const std::string& address, HttpOptions options = {});
+    ~HttpServer();
+    HttpServer(const HttpServer&) = delete;
+    HttpServer& operator=(const HttpServer&) = delete;
+
+    int port() const;
+    // Ends open event streams and stops serving; idempotent.
+    void shutdown();
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace aliquot

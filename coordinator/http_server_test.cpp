@@ -1,0 +1,435 @@
+// The HTTP API over real sockets on loopback, with an in-memory coordinator fed by fake
+// workers (sums made up in-process, no tracing): what the dashboard relies on, that every
+// bad request gets a 4xx with a message, and that responses stay small with many renders.
+#include "http_server.h"
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "png_encoder.h"
+
+namespace aliquot {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr size_t kMaxResponse = 100 * 1024;
+
+// A worker that answers every job with made-up sums: a smooth image plus per-pixel noise
+// that differs between even and odd samples, so error estimates are non-zero.
+size_t fake_jobs(Coordinator& c, const std::string& worker, size_t max_jobs = 1000000) {
+    size_t jobs = 0;
+    while (jobs < max_jobs) {
+        const std::optional<LeaseGrant> grant = c.lease(worker, std::chrono::milliseconds(0));
+        if (!grant) break;
+        SampleJobResult result;
+        result.rect = grant->job.rect;
+        result.wall_seconds = 0.01;
+        for (size_t i = 0; i < grant->job.rect.size(); ++i) {
+            const uint32_t x = result.rect.x + uint32_t(i % result.rect.width);
+            const uint32_t y = result.rect.y + uint32_t(i / result.rect.width);
+            const uint64_t n = grant->job.counts[i], first = grant->job.first_sample[i];
+            const uint64_t evens = (n + (first % 2 == 0 ? 1 : 0)) / 2;
+            const double v = 0.2 + 0.1 * std::sin(0.3 * x) + 0.002 * double(y);
+            const double noise = (x * 7 + y * 13) % 5 == 0 ? 0.3 : 0.02;
+            PixelSums p;
+            for (int ch = 0; ch < 3; ++ch) {
+                p.even[ch] = double(evens) * (v + noise);
+                p.odd[ch] = double(n - evens) * (v - noise);
+            }
+            p.sum_sq_luminance = double(n) * (v * v + noise * noise);
+            p.samples = n;
+            p.rays = 2 * n;
+            result.pixels.push_back(p);
+        }
+        c.complete(worker, grant->lease_id, result);
+        ++jobs;
+    }
+    return jobs;
+}
+
+class HttpServerTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        dir_ = fs::temp_directory_path() / ("aliquot-http-test-" + std::to_string(::getpid()));
+        fs::remove_all(dir_);
+        fs::create_directories(dir_ / "web");
+        std::ofstream(dir_ / "web" / "index.html") << "<!doctype html><title>dash</title>";
+        fs::create_directories(dir_ / "studies" / "equal-budget" / "charts");
+        std::ofstream(dir_ / "studies" / "equal-budget" / "report.md")
+            << "# Equal budget\n\n![](charts/error.png)\n";
+        std::ofstream(dir_ / "studies" / "equal-budget" / "charts" / "error.png") << "png";
+        std::ofstream(dir_ / "secret.txt") << "not served";
+
+        coordinator_ = std::make_unique<Coordinator>(CoordinatorOptions{});
+        HttpOptions options;
+        options.web_dir = dir_ / "web";
+        options.study_dirs = {{"data", dir_ / "studies"}};
+        options.event_interval = std::chrono::milliseconds(50);
+        server_ = std::make_unique<HttpServer>(*coordinator_, "127.0.0.1:0", options);
+        client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
+        client_->set_read_timeout(10, 0);
+    }
+    void TearDown() override {
+        server_.reset();
+        coordinator_.reset();
+        fs::remove_all(dir_);
+    }
+
+    json get_json(const std::string& path, int expect = 200) {
+        auto res = client_->Get(path.c_str());
+        EXPECT_TRUE(res) << path;
+        if (!res) return {};
+        EXPECT_EQ(res->status, expect) << path << ": " << res->body;
+        EXPECT_LT(res->body.size(), kMaxResponse) << path;
+        return json::parse(res->body);
+    }
+    json post_json(const std::string& path, const std::string& body, int expect) {
+        auto res = client_->Post(path.c_str(), body, "application/json");
+        EXPECT_TRUE(res) << path;
+        if (!res) return {};
+        EXPECT_EQ(res->status, expect) << path << " " << body << ": " << res->body;
+        return json::parse(res->body);
+    }
+    std::string submit(const json& body) {
+        return post_json("/api/renders", body.dump(), 201).value("id", "");
+    }
+
+    fs::path dir_;
+    std::unique_ptr<Coordinator> coordinator_;
+    std::unique_ptr<HttpServer> server_;
+    std::unique_ptr<httplib::Client> client_;
+};
+
+TEST_F(HttpServerTest, HealthAndScenes) {
+    EXPECT_EQ(get_json("/healthz")["ok"], true);
+    const json scenes = get_json("/api/scenes");
+    EXPECT_NE(std::find(scenes["scenes"].begin(), scenes["scenes"].end(), "cornell-box"),
+              scenes["scenes"].end());
+    EXPECT_EQ(scenes["methods"].size(), strategy_methods().size());
+    EXPECT_EQ(scenes["defaults"]["method"], "uniform");
+}
+
+TEST_F(HttpServerTest, SubmittedRenderIsListedAndReadBack) {
+    auto res = client_->Post("/api/renders",
+                             R"({"scene":"cornell-box","resolution":"24x16","seed":3,
+                                 "strategy":{"method":"uniform","spp":8}})",
+                             "application/json");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 201) << res->body;
+    const json created = json::parse(res->body);
+    const std::string id = created["id"];
+    EXPECT_EQ(res->get_header_value("Location"), "/api/renders/" + id);
+    EXPECT_EQ(created["width"], 24);
+    EXPECT_EQ(created["height"], 16);
+    EXPECT_EQ(created["strategy"]["spp"], 8);
+    EXPECT_EQ(created["state"], "running");
+
+    const json list = get_json("/api/renders");
+    ASSERT_EQ(list["renders"].size(), 1u);
+    EXPECT_EQ(list["renders"][0]["id"], id);
+    EXPECT_FALSE(list["renders"][0].contains("strategy"));  // compact
+
+    fake_jobs(*coordinator_, "w1");
+    const json done = get_json("/api/renders/" + id);
+    EXPECT_EQ(done["state"], "done");
+    EXPECT_EQ(done["samples_done"], 24 * 16 * 8);
+    EXPECT_EQ(done["progress"], 1.0);
+    EXPECT_TRUE(done["error_estimate"].is_number());
+    EXPECT_TRUE(done["error_vs_reference"].is_null());
+}
+
+TEST_F(HttpServerTest, WidthAndHeightMayReplaceResolution) {
+    const std::string id = submit({{"width", 20}, {"height", 10}, {"strategy", {{"method", "optimal"}, {"budget", 4000}}}});
+    const json r = get_json("/api/renders/" + id);
+    EXPECT_EQ(r["width"], 20);
+    EXPECT_EQ(r["method"], "optimal");
+    EXPECT_EQ(r["scene"], "cornell-box");
+}
+
+TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
+    const std::string id = submit({{"resolution", "8x8"}, {"strategy", {{"spp", 2}}}});
+    struct Case {
+        std::string method, path, body;
+        int status;
+    };
+    const std::vector<Case> cases = {
+        {"GET", "/api/renders/r-999999", "", 404},
+        {"GET", "/api/renders/" + std::string(500, 'x'), "", 404},
+        {"POST", "/api/renders/r-999999/cancel", "", 404},
+        {"GET", "/api/renders/r-999999/rounds", "", 404},
+        {"GET", "/api/renders/r-999999/preview.png", "", 404},
+        {"GET", "/api/renders/r-999999/maps?kind=spp", "", 404},
+        {"GET", "/api/renders/r-999999/buckets", "", 404},
+        {"GET", "/api/nothing-here", "", 404},
+        {"POST", "/api/renders", "{not json", 400},
+        {"POST", "/api/renders", "[1,2]", 400},
+        {"POST", "/api/renders", "", 400},
+        {"POST", "/api/renders", R"({"resolution":"0x0"})", 400},
+        {"POST", "/api/renders", R"({"resolution":"100000x2"})", 400},
+        {"POST", "/api/renders", R"({"resolution":"12"})", 400},
+        {"POST", "/api/renders", R"({"resolution":"-4x4"})", 400},
+        {"POST", "/api/renders", R"({"width":0,"height":5})", 400},
+        {"POST", "/api/renders", R"({"width":-3,"height":5})", 400},
+        {"POST", "/api/renders", R"({"width":5})", 400},
+        {"POST", "/api/renders", R"({"seed":-1})", 400},
+        {"POST", "/api/renders", R"({"seed":"seven"})", 400},
+        {"POST", "/api/renders", R"({"scene":"../../etc/passwd"})", 400},
+        {"POST", "/api/renders", R"({"scene":"no-such-scene"})", 400},
+        {"POST", "/api/renders", R"({"colour":"blue"})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"method":"magic"}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"method":"adaptive"}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"spp":-5}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"spp":1e300}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"budget":18446744073709551615}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"spp":4,"budget":100}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"method":"dammertz","max_variance":0}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"alpha":"x"}})", 400},
+        {"POST", "/api/renders", R"({"strategy":"uniform"})", 400},
+        {"POST", "/api/renders", std::string(2 << 20, ' '), 413},
+        {"GET", "/api/renders/" + id + "/preview.png?exposure=abc", "", 400},
+        {"GET", "/api/renders/" + id + "/preview.png?exposure=1e9", "", 400},
+        {"GET", "/api/renders/" + id + "/preview.png?size=0", "", 400},
+        {"GET", "/api/renders/" + id + "/maps?kind=colour", "", 400},
+        {"GET", "/api/renders/" + id + "/maps?kind=spp&size=nan", "", 400},
+        {"GET", "/api/renders/" + id + "/rounds?since=-1", "", 400},
+        {"GET", "/api/renders?limit=0", "", 400},
+        {"GET", "/api/studies/data/equal-budget/..%2F..%2Fsecret.txt", "", 400},
+        {"GET", "/api/studies/data/equal-budget/missing.md", "", 404},
+        {"GET", "/api/studies/elsewhere/equal-budget/report.md", "", 404},
+    };
+    for (const Case& c : cases) {
+        auto res = c.method == "GET" ? client_->Get(c.path.c_str())
+                                     : client_->Post(c.path.c_str(), c.body, "application/json");
+        ASSERT_TRUE(res) << c.method << " " << c.path;
+        EXPECT_EQ(res->status, c.status) << c.method << " " << c.path.substr(0, 80) << " "
+                                         << c.body.substr(0, 80) << ": " << res->body;
+        const json body = json::parse(res->body, nullptr, false);
+        ASSERT_TRUE(body.is_object()) << c.path.substr(0, 80) << ": " << res->body;
+        EXPECT_TRUE(body["error"].is_string() && !body["error"].get<std::string>().empty())
+            << res->body;
+    }
+    // Nothing bad was created.
+    EXPECT_EQ(get_json("/api/renders")["renders"].size(), 1u);
+}
+
+TEST_F(HttpServerTest, RoundsPreviewMapsAndBucketsFollowTheRender) {
+    const std::string id = submit({{"resolution", "40x24"},
+                                   {"strategy",
+                                    {{"method", "adaptive"},
+                                     {"budget", 40 * 24 * 24},
+                                     {"initial_spp", 4},
+                                     {"bucket_size", 8}}}});
+    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds")["rounds"].size(), 0u);
+    fake_jobs(*coordinator_, "w1");
+    const json info = get_json("/api/renders/" + id);
+    ASSERT_EQ(info["state"], "done");
+
+    const json rounds = get_json("/api/renders/" + id + "/rounds");
+    ASSERT_EQ(rounds["rounds"].size(), info["rounds"].get<size_t>());
+    ASSERT_GE(rounds["rounds"].size(), 2u);
+    EXPECT_EQ(rounds["rounds"].back()["samples_total"], info["samples_done"]);
+    EXPECT_GT(rounds["rounds"][1]["samples_total"], rounds["rounds"][0]["samples_total"]);
+    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds?since=1")["rounds"].size(),
+              rounds["rounds"].size() - 1);
+
+    auto png = client_->Get(("/api/renders/" + id + "/preview.png?exposure=1.5").c_str());
+    ASSERT_TRUE(png);
+    EXPECT_EQ(png->status, 200);
+    EXPECT_EQ(png->get_header_value("Content-Type"), "image/png");
+    ASSERT_GT(png->body.size(), 24u);
+    EXPECT_EQ(png->body.substr(1, 3), "PNG");
+    EXPECT_EQ(uint8_t(png->body[19]), 40u);  // IHDR width, big-endian
+    EXPECT_EQ(uint8_t(png->body[23]), 24u);
+    auto small = client_->Get(("/api/renders/" + id + "/preview.png?size=20").c_str());
+    ASSERT_TRUE(small);
+    EXPECT_EQ(uint8_t(small->body[19]), 20u);  // 40 / 2
+    EXPECT_EQ(uint8_t(small->body[23]), 12u);
+
+    const json spp = get_json("/api/renders/" + id + "/maps?kind=spp");
+    EXPECT_EQ(spp["width"], 40);
+    EXPECT_EQ(spp["height"], 24);
+    EXPECT_EQ(spp["data"].get<std::string>().size(), size_t(40 * 24 + 2) / 3 * 4);
+    EXPECT_GE(spp["max"].get<double>(), 4.0);
+    const json err = get_json("/api/renders/" + id + "/maps?kind=error&size=10");
+    EXPECT_EQ(err["width"], 10);
+    EXPECT_EQ(err["height"], 6);
+    EXPECT_GT(err["hi"].get<double>(), 0.0);
+
+    const json buckets = get_json("/api/renders/" + id + "/buckets");
+    EXPECT_EQ(buckets["buckets"].size(), 5u * 3u);  // 8x8 buckets over 40x24
+    EXPECT_EQ(buckets["buckets"][0].size(), 6u);
+}
+
+TEST_F(HttpServerTest, CancelStopsARender) {
+    const std::string id = submit({{"resolution", "16x16"}, {"strategy", {{"spp", 64}}}});
+    fake_jobs(*coordinator_, "w1", 1);
+    const json r = post_json("/api/renders/" + id + "/cancel", "", 200);
+    EXPECT_EQ(r["state"], "cancelled");
+    EXPECT_EQ(get_json("/api/renders/" + id)["state"], "cancelled");
+    EXPECT_EQ(fake_jobs(*coordinator_, "w1"), 0u);
+    // Cancelling again is harmless.
+    EXPECT_EQ(post_json("/api/renders/" + id + "/cancel", "", 200)["state"], "cancelled");
+}
+
+TEST_F(HttpServerTest, WorkersShowStateAndLeases) {
+    coordinator_->register_worker("alpha", 4);
+    coordinator_->register_worker("beta", 2);
+    submit({{"resolution", "64x64"}, {"strategy", {{"spp", 4}}}});
+    ASSERT_TRUE(coordinator_->lease("alpha", std::chrono::milliseconds(0)));
+    const json w = get_json("/api/workers");
+    ASSERT_EQ(w["workers"].size(), 2u);
+    EXPECT_EQ(w["workers"][0]["name"], "alpha");
+    EXPECT_EQ(w["workers"][0]["threads"], 4);
+    EXPECT_EQ(w["workers"][0]["state"], "busy");
+    EXPECT_EQ(w["workers"][0]["leases"].size(), 1u);
+    EXPECT_EQ(w["workers"][1]["state"], "idle");
+    EXPECT_GT(w["workers"][1]["last_seen_ms"].get<int64_t>(), 0);
+}
+
+TEST_F(HttpServerTest, EventsAnnounceRendersRoundsAndWorkers) {
+    std::mutex mutex;
+    std::vector<json> events;
+    std::atomic<bool> stop{false};
+    std::thread reader([&] {
+        httplib::Client c("127.0.0.1", server_->port());
+        c.set_read_timeout(30, 0);
+        std::string buffer;
+        c.Get("/api/events", [&](const char* data, size_t n) {
+            buffer.append(data, n);
+            size_t end;
+            while ((end = buffer.find("\n\n")) != std::string::npos) {
+                const std::string block = buffer.substr(0, end);
+                buffer.erase(0, end + 2);
+                if (block.rfind("data: ", 0) == 0) {
+                    EXPECT_LT(block.size(), kMaxResponse);
+                    std::lock_guard lock(mutex);
+                    events.push_back(json::parse(block.substr(6)));
+                }
+            }
+            return !stop;
+        });
+    });
+    auto count = [&](const std::string& type) {
+        std::lock_guard lock(mutex);
+        return std::count_if(events.begin(), events.end(),
+                             [&](const json& e) { return e["type"] == type; });
+    };
+    auto wait_for = [&](auto predicate) {
+        for (int i = 0; i < 200 && !predicate(); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(25));
+        return predicate();
+    };
+    ASSERT_TRUE(wait_for([&] { return count("hello") == 1; }));
+
+    const std::string id = submit({{"resolution", "16x16"}, {"strategy", {{"spp", 8}}}});
+    coordinator_->register_worker("w1", 1);
+    fake_jobs(*coordinator_, "w1");
+    EXPECT_TRUE(wait_for([&] {
+        std::lock_guard lock(mutex);
+        for (const json& e : events)
+            if (e["type"] == "render")
+                for (const json& r : e["renders"])
+                    if (r["id"] == id && r["state"] == "done") return true;
+        return false;
+    }));
+    // Every round once, in order, whatever the event interval merged.
+    EXPECT_TRUE(wait_for([&] {
+        std::lock_guard lock(mutex);
+        size_t n = 0;
+        for (const json& e : events)
+            if (e["type"] == "round")
+                for (const json& r : e["rounds"])
+                    if (r["id"] == id && r["position"] == n) ++n;
+        return n == get_json("/api/renders/" + id)["rounds"].get<size_t>();
+    }));
+    EXPECT_TRUE(wait_for([&] { return count("workers") >= 1; }));
+    stop = true;
+    coordinator_->register_worker("w2", 1);  // one more event so the reader sees `stop`
+    reader.join();
+}
+
+TEST_F(HttpServerTest, FiftyRendersAndTenWorkersStayUnder100KB) {
+    const std::vector<json> strategies = {
+        {{"method", "uniform"}, {"spp", 16}},
+        {{"method", "dammertz"}, {"samples_per_iteration", 4}, {"max_spp", 32}},
+        {{"method", "adaptive"}, {"budget", 64 * 64 * 16}, {"bucket_size", 8}},
+        {{"method", "optimal"}, {"budget", 64 * 64 * 16}},
+        {{"method", "optimal-time"}, {"budget", 64 * 64 * 16}},
+    };
+    std::vector<std::string> ids;
+    for (int i = 0; i < 50; ++i)
+        ids.push_back(submit({{"resolution", "64x64"}, {"seed", i}, {"strategy", strategies[i % 5]}}));
+    for (int w = 0; w < 10; ++w) coordinator_->register_worker("worker-" + std::to_string(w), 8);
+    // Some renders finished, some part-way, some with a lease outstanding.
+    for (int w = 0; w < 10; ++w) fake_jobs(*coordinator_, "worker-" + std::to_string(w), 60);
+    for (int w = 0; w < 10; ++w)
+        coordinator_->lease("worker-" + std::to_string(w), std::chrono::milliseconds(0));
+
+    auto size_of = [&](const std::string& path) {
+        auto res = client_->Get(path.c_str());
+        EXPECT_TRUE(res && res->status == 200) << path;
+        return res ? res->body.size() : 0;
+    };
+    const size_t list = size_of("/api/renders");
+    EXPECT_EQ(get_json("/api/renders")["renders"].size(), 50u);
+    EXPECT_LT(list, kMaxResponse);
+    EXPECT_LT(size_of("/api/workers"), kMaxResponse);
+    for (const std::string& id : ids) {
+        EXPECT_LT(size_of("/api/renders/" + id), kMaxResponse);
+        EXPECT_LT(size_of("/api/renders/" + id + "/rounds"), kMaxResponse);
+        EXPECT_LT(size_of("/api/renders/" + id + "/buckets"), kMaxResponse);
+        EXPECT_LT(size_of("/api/renders/" + id + "/maps?kind=spp"), kMaxResponse);
+        EXPECT_LT(size_of("/api/renders/" + id + "/maps?kind=error"), kMaxResponse);
+        EXPECT_LT(size_of("/api/renders/" + id + "/preview.png"), kMaxResponse);
+    }
+    std::printf("50 renders, 10 workers: /api/renders %zu bytes, /api/workers %zu bytes\n",
+                list, size_of("/api/workers"));
+}
+
+TEST_F(HttpServerTest, StudiesAreListedAndServedFromTheirDirectoryOnly) {
+    const json studies = get_json("/api/studies");
+    ASSERT_EQ(studies["studies"].size(), 1u);
+    const json s = studies["studies"][0];
+    EXPECT_EQ(s["source"], "data");
+    EXPECT_EQ(s["name"], "equal-budget");
+    EXPECT_EQ(s["title"], "Equal budget");
+    EXPECT_EQ(s["report"], "report.md");
+    EXPECT_EQ(s["files"], json({"charts/error.png", "report.md"}));
+    auto md = client_->Get("/api/studies/data/equal-budget/report.md");
+    ASSERT_TRUE(md);
+    EXPECT_EQ(md->status, 200);
+    EXPECT_EQ(md->body.rfind("# Equal budget", 0), 0u);
+    auto png = client_->Get("/api/studies/data/equal-budget/charts/error.png");
+    ASSERT_TRUE(png);
+    EXPECT_EQ(png->get_header_value("Content-Type"), "image/png");
+}
+
+TEST_F(HttpServerTest, ServesTheDashboard) {
+    auto res = client_->Get("/");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200);
+    EXPECT_NE(res->body.find("<title>dash</title>"), std::string::npos);
+}
+
+TEST(PngEncoder, WritesSignatureHeaderAndRejectsBadSizes) {
+    const std::string png = encode_png(std::vector<uint8_t>(3 * 5 * 3, 128), 3, 5, 3);
+    EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+    EXPECT_EQ(png.substr(12, 4), "IHDR");
+    EXPECT_EQ(uint8_t(png[19]), 3u);
+    EXPECT_EQ(uint8_t(png[23]), 5u);
+    EXPECT_EQ(png.substr(png.size() - 8, 4), "IEND");
+    EXPECT_THROW(encode_png(std::vector<uint8_t>(10), 3, 5, 3), std::invalid_argument);
+    EXPECT_THROW(encode_png(std::vector<uint8_t>(15), 3, 5, 2), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,364 @@
+#!/usr/bin/env bash
+# The local cluster of deploy/docker-compose.yml, for real, on a real Docker engine.
+#
+# Installs docker.io, docker-compose and debootstrap from Debian's packages when missing,
+# starts dockerd when none runs, makes the base images locally (no image registry is
+# reachable here), builds deploy/Dockerfile, brings up a coordinator and 3 workers, submits a
+# render from the host CLI, kills one worker container in the middle of it, and checks the
+# fetched EXR is byte-identical to `aliquot render` of the same render on the host. Then the
+# dashboard answers 200, the workers scale to 4, and everything is torn down (volumes too),
+# after a failure as well. The Kubernetes manifests are validated alongside
+# (tests/compose/k8s_check.sh).
+#
+# Usage: tests/compose/run.sh [path/to/aliquot]     (needs root, or sudo, for Docker)
+# Caches (git-ignored, under build/compose-cache/): the base rootfs tarball, kubeconform and
+# its schemas. Docker's own layer cache keeps the build packages between runs.
+set -uo pipefail
+cd "$(dirname "$0")/../.."
+ROOT=$PWD
+ALIQUOT=$(realpath "${1:-build/bin/aliquot}")
+CACHE=$ROOT/build/compose-cache
+mkdir -p "$CACHE"
+TMP=$(mktemp -d "${TMPDIR:-/tmp}/aliquot-compose.XXXXXX")
+PROJECT="aliquot-test-$$-$RANDOM"
+IMAGE=aliquot:compose-test
+COMPOSE_FILE_ARGS=(-f deploy/docker-compose.yml)
+# A render long enough (seconds on 2 cores) that a worker can die in the middle of it.
+RENDER=(--scene cornell-box --resolution 96x96 --spp 512 --seed 11)
+
+SUDO=()
+[[ $(id -u) -eq 0 ]] || SUDO=(sudo)
+START=$(date +%s)
+passed=0 failed=0 skipped=0
+DOCKERD_PID=""
+K8S_PID=""
+UP=0
+
+say() { printf '[%4ss] %s\n' "$(($(date +%s) - START))" "$*"; }
+ok() { passed=$((passed + 1)); say "ok   $*"; }
+fail() { failed=$((failed + 1)); say "FAIL $*"; }
+skip() { skipped=$((skipped + 1)); say "skip $*"; }
+
+docker() { "${SUDO[@]}" env DOCKER_BUILDKIT=0 docker "$@"; }
+dc() { "${SUDO[@]}" "${COMPOSE[@]}" -p "$PROJECT" "${COMPOSE_FILE_ARGS[@]}" "$@"; }
+
+free_port() {
+    python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'
+}
+
+json_field() {  # json_field FIELD < JSON
+    python3 -c 'import json, sys; v = json.load(sys.stdin)[sys.argv[1]]; print(v)' "$1"
+}
+
+# ---------------------------------------------------------------- tools and engine
+
+install_missing() {
+    local missing=() p
+    for p in "$@"; do
+        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
+            missing+=("$p")
+    done
+    ((${#missing[@]})) || return 0
+    say "installing ${missing[*]}"
+    "${SUDO[@]}" apt-get update -qq &&
+        "${SUDO[@]}" env DEBIAN_FRONTEND=noninteractive \
+            apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+}
+
+start_engine() {
+    if docker info >/dev/null 2>&1; then return 0; fi
+    say "starting dockerd (log: build/compose-cache/dockerd.log)"
+    "${SUDO[@]}" dockerd >"$CACHE/dockerd.log" 2>&1 &
+    DOCKERD_PID=$!
+    local i
+    for ((i = 0; i < 120; i++)); do
+        docker info >/dev/null 2>&1 && return 0
+        kill -0 "$DOCKERD_PID" 2>/dev/null || break
+        sleep 0.5
+    done
+    tail -20 "$CACHE/dockerd.log"
+    return 1
+}
+
+# debian:bookworm and debian:bookworm-slim, made here with debootstrap and `docker import`
+# because no image registry is reachable. Both tags are the same minbase rootfs (one
+# debootstrap, one import): the build stage only needs apt, and the runtime stage gets the
+# slim image's main property, no documentation or man pages installed by dpkg.
+ensure_base_images() {
+    local missing=() tag
+    for tag in debian:bookworm debian:bookworm-slim; do
+        docker image inspect "$tag" >/dev/null 2>&1 || missing+=("$tag")
+    done
+    ((${#missing[@]})) || return 0
+    local tarball=$CACHE/debian-bookworm-minbase.tar
+    if [[ ! -s $tarball ]]; then
+        say "debootstrap bookworm (minbase) into build/compose-cache"
+        local rootfs=$CACHE/rootfs
+        "${SUDO[@]}" rm -rf "$rootfs"
+        "${SUDO[@]}" debootstrap --variant=minbase bookworm "$rootfs" >"$CACHE/debootstrap.log" 2>&1 ||
+            { tail -20 "$CACHE/debootstrap.log"; return 1; }
+        # The suites the published images have: bookworm, its updates and security, from the
+        # mirror debootstrap used.
+        local mirror
+        mirror=$(awk '$1 == "deb" { print $2; exit }' "$rootfs/etc/apt/sources.list")
+        printf 'deb %s bookworm main\ndeb %s bookworm-updates main\ndeb %s-security bookworm-security main\n' \
+            "$mirror" "$mirror" "$mirror" | "${SUDO[@]}" tee "$rootfs/etc/apt/sources.list" >/dev/null
+        printf '%s\n' 'path-exclude /usr/share/doc/*' 'path-include /usr/share/doc/*/copyright' \
+            'path-exclude /usr/share/man/*' 'path-exclude /usr/share/info/*' \
+            'path-exclude /usr/share/locale/*' 'path-include /usr/share/locale/locale.alias' |
+            "${SUDO[@]}" tee "$rootfs/etc/dpkg/dpkg.cfg.d/excludes" >/dev/null
+        "${SUDO[@]}" rm -rf "$rootfs"/var/cache/apt/archives/*.deb "$rootfs"/var/lib/apt/lists/* \
+            "$rootfs"/var/log/*.log
+        "${SUDO[@]}" tar -C "$rootfs" --numeric-owner -cf "$tarball.part" . &&
+            "${SUDO[@]}" mv "$tarball.part" "$tarball" || return 1
+        "${SUDO[@]}" rm -rf "$rootfs"
+    fi
+    say "docker import ${missing[*]}"
+    docker import --change 'CMD ["bash"]' "$tarball" "${missing[0]}" >/dev/null || return 1
+    for tag in "${missing[@]:1}"; do docker tag "${missing[0]}" "$tag" || return 1; done
+}
+
+# The build context: the files git would commit (tracked, or untracked and not ignored, so
+# no build*/, .venv or node_modules), plus the built dashboard web/dist when there is one,
+# with deploy/Dockerfile.dockerignore placed as the context's .dockerignore, which the
+# classic builder then applies.
+build_context() {
+    {
+        git ls-files -z -co --exclude-standard
+        [[ ! -f web/dist/index.html ]] || find web/dist -type f -print0
+    } | while IFS= read -r -d '' f; do [[ -e $f ]] && printf '%s\0' "$f"; done |
+        tar --null -T - --transform='s,^deploy/Dockerfile\.dockerignore$,.dockerignore,' -cf -
+}
+
+build_image() {
+    # The build stage gets a tag of its own so that pruning old images below never removes
+    # the cached layer of build packages.
+    build_context | docker build -f deploy/Dockerfile --target build -t "$IMAGE-build" - \
+        >"$TMP/build.log" 2>&1 &&
+        build_context | docker build -f deploy/Dockerfile -t "$IMAGE" - >>"$TMP/build.log" 2>&1
+    local rc=$?
+    ((rc == 0)) || { tail -30 "$TMP/build.log"; return "$rc"; }
+    # Replaced images of earlier runs (only ours, by label) so that runs do not pile up.
+    docker image prune -f --filter label=org.opencontainers.image.title=aliquot >/dev/null
+    docker image prune -f --filter label=org.opencontainers.image.title=aliquot-build >/dev/null
+    return 0
+}
+
+# ---------------------------------------------------------------- the farm
+
+wait_for() {  # wait_for SECONDS COMMAND...: until COMMAND succeeds
+    local deadline=$(($(date +%s) + $1))
+    shift
+    until "$@"; do
+        (($(date +%s) < deadline)) || return 1
+        sleep 0.3
+    done
+}
+
+coordinator_answers() { "$ALIQUOT" status --coordinator "$ADDR" >/dev/null 2>&1; }
+
+workers_alive() {  # workers_alive N: N workers registered and not lost
+    "$ALIQUOT" workers --json --coordinator "$ADDR" 2>/dev/null | python3 -c '
+import json, sys
+ws = json.load(sys.stdin)
+sys.exit(0 if sum(w["state"] != "lost" for w in ws) >= int(sys.argv[1]) else 1)' "$1"
+}
+
+render_has_samples() {
+    local s
+    s=$("$ALIQUOT" status "$RENDER_ID" --json --coordinator "$ADDR" 2>/dev/null) || return 1
+    (($(json_field samples <<<"$s") > 0))
+}
+
+render_done() {
+    local s
+    s=$("$ALIQUOT" status "$RENDER_ID" --json --coordinator "$ADDR" 2>/dev/null) || return 1
+    [[ $(json_field state <<<"$s") == done ]]
+}
+
+# The worker container to kill: one holding a lease right now when there is one. A worker's
+# default name is HOSTNAME-PID, and a container's hostname is its short id.
+pick_victim() {
+    local busy id
+    busy=$("$ALIQUOT" workers --json --coordinator "$ADDR" 2>/dev/null | python3 -c '
+import json, sys
+busy = [w["name"] for w in json.load(sys.stdin) if w["leases"]]
+print(busy[0].rsplit("-", 1)[0] if busy else "")') || busy=""
+    for id in $(dc ps -q worker); do
+        if [[ -n $busy && $id == "$busy"* ]]; then
+            echo "$id busy"
+            return
+        fi
+    done
+    echo "$(dc ps -q worker | head -1) idle"
+}
+
+http_ok() {  # http_ok URL [BODY_FILE]: the URL answers 200 (its body saved to BODY_FILE)
+    python3 - "$1" "${2:-/dev/null}" <<'EOF'
+import sys, urllib.request
+try:
+    with urllib.request.urlopen(sys.argv[1], timeout=5) as r:
+        open(sys.argv[2], "wb").write(r.read())
+        sys.exit(0 if r.status == 200 else 1)
+except Exception:
+    sys.exit(1)
+EOF
+}
+
+running_workers() { dc ps -q worker | xargs -r "${SUDO[@]}" docker inspect -f '{{.State.Running}}' | grep -c true; }
+
+# ---------------------------------------------------------------- teardown
+
+teardown() {
+    if ((UP)); then
+        if ((failed)); then
+            say "logs of the failed run:"
+            dc logs --no-color --tail 40 2>&1 | sed 's/^/    /'
+        fi
+        dc down -v --remove-orphans -t 5 >"$TMP/down.log" 2>&1
+        # Whatever `down` may have missed, found by the project's label.
+        local left
+        left=$(docker ps -aq --filter "label=com.docker.compose.project=$PROJECT")
+        [[ -z $left ]] || docker rm -f $left >/dev/null
+        left=$(docker volume ls -q --filter "label=com.docker.compose.project=$PROJECT")
+        [[ -z $left ]] || docker volume rm -f $left >/dev/null
+        if [[ -z $(docker ps -aq --filter "label=com.docker.compose.project=$PROJECT") &&
+            -z $(docker volume ls -q --filter "label=com.docker.compose.project=$PROJECT") ]]; then
+            ok "teardown: no container or volume of $PROJECT left"
+        else
+            fail "teardown: containers or volumes of $PROJECT left"
+        fi
+        UP=0
+    fi
+}
+
+finish() {
+    trap - EXIT INT TERM
+    teardown
+    if [[ -n $K8S_PID ]]; then
+        if wait "$K8S_PID"; then ok "kubernetes manifests (kubeconform)"; else fail "kubernetes manifests (kubeconform)"; fi
+        sed 's/^/    /' "$TMP/k8s.log"
+    fi
+    if [[ -n $DOCKERD_PID ]]; then  # leave the machine as it was found
+        "${SUDO[@]}" kill "$DOCKERD_PID" 2>/dev/null
+        wait "$DOCKERD_PID" 2>/dev/null
+    fi
+    say "done"
+    if ((failed)); then echo "files kept in $TMP"; else rm -rf "$TMP"; fi
+    echo "$passed passed, $failed failed, $skipped skipped"
+    ((failed == 0))
+    exit
+}
+trap finish EXIT
+trap 'fail "interrupted"; exit 1' INT TERM
+
+# ---------------------------------------------------------------- the run
+
+[[ -x $ALIQUOT ]] || { fail "no aliquot binary at $ALIQUOT"; exit 1; }
+
+# The manifests need no engine: checked in the background meanwhile.
+bash tests/compose/k8s_check.sh >"$TMP/k8s.log" 2>&1 &
+K8S_PID=$!
+
+install_missing docker.io docker-compose debootstrap || { fail "install docker.io docker-compose debootstrap"; exit 1; }
+if command -v docker-compose >/dev/null; then COMPOSE=(docker-compose); else COMPOSE=(docker compose); fi
+start_engine || { fail "start dockerd"; exit 1; }
+say "engine up ($(docker version -f '{{.Server.Version}}' 2>/dev/null)), compose: $("${COMPOSE[@]}" version --short 2>/dev/null)"
+
+if dc config -q; then ok "compose file is valid for ${COMPOSE[*]}"; else fail "compose file is invalid for ${COMPOSE[*]}"; fi
+
+ensure_base_images || { fail "base images debian:bookworm, debian:bookworm-slim"; exit 1; }
+say "building $IMAGE (log in the run's files)"
+if build_image; then ok "image builds"; else fail "image builds"; exit 1; fi
+size=$(docker image inspect -f '{{.Size}}' "$IMAGE")
+user=$(docker image inspect -f '{{.Config.User}}' "$IMAGE")
+say "image: $((size / 1024 / 1024)) MiB, user '$user'"
+[[ -n $user && $user != root && $user != 0 ]] && ok "image runs as a non-root user ($user)" || fail "image runs as root"
+
+# The embedded twin of the farm's render, made before the farm starts so neither slows
+# the other.
+"$ALIQUOT" render "${RENDER[@]}" --threads 2 --out "$TMP/embedded.exr" >"$TMP/embedded.log" 2>&1 ||
+    { fail "aliquot render on the host"; exit 1; }
+say "embedded render on the host done"
+
+export ALIQUOT_IMAGE=$IMAGE ALIQUOT_BIND=127.0.0.1
+ALIQUOT_GRPC_PORT=$(free_port)
+ALIQUOT_HTTP_PORT=$(free_port)
+export ALIQUOT_GRPC_PORT ALIQUOT_HTTP_PORT ALIQUOT_LEASE_SECONDS=3 ALIQUOT_LOST_SECONDS=3
+ADDR=127.0.0.1:$ALIQUOT_GRPC_PORT
+
+# The coordinator's --http flag (the dashboard) may not exist yet in this tree: without it,
+# the coordinator runs without --http and the dashboard check is skipped, not passed.
+HAS_HTTP=0
+if docker run --rm "$IMAGE" coordinator --help 2>/dev/null | grep -q -- '--http'; then
+    HAS_HTTP=1
+else
+    cat >"$TMP/no-http.yml" <<'EOF'
+services:
+  coordinator:
+    command: [coordinator, --grpc, "0.0.0.0:7070", --data, /data,
+              --lease-seconds, "${ALIQUOT_LEASE_SECONDS:-30}", --lost-seconds, "${ALIQUOT_LOST_SECONDS:-10}"]
+EOF
+    COMPOSE_FILE_ARGS+=(-f "$TMP/no-http.yml")
+fi
+
+UP=1
+if dc up -d --no-build --scale worker=3 >"$TMP/up.log" 2>&1; then
+    ok "up: coordinator healthy, 3 workers started (project $PROJECT)"
+else
+    cat "$TMP/up.log"
+    fail "up: coordinator and 3 workers"
+    exit 1
+fi
+wait_for 30 coordinator_answers && ok "host CLI reaches the coordinator on $ADDR" ||
+    { fail "host CLI reaches the coordinator on $ADDR"; exit 1; }
+wait_for 30 workers_alive 3 && ok "3 workers registered" || fail "3 workers registered"
+
+RENDER_ID=$("$ALIQUOT" submit --coordinator "$ADDR" --json "${RENDER[@]}" | json_field id) ||
+    { fail "submit from the host CLI"; exit 1; }
+say "submitted $RENDER_ID"
+if wait_for 60 render_has_samples; then
+    read -r victim held < <(pick_victim)
+    if render_done; then
+        fail "the render finished before a worker could be killed"
+    elif docker kill "$victim" >/dev/null; then
+        ok "killed worker container ${victim:0:12} mid-render ($held)"
+    else
+        fail "docker kill $victim"
+    fi
+else
+    fail "render got no samples in 60 s"
+fi
+if wait_for 300 render_done; then
+    "$ALIQUOT" fetch "$RENDER_ID" --out "$TMP/farm.exr" --coordinator "$ADDR" >/dev/null &&
+        cmp -s "$TMP/farm.exr" "$TMP/embedded.exr" &&
+        ok "EXR fetched from the farm is byte-identical to aliquot render" ||
+        fail "EXR fetched from the farm differs from aliquot render (or fetch failed)"
+else
+    fail "render not done in 300 s"
+fi
+
+if ((HAS_HTTP)); then
+    URL=http://127.0.0.1:$ALIQUOT_HTTP_PORT/
+    if wait_for 20 http_ok "$URL" "$TMP/dashboard.html"; then
+        if grep -q "dashboard is not built" "$TMP/dashboard.html"; then
+            ok "dashboard $URL answers 200 (its placeholder: web/dist was not built before the image)"
+        else
+            ok "dashboard $URL answers 200 (the built dashboard)"
+        fi
+    else
+        fail "dashboard $URL answers 200"
+    fi
+    http_ok "http://127.0.0.1:$ALIQUOT_HTTP_PORT/healthz" && ok "HTTP /healthz answers 200" ||
+        fail "HTTP /healthz answers 200"
+else
+    skip "dashboard: this coordinator has no --http flag yet"
+fi
+
+if dc up -d --no-build --scale worker=4 >"$TMP/scale.log" 2>&1 && wait_for 30 workers_alive 4; then
+    ok "scaled to 4 workers ($(running_workers) running)"
+else
+    cat "$TMP/scale.log"
+    fail "scale to 4 workers"
+fi
+exit 0

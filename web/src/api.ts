@@ -1,0 +1,161 @@
+// The coordinator's JSON API (docs/API.md) as typed calls. Every failure becomes an
+// ApiError carrying the server's own message.
+
+export interface RenderSummary {
+  id: string;
+  scene: string;
+  method: string;
+  state: "queued" | "running" | "done" | "cancelled" | "failed";
+  width: number;
+  height: number;
+  seed: number;
+  samples_done: number;
+  samples_planned: number;
+  rounds: number;
+  seconds: number;
+  samples_per_second: number;
+  error_estimate: number | null;
+  error_vs_reference: number | null;
+  created_ms: number;
+  finished_ms?: number;
+  progress: number;
+  error?: string;
+  buckets_converged?: number;
+  buckets_total?: number;
+}
+
+export interface RenderDetail extends RenderSummary {
+  strategy: Record<string, unknown>;
+  outcome: Record<string, unknown>;
+  rays: number;
+}
+
+export interface RoundRow {
+  index: number;
+  samples_in_round: number;
+  samples_total: number;
+  seconds: number;
+  error_estimate: number | null;
+  error_vs_reference: number | null;
+}
+
+export interface Worker {
+  name: string;
+  threads: number;
+  state: "idle" | "busy" | "lost";
+  leases: string[];
+  samples_traced: number;
+  samples_per_second: number;
+  last_seen_ms: number;
+}
+
+export interface PixelMap {
+  kind: "spp" | "error";
+  width: number;
+  height: number;
+  image_width: number;
+  image_height: number;
+  lo: number;
+  hi: number;
+  mean: number;
+  max: number;
+  data: string; // base64, one byte per cell: lo + (hi - lo) * byte / 255
+}
+
+/** [x, y, width, height, error, converged] */
+export type BucketRow = [number, number, number, number, number | null, 0 | 1];
+
+export interface Buckets {
+  id: string;
+  width: number;
+  height: number;
+  converged: number;
+  converged_area: number;
+  buckets: BucketRow[];
+}
+
+export interface SceneList {
+  scenes: string[];
+  methods: string[];
+  defaults: Record<string, number | string>;
+}
+
+export interface Study {
+  source: string;
+  name: string;
+  title: string;
+  report: string | null;
+  files: string[];
+}
+
+export interface SubmitRequest {
+  scene: string;
+  resolution: string;
+  seed: number;
+  strategy: Record<string, number | string>;
+}
+
+export class ApiError extends Error {
+  constructor(
+    message: string,
+    readonly status: number,
+  ) {
+    super(message);
+  }
+}
+
+async function parse<T>(res: Response): Promise<T> {
+  const text = await res.text();
+  let body: unknown = null;
+  try {
+    body = text ? JSON.parse(text) : null;
+  } catch {
+    /* not JSON: use the text */
+  }
+  if (!res.ok) {
+    const message =
+      body && typeof body === "object" && "error" in body
+        ? String((body as { error: unknown }).error)
+        : text || res.statusText;
+    throw new ApiError(message, res.status);
+  }
+  return body as T;
+}
+
+export async function getJSON<T>(path: string): Promise<T> {
+  return parse<T>(await fetch(path, { cache: "no-store" }));
+}
+
+export async function postJSON<T>(path: string, body?: unknown): Promise<T> {
+  return parse<T>(
+    await fetch(path, {
+      method: "POST",
+      headers: { "Content-Type": "application/json" },
+      body: body === undefined ? "" : JSON.stringify(body),
+    }),
+  );
+}
+
+const enc = encodeURIComponent;
+
+export const api = {
+  renders: (limit = 200) =>
+    getJSON<{ renders: RenderSummary[]; now_ms: number }>(`/api/renders?limit=${limit}`),
+  render: (id: string) => getJSON<RenderDetail>(`/api/renders/${enc(id)}`),
+  submit: (req: SubmitRequest) => postJSON<RenderDetail>("/api/renders", req),
+  cancel: (id: string) => postJSON<RenderDetail>(`/api/renders/${enc(id)}/cancel`),
+  rounds: (id: string, since = 0) =>
+    getJSON<{ id: string; rounds: RoundRow[]; count: number }>(
+      `/api/renders/${enc(id)}/rounds?since=${since}`,
+    ),
+  map: (id: string, kind: "spp" | "error", size = 256) =>
+    getJSON<PixelMap>(`/api/renders/${enc(id)}/maps?kind=${kind}&size=${size}`),
+  buckets: (id: string) => getJSON<Buckets>(`/api/renders/${enc(id)}/buckets`),
+  previewUrl: (id: string, exposure: number, version: number, size = 1024) =>
+    `/api/renders/${enc(id)}/preview.png?exposure=${exposure}&size=${size}&v=${version}`,
+  workers: () => getJSON<{ workers: Worker[]; now_ms: number }>("/api/workers"),
+  scenes: () => getJSON<SceneList>("/api/scenes"),
+  studies: () => getJSON<{ studies: Study[] }>("/api/studies"),
+  studyFileUrl: (s: Pick<Study, "source" | "name">, file: string) =>
+    `/api/studies/${enc(s.source)}/${enc(s.name)}/${file.split("/").map(enc).join("/")}`,
+};

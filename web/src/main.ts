@@ -1,0 +1,51 @@
+// The dashboard: hash routes to pages, one live-update stream shared by all of them.
+import "./style.css";
+import { Live } from "./live";
+import { ComparePage } from "./pages/compare";
+import type { Page } from "./pages/page";
+import { RenderPage } from "./pages/render";
+import { RendersPage } from "./pages/renders";
+import { StudiesPage } from "./pages/studies";
+import { WorkersPage } from "./pages/workers";
+
+const app = document.getElementById("app")!;
+const liveBadge = document.getElementById("live")!;
+const live = new Live();
+let page: Page | null = null;
+
+function route(): Page {
+  const hash = location.hash.replace(/^#\/?/, "");
+  const [path, query = ""] = hash.split("?");
+  const parts = path.split("/").filter(Boolean).map(decodeURIComponent);
+  switch (parts[0]) {
+    case "render":
+      if (parts[1]) return new RenderPage(parts[1]);
+      break;
+    case "compare":
+      return new ComparePage(new URLSearchParams(query));
+    case "workers":
+      return new WorkersPage();
+    case "studies":
+      return new StudiesPage(parts[1], parts[2]);
+  }
+  return new RendersPage();
+}
+
+function show(): void {
+  page?.dispose?.();
+  page = route();
+  app.replaceChildren(page.el);
+  const first = location.hash.replace(/^#\/?/, "").split(/[/?]/)[0];
+  const section = !first || first === "render" ? "renders" : first;
+  for (const a of document.querySelectorAll<HTMLAnchorElement>("nav a"))
+    a.classList.toggle("active", a.dataset.nav === section);
+}
+
+live.onStatus = (s) => {
+  liveBadge.dataset.status = s;
+  liveBadge.textContent = s === "live" ? "live" : s === "connecting" ? "connecting…" : "reconnecting…";
+};
+live.subscribe((e) => page?.onEvent?.(e));
+window.addEventListener("hashchange", show);
+show();
+live.start();
