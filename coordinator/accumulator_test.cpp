@@ -1,0 +1,71 @@
+#include "accumulator.h"
+
+#include <gtest/gtest.h>
+
+namespace aliquot {
+namespace {
+
+SampleJobResult one_pixel(uint32_t x, uint32_t y, double even, double odd, uint64_t n,
+                          double sum_sq) {
+    SampleJobResult r;
+    r.rect = {x, y, 1, 1};
+    r.pixels.resize(1);
+    r.pixels[0].even[0] = r.pixels[0].even[1] = r.pixels[0].even[2] = even;
+    r.pixels[0].odd[0] = r.pixels[0].odd[1] = r.pixels[0].odd[2] = odd;
+    r.pixels[0].samples = n;
+    r.pixels[0].sum_sq_luminance = sum_sq;
+    r.pixels[0].rays = 3 * n;
+    return r;
+}
+
+TEST(Accumulator, MeanIsTheSumOverAllSamples) {
+    Accumulator acc(2, 1);
+    acc.merge(one_pixel(1, 0, 3.0, 1.0, 4, 0));
+    double rgb[3];
+    acc.mean(1, rgb);
+    EXPECT_DOUBLE_EQ(rgb[0], 1.0);
+    acc.mean(0, rgb);
+    EXPECT_DOUBLE_EQ(rgb[0], 0.0);  // no samples: black, not NaN
+    EXPECT_EQ(acc.total_samples(), 4u);
+    EXPECT_EQ(acc.total_rays(), 12u);
+}
+
+TEST(Accumulator, HalvesCountEvenAndOddSamplesSeparately) {
+    Accumulator acc(1, 1);
+    acc.merge(one_pixel(0, 0, 6.0, 2.0, 5, 0));  // 3 even samples (0, 2, 4), 2 odd
+    double even[3], odd[3];
+    acc.half_means(0, even, odd);
+    EXPECT_DOUBLE_EQ(even[0], 2.0);
+    EXPECT_DOUBLE_EQ(odd[0], 1.0);
+}
+
+TEST(Accumulator, LuminanceVarianceIsTheUnbiasedSampleVariance) {
+    // Samples of luminance 1 and 3 (grey, so luminance equals the channel value).
+    Accumulator acc(1, 1);
+    acc.merge(one_pixel(0, 0, 1.0, 3.0, 2, 1.0 + 9.0));
+    EXPECT_NEAR(acc.luminance_variance(0), 2.0, 1e-5);
+}
+
+TEST(Accumulator, AovsGiveSppAndVarianceOfTheMean) {
+    Accumulator acc(1, 1);
+    acc.merge(one_pixel(0, 0, 1.0, 3.0, 2, 10.0));
+    const Image img = acc.image(true);
+    ASSERT_EQ(img.extra.size(), 2u);
+    EXPECT_EQ(img.extra[0].name, "spp");
+    EXPECT_FLOAT_EQ(img.extra[0].values[0], 2.0f);
+    EXPECT_EQ(img.extra[1].name, "variance");
+    EXPECT_NEAR(img.extra[1].values[0], 1.0f, 1e-5);  // sample variance 2 over 2 samples
+    EXPECT_TRUE(acc.image(false).extra.empty());
+}
+
+TEST(Accumulator, RefusesResultsOutsideTheImageWithoutTouchingIt) {
+    Accumulator acc(2, 2);
+    EXPECT_THROW(acc.merge(one_pixel(2, 0, 1, 1, 2, 1)), MergeError);
+    SampleJobResult wrong = one_pixel(0, 0, 1, 1, 2, 1);
+    wrong.rect.width = 2;  // claims two pixels, carries one
+    EXPECT_THROW(acc.merge(wrong), MergeError);
+    EXPECT_EQ(acc.total_samples(), 0u);
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,119 @@
+#include "render_session.h"
+
+#include <gtest/gtest.h>
+
+#include "scene_loader.h"
+
+namespace aliquot {
+namespace {
+
+// A result that satisfies its job without tracing: the session checks shape, not values.
+SampleJobResult fake_result(const SampleJob& job) {
+    SampleJobResult r;
+    r.rect = job.rect;
+    r.pixels.resize(job.rect.size());
+    for (size_t i = 0; i < r.pixels.size(); ++i) {
+        r.pixels[i].samples = job.counts[i];
+        r.pixels[i].even[0] = 0.5 * double(job.counts[i]);
+    }
+    return r;
+}
+
+class RenderSessionTest : public ::testing::Test {
+protected:
+    RenderSessionTest() {
+        spec.scene_name = "cornell-box";
+        spec.scene_json = self_contained_scene_json("cornell-box");
+        spec.width = 40;
+        spec.height = 40;
+        spec.strategy.method = "uniform";
+        spec.strategy.spp = 8;
+    }
+    RenderSpec spec;
+    RenderSession::Clock::time_point far = RenderSession::Clock::now() + std::chrono::hours(1);
+};
+
+TEST_F(RenderSessionTest, RunsRoundsUntilTheStrategyIsDone) {
+    RenderSession s("r", spec, 0);
+    std::vector<RoundSummary> rounds;
+    s.on_round = [&](RenderSession&, const RoundSummary& r) { rounds.push_back(r); };
+    s.start();
+    uint64_t lease = 1;
+    while (auto job = s.issue(lease, "w", far)) {
+        EXPECT_EQ(s.complete(lease, fake_result(*job)).status, CompleteStatus::Merged);
+        ++lease;
+    }
+    EXPECT_EQ(s.state(), RenderState::Done);
+    EXPECT_EQ(s.merged().total_samples(), 8u * 40 * 40);
+    ASSERT_FALSE(rounds.empty());
+    EXPECT_EQ(rounds.back().samples_total, 8u * 40 * 40);
+    for (size_t i = 0; i < rounds.size(); ++i) EXPECT_EQ(rounds[i].index, i);
+}
+
+TEST_F(RenderSessionTest, ReissuesAnExpiredLeaseAndIgnoresItsLateResult) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const auto now = RenderSession::Clock::now();
+    auto job = s.issue(1, "slow", now + std::chrono::milliseconds(1));
+    ASSERT_TRUE(job);
+    EXPECT_EQ(s.expire(now + std::chrono::seconds(1)), 1u);
+    auto again = s.issue(2, "fast", far);
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->rect, job->rect);
+    EXPECT_EQ(s.complete(1, fake_result(*job)).status, CompleteStatus::Ignored);
+    EXPECT_EQ(s.complete(2, fake_result(*again)).status, CompleteStatus::Merged);
+    EXPECT_EQ(s.merged().total_samples(), job->rect.size());  // merged once, not twice
+}
+
+TEST_F(RenderSessionTest, RenewKeepsALeaseAliveOnlyForItsOwner) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const auto now = RenderSession::Clock::now();
+    ASSERT_TRUE(s.issue(1, "w", now + std::chrono::milliseconds(1)));
+    EXPECT_FALSE(s.renew(1, "intruder", far));
+    EXPECT_TRUE(s.renew(1, "w", far));
+    EXPECT_EQ(s.expire(now + std::chrono::seconds(1)), 0u);
+}
+
+TEST_F(RenderSessionTest, CancelKeepsWhatWasMergedAndIgnoresTheRest) {
+    spec.width = 300;  // wide enough for the first round to have several jobs
+    RenderSession s("r", spec, 0);
+    s.start();
+    auto a = s.issue(1, "w", far);
+    auto b = s.issue(2, "w", far);
+    ASSERT_TRUE(a && b);
+    ASSERT_EQ(s.complete(1, fake_result(*a)).status, CompleteStatus::Merged);
+    s.cancel();
+    EXPECT_EQ(s.state(), RenderState::Cancelled);
+    EXPECT_EQ(s.complete(2, fake_result(*b)).status, CompleteStatus::Ignored);
+    EXPECT_EQ(s.merged().total_samples(), a->rect.size());
+    EXPECT_FALSE(s.issue(3, "w", far));
+}
+
+TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne) {
+    auto run = [&](int interrupt_after_round) {
+        RenderSession s("r", spec, 0);
+        std::optional<std::pair<Accumulator, nlohmann::json>> saved;
+        uint32_t saved_rounds = 0;
+        s.on_round = [&](RenderSession& r, const RoundSummary& round) {
+            if (int(round.index) == interrupt_after_round) {
+                saved.emplace(r.merged(), r.strategy().save_state());
+                saved_rounds = r.rounds_done();
+            }
+        };
+        s.start();
+        uint64_t lease = 1;
+        while (auto job = s.issue(lease, "w", far)) s.complete(lease++, fake_result(*job));
+        if (interrupt_after_round < 0) return s.merged().image(true).rgb;
+        RenderSession resumed("r", spec, 0);
+        resumed.restore(saved->first, saved->second, saved_rounds, 0);
+        resumed.start();
+        while (auto job = resumed.issue(lease, "w", far)) resumed.complete(lease++, fake_result(*job));
+        EXPECT_EQ(resumed.state(), RenderState::Done);
+        return resumed.merged().image(true).rgb;
+    };
+    EXPECT_EQ(run(-1), run(1));
+}
+
+}  // namespace
+}  // namespace aliquot

@@ -1,0 +1,52 @@
+#include "round_cutter.h"
+
+#include <gtest/gtest.h>
+
+namespace aliquot {
+namespace {
+
+TEST(RoundCutter, JobsCoverEveryPixelWithSamplesExactlyOnce) {
+    Accumulator acc(70, 45);
+    Round round{0, std::vector<uint32_t>(70 * 45, 4)};
+    round.spp[5] = 0;
+    std::vector<int> covered(70 * 45, 0);
+    for (const SampleJob& job : cut_round(round, acc, 32))
+        for (uint32_t y = 0; y < job.rect.height; ++y)
+            for (uint32_t x = 0; x < job.rect.width; ++x) {
+                const size_t i = size_t(job.rect.y + y) * 70 + job.rect.x + x;
+                ++covered[i];
+                EXPECT_EQ(job.counts[y * job.rect.width + x], round.spp[i]);
+            }
+    for (int c : covered) EXPECT_EQ(c, 1);
+}
+
+TEST(RoundCutter, SampleIndicesContinueFromWhatEachPixelHas) {
+    Accumulator acc(2, 1);
+    SampleJobResult r;
+    r.rect = {1, 0, 1, 1};
+    r.pixels.resize(1);
+    r.pixels[0].samples = 7;
+    acc.merge(r);
+    const auto jobs = cut_round(Round{1, {3, 3}}, acc, 32);
+    ASSERT_EQ(jobs.size(), 1u);
+    EXPECT_EQ(jobs[0].first_sample[0], 0u);
+    EXPECT_EQ(jobs[0].first_sample[1], 7u);
+}
+
+TEST(RoundCutter, SkipsTilesWithoutSamples) {
+    Accumulator acc(64, 32);
+    Round round{0, std::vector<uint32_t>(64 * 32, 0)};
+    round.spp[40] = 1;  // only the right-hand 32x32 tile has work
+    const auto jobs = cut_round(round, acc, 32);
+    ASSERT_EQ(jobs.size(), 1u);
+    EXPECT_EQ(jobs[0].rect.x, 32u);
+}
+
+TEST(RoundCutter, SparseRoundsGetLargerTilesUpTo128) {
+    EXPECT_EQ(job_tile_side(1), 128u);
+    EXPECT_EQ(job_tile_side(8), 64u);
+    EXPECT_EQ(job_tile_side(1000), 32u);
+}
+
+}  // namespace
+}  // namespace aliquot
