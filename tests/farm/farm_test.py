@@ -225,6 +225,21 @@ def test_early_and_late_workers_get_work():
         farm.stop()
 
 
+def test_full_hd_render_fits_in_messages():
+    # 1920x1080: jobs and results must stay under gRPC's 4 MiB default message size.
+    farm = Farm("full-hd")
+    try:
+        farm.start_coordinator()
+        farm.start_worker("w0", threads=2)
+        args = ["--scene", "cornell-box", "--resolution", "1920x1080", "--spp", "1", "--seed", "5"]
+        out = os.path.join(farm.dir, "hd.exr")
+        info = farm.submit(*args, out=out)
+        assert info["state"] == "done" and info["samples"] == 1920 * 1080, info
+        assert same(out, embedded(args)), "1920x1080 farm render differs from embedded"
+    finally:
+        farm.stop()
+
+
 def test_client_errors_are_one_line():
     farm = Farm("errors")
     try:
