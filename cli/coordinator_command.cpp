@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <vector>
 
 #include "commands.h"
 #include "grpc_server.h"
@@ -35,6 +36,7 @@ struct CoordinatorCommand {
     std::string data_dir = "aliquot-data";
     std::string http_address;  // empty: no HTTP API or dashboard
     std::string web_dir;       // empty: default_web_dir()
+    std::vector<std::string> study_dirs;  // more places `aliquot study --out` wrote reports
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
@@ -61,9 +63,21 @@ struct CoordinatorCommand {
         if (!http_address.empty()) {
             HttpOptions http_options;
             http_options.web_dir = web_dir.empty() ? default_web_dir() : fs::path(web_dir);
+            // Study reports: the data directory's, then the --studies directories or, by
+            // default from a build tree, the source tree's docs/studies and out/ (where
+            // `aliquot study` writes unless told otherwise).
             http_options.study_dirs = {{"data", fs::path(data_dir) / "studies"}};
-            const fs::path docs = executable_dir() / ".." / ".." / "docs" / "studies";
-            if (fs::is_directory(docs)) http_options.study_dirs.emplace_back("docs", docs);
+            const fs::path repo = executable_dir() / ".." / "..";
+            if (!study_dirs.empty()) {
+                for (size_t i = 0; i < study_dirs.size(); ++i)
+                    http_options.study_dirs.emplace_back("dir" + std::to_string(i + 1),
+                                                         study_dirs[i]);
+            } else if (fs::exists(repo / "CMakeLists.txt")) {
+                for (const fs::path& dir : {repo / "docs" / "studies", repo / "out"})
+                    if (fs::is_directory(dir))
+                        http_options.study_dirs.emplace_back(
+                            dir.filename() == "out" ? "out" : "docs", fs::weakly_canonical(dir));
+            }
             http = std::make_unique<HttpServer>(coordinator, http_address, http_options);
             std::fprintf(stderr, "coordinator: HTTP on %s (port %d), dashboard from %s\n",
                          http_address.c_str(), http->port(),
@@ -86,6 +100,9 @@ void register_coordinator(CLI::App& app) {
     cmd->add_option("--grpc", c->grpc_address, "listen address host:port")->capture_default_str();
     cmd->add_option("--http", c->http_address,
                     "HTTP address host:port for the JSON API and dashboard (default: off)");
+    cmd->add_option("--studies", c->study_dirs,
+                    "a directory of study reports to list besides DATA/studies, instead of the "
+                    "source tree's docs/studies and out/ (repeatable)");
     cmd->add_option("--web", c->web_dir,
                     "built dashboard directory (default: web/dist of the source tree)");
     cmd->add_option("--data", c->data_dir, "directory for SQLite, checkpoints, images")

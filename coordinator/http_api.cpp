@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 
@@ -15,8 +16,18 @@ using nlohmann::json;
 
 namespace {
 
+// Six significant digits are more than any chart or table shows, and half the bytes.
+double short_number(double v) {
+    if (!std::isfinite(v) || v == 0) return v;
+    char text[32];
+    std::snprintf(text, sizeof text, "%.6g", v);
+    return std::strtod(text, nullptr);
+}
+
 // -1 is how the coordinator says "not measured"; JSON says null.
-json measured(double v) { return (v >= 0 && std::isfinite(v)) ? json(v) : json(nullptr); }
+json measured(double v) {
+    return (v >= 0 && std::isfinite(v)) ? json(short_number(v)) : json(nullptr);
+}
 
 json parse_or_empty(const std::string& text) {
     if (text.empty()) return json::object();
@@ -119,8 +130,8 @@ json render_summary(const RenderInfo& info, const std::optional<BucketProgress>&
               {"samples_done", info.samples_done},
               {"samples_planned", info.samples_planned},
               {"rounds", info.rounds_done},
-              {"seconds", info.seconds},
-              {"samples_per_second", info.samples_per_second},
+              {"seconds", short_number(info.seconds)},
+              {"samples_per_second", short_number(info.samples_per_second)},
               {"error_estimate", measured(info.error_estimate)},
               {"error_vs_reference", measured(info.error_vs_reference)},
               {"created_ms", info.created_ms},
@@ -142,13 +153,19 @@ json render_detail(const RenderInfo& info, const std::optional<BucketProgress>& 
     return j;
 }
 
+const char* const kRoundColumns[6] = {"index",   "samples_in_round", "samples_total",
+                                      "seconds", "error_estimate",   "error_vs_reference"};
+
 json round_json(const RoundSummary& r) {
-    return {{"index", r.index},
-            {"samples_in_round", r.samples_in_round},
-            {"samples_total", r.samples_total},
-            {"seconds", r.seconds},
-            {"error_estimate", measured(r.error_estimate)},
-            {"error_vs_reference", measured(r.error_vs_reference)}};
+    const json row = round_row(r);
+    json j = json::object();
+    for (size_t i = 0; i < row.size(); ++i) j[kRoundColumns[i]] = row[i];
+    return j;
+}
+
+json round_row(const RoundSummary& r) {
+    return json::array({r.index, r.samples_in_round, r.samples_total, short_number(r.seconds),
+                        measured(r.error_estimate), measured(r.error_vs_reference)});
 }
 
 json worker_json(const WorkerStatus& w) {
@@ -157,7 +174,7 @@ json worker_json(const WorkerStatus& w) {
             {"state", w.state},
             {"leases", w.leases},
             {"samples_traced", w.samples_traced},
-            {"samples_per_second", w.samples_per_second},
+            {"samples_per_second", short_number(w.samples_per_second)},
             {"last_seen_ms", w.last_seen_ms}};
 }
 
@@ -165,7 +182,7 @@ json buckets_json(const std::vector<Bucket>& buckets) {
     json rows = json::array();
     for (const Bucket& b : buckets)
         rows.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height,
-                        std::isfinite(b.error) ? json(float(b.error)) : json(nullptr),
+                        std::isfinite(b.error) ? json(short_number(b.error)) : json(nullptr),
                         b.converged ? 1 : 0});
     return rows;
 }

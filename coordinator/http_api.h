@@ -41,6 +41,10 @@ nlohmann::json render_summary(const RenderInfo& info,
 nlohmann::json render_detail(const RenderInfo& info,
                              const std::optional<BucketProgress>& buckets = std::nullopt);
 nlohmann::json round_json(const RoundSummary& round);
+// The same as a row [index, samples_in_round, samples_total, seconds, error_estimate,
+// error_vs_reference]: a render may have thousands of rounds.
+nlohmann::json round_row(const RoundSummary& round);
+extern const char* const kRoundColumns[6];
 nlohmann::json worker_json(const WorkerStatus& worker);
 // Buckets as [x, y, width, height, error, converged] rows.
 nlohmann::json buckets_json(const std::vector<Bucket>& buckets);

@@ -249,8 +249,11 @@ struct HttpServer::Impl {
     void broadcast() {
         uint64_t version = 0;
         while (!hub.stopping()) {
-            version = coordinator.wait_for_change(version, std::chrono::milliseconds(1000));
+            // Short waits, so that shutting down never waits long for a quiet coordinator.
+            const uint64_t now = coordinator.wait_for_change(version, std::chrono::milliseconds(200));
             if (hub.stopping()) break;
+            if (now == version) continue;
+            version = now;
             try {
                 snapshot(true);
             } catch (const std::exception& e) {
@@ -316,18 +319,19 @@ struct HttpServer::Impl {
                                           t.time_since_epoch())
                                           .count());
                 }
-                if (names.empty()) continue;
                 std::sort(names.begin(), names.end());
                 std::string report;
                 for (const std::string& n : names)
                     if (n == "report.md" || (report.empty() && n.ends_with(".md") &&
                                              n.find('/') == std::string::npos))
                         report = n;
-                std::string title = report.empty() ? "" : first_heading(s / report);
+                // A study is a directory with a report; other output (renders, logs) is not.
+                if (report.empty()) continue;
+                const std::string title = first_heading(s / report);
                 out.push_back({{"source", label},
                                {"name", s.filename().string()},
                                {"title", title.empty() ? s.filename().string() : title},
-                               {"report", report.empty() ? json(nullptr) : json(report)},
+                               {"report", report},
                                {"files", names}});
             }
         }
@@ -413,13 +417,20 @@ struct HttpServer::Impl {
                        const std::string id = req.matches[1];
                        const auto since = size_t(http_api::number_param(
                            "since", query(req, "since", "0"), 0, 1e12));
+                       const auto limit = size_t(http_api::number_param(
+                           "limit", query(req, "limit", "1000"), 1, 1000));
                        const auto all = coordinator.rounds(id);
                        if (!all) throw ApiError(404, "no render '" + id + "'");
                        json rows = json::array();
-                       for (size_t i = since; i < all->size(); ++i)
-                           rows.push_back(http_api::round_json((*all)[i]));
-                       send_json(res, {{"id", id}, {"since", since}, {"rounds", rows},
-                                       {"count", all->size()}});
+                       const size_t end = std::min(all->size(), since + limit);
+                       for (size_t i = since; i < end; ++i)
+                           rows.push_back(http_api::round_row((*all)[i]));
+                       send_json(res, {{"id", id},
+                                       {"columns", http_api::kRoundColumns},
+                                       {"since", since},
+                                       {"rows", rows},
+                                       {"count", all->size()},
+                                       {"next", end < all->size() ? json(end) : json(nullptr)}});
                    }));
         server.Get(R"(/api/renders/([^/]+)/preview\.png)",
                    guarded([this](const httplib::Request& req, auto& res) {

@@ -19,7 +19,7 @@ struct HttpOptions {
     // and the API works alone.
     std::filesystem::path web_dir;
     // Where `aliquot study` reports live, each with the label the API names it by
-    // ("data", "docs"): every subdirectory is one study.
+    // ("data", "docs"): every subdirectory with a top-level .md report is one study.
     std::vector<std::pair<std::string, std::filesystem::path>> study_dirs;
     // The shortest gap between two live updates: the browser never gets more than a few
     // per second however fast results arrive.

@@ -68,6 +68,8 @@ protected:
             << "# Equal budget\n\n![](charts/error.png)\n";
         std::ofstream(dir_ / "studies" / "equal-budget" / "charts" / "error.png") << "png";
         std::ofstream(dir_ / "secret.txt") << "not served";
+        fs::create_directories(dir_ / "studies" / "no-report");  // output, not a study
+        std::ofstream(dir_ / "studies" / "no-report" / "image.png") << "png";
 
         coordinator_ = std::make_unique<Coordinator>(CoordinatorOptions{});
         HttpOptions options;
@@ -228,18 +230,26 @@ TEST_F(HttpServerTest, RoundsPreviewMapsAndBucketsFollowTheRender) {
                                      {"budget", 40 * 24 * 24},
                                      {"initial_spp", 4},
                                      {"bucket_size", 8}}}});
-    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds")["rounds"].size(), 0u);
+    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds")["rows"].size(), 0u);
     fake_jobs(*coordinator_, "w1");
     const json info = get_json("/api/renders/" + id);
     ASSERT_EQ(info["state"], "done");
 
     const json rounds = get_json("/api/renders/" + id + "/rounds");
-    ASSERT_EQ(rounds["rounds"].size(), info["rounds"].get<size_t>());
-    ASSERT_GE(rounds["rounds"].size(), 2u);
-    EXPECT_EQ(rounds["rounds"].back()["samples_total"], info["samples_done"]);
-    EXPECT_GT(rounds["rounds"][1]["samples_total"], rounds["rounds"][0]["samples_total"]);
-    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds?since=1")["rounds"].size(),
-              rounds["rounds"].size() - 1);
+    EXPECT_EQ(rounds["columns"][2], "samples_total");
+    const json& rows = rounds["rows"];
+    ASSERT_EQ(rows.size(), info["rounds"].get<size_t>());
+    ASSERT_GE(rows.size(), 2u);
+    EXPECT_EQ(rounds["count"], rows.size());
+    EXPECT_TRUE(rounds["next"].is_null());
+    EXPECT_EQ(rows.back()[2], info["samples_done"]);
+    EXPECT_GT(rows[1][2], rows[0][2]);
+    EXPECT_GT(rows[1][3].get<double>(), 0.0);  // seconds
+    EXPECT_GT(rows[1][4].get<double>(), 0.0);  // error estimate
+    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds?since=1")["rows"], json(rows.begin() + 1, rows.end()));
+    const json page = get_json("/api/renders/" + id + "/rounds?limit=1");
+    EXPECT_EQ(page["rows"].size(), 1u);
+    EXPECT_EQ(page["next"], 1);
 
     auto png = client_->Get(("/api/renders/" + id + "/preview.png?exposure=1.5").c_str());
     ASSERT_TRUE(png);

@@ -9,7 +9,11 @@ packages=(
     libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
     libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
     python3 python3-venv
+    libcpp-httplib-dev zlib1g-dev
 )
+# The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own Node
+# keeps it.
+command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -39,6 +39,15 @@ export interface RoundRow {
   error_vs_reference: number | null;
 }
 
+/** GET /api/renders/{id}/rounds: rows in the order of `columns`. */
+interface RoundPage {
+  columns: string[];
+  rows: [number, number, number, number, number | null, number | null][];
+  count: number;
+  since: number;
+  next: number | null;
+}
+
 export interface Worker {
   name: string;
   threads: number;
@@ -84,7 +93,7 @@ export interface Study {
   source: string;
   name: string;
   title: string;
-  report: string | null;
+  report: string;
   files: string[];
 }
 
@@ -144,10 +153,22 @@ export const api = {
   render: (id: string) => getJSON<RenderDetail>(`/api/renders/${enc(id)}`),
   submit: (req: SubmitRequest) => postJSON<RenderDetail>("/api/renders", req),
   cancel: (id: string) => postJSON<RenderDetail>(`/api/renders/${enc(id)}/cancel`),
-  rounds: (id: string, since = 0) =>
-    getJSON<{ id: string; rounds: RoundRow[]; count: number }>(
-      `/api/renders/${enc(id)}/rounds?since=${since}`,
-    ),
+  /** Every round from `since` on, following the server's pages of up to 1000. */
+  rounds: async (id: string, since = 0): Promise<{ rounds: RoundRow[]; count: number }> => {
+    const out: RoundRow[] = [];
+    let next: number | null = since;
+    let count = 0;
+    while (next !== null) {
+      const page: RoundPage = await getJSON<RoundPage>(`/api/renders/${enc(id)}/rounds?since=${next}`);
+      for (const r of page.rows) {
+        const [index, samples_in_round, samples_total, seconds, error_estimate, error_vs_reference] = r;
+        out.push({ index, samples_in_round, samples_total, seconds, error_estimate, error_vs_reference });
+      }
+      count = page.count;
+      next = page.next;
+    }
+    return { rounds: out, count };
+  },
   map: (id: string, kind: "spp" | "error", size = 256) =>
     getJSON<PixelMap>(`/api/renders/${enc(id)}/maps?kind=${kind}&size=${size}`),
   buckets: (id: string) => getJSON<Buckets>(`/api/renders/${enc(id)}/buckets`),

@@ -3,6 +3,7 @@
 // end-to-end test can check that every round added one.
 import uPlot from "uplot";
 import "uplot/dist/uPlot.min.css";
+import * as fmt from "./format";
 
 export interface SeriesSpec {
   label: string;
@@ -69,8 +70,19 @@ export class ErrorChart {
       height: s.height ?? 240,
       scales: { x: { time: false, distr: s.logX ? 3 : 1 }, y: { distr: s.logY ? 3 : 1 } },
       axes: [
-        { label: s.xLabel, stroke: "#52606d", grid: { stroke: "#e4e7eb" } },
-        { label: s.yLabel, stroke: "#52606d", grid: { stroke: "#e4e7eb" }, size: 64 },
+        {
+          label: s.xLabel,
+          stroke: "#52606d",
+          grid: { stroke: "#e4e7eb" },
+          values: (_u, splits) => splits.map((v) => (v == null ? "" : s.xLabel === "seconds" ? fmt.seconds(v) : fmt.count(v))),
+        },
+        {
+          label: s.yLabel,
+          stroke: "#52606d",
+          grid: { stroke: "#e4e7eb" },
+          size: 64,
+          values: (_u, splits) => splits.map((v) => (v == null ? "" : String(Number(v.toPrecision(3))))),
+        },
       ],
       legend: { show: true },
       series: [

@@ -5,7 +5,7 @@ import { ErrorChart, PALETTE } from "../chart";
 import { clear, h } from "../dom";
 import * as fmt from "../format";
 import { throttle, type LiveEvent } from "../live";
-import { stateBadge, type Page } from "./page";
+import { setBadge, setText, stateBadge, type Page } from "./page";
 
 type Metric = "error_estimate" | "error_vs_reference";
 
@@ -39,6 +39,7 @@ export class ComparePage implements Page {
     this.sceneSelect.addEventListener("change", () => {
       this.scene = this.sceneSelect.value;
       this.selected.clear();
+      clear(this.picker);
       this.defaultSelection();
       this.showPicker();
       void this.update();
@@ -65,6 +66,7 @@ export class ComparePage implements Page {
   private async load(): Promise<void> {
     const { renders } = await api.renders(1000);
     this.renders = renders;
+    clear(this.picker);
     const scenes = [...new Set(renders.map((r) => r.scene))].sort();
     clear(this.sceneSelect);
     for (const s of scenes) this.sceneSelect.append(h("option", { value: s }, s));
@@ -84,32 +86,36 @@ export class ComparePage implements Page {
     for (const r of this.ofScene().filter((r) => r.rounds > 0).slice(0, 6)) this.selected.add(r.id);
   }
 
+  // Checkboxes stay the same elements while their labels update (see page.ts).
   private showPicker(): void {
-    clear(this.picker);
     const list = this.ofScene();
+    const ids = new Set(list.map((r) => r.id));
+    for (const label of [...this.picker.querySelectorAll<HTMLElement>("label.pick, p")])
+      if (!ids.has(label.dataset.id ?? "")) label.remove();
     if (!list.length) {
       this.picker.append(h("p", { class: "muted" }, "No renders to compare yet."));
       return;
     }
-    list.forEach((r) => {
-      const box = h("input", { type: "checkbox", value: r.id, checked: this.selected.has(r.id) });
-      box.addEventListener("change", () => {
-        if (box.checked) this.selected.add(r.id);
-        else this.selected.delete(r.id);
-        void this.update();
-      });
-      this.picker.append(
-        h(
-          "label",
-          { class: "pick", "data-id": r.id },
-          box,
-          ` ${r.id} `,
-          h("strong", {}, r.method),
-          ` ${r.width}×${r.height} · ${fmt.count(r.samples_done)} samples `,
-          stateBadge(r.state),
-        ),
-      );
-    });
+    let previous: HTMLElement | null = null;
+    for (const r of list) {
+      let label = this.picker.querySelector<HTMLElement>(`label.pick[data-id="${r.id}"]`);
+      if (!label) {
+        const box = h("input", { type: "checkbox", value: r.id, checked: this.selected.has(r.id) });
+        box.addEventListener("change", () => {
+          if (box.checked) this.selected.add(r.id);
+          else this.selected.delete(r.id);
+          void this.update();
+        });
+        label = h("label", { class: "pick", "data-id": r.id }, box, ` ${r.id} `, h("strong", {}, r.method), h("span", { class: "info" }), stateBadge(r.state));
+      }
+      setText(label.querySelector<HTMLElement>(".info")!, ` ${r.width}×${r.height} · ${fmt.count(r.samples_done)} samples `);
+      setBadge(label.querySelector<HTMLElement>(".badge")!, r.state);
+      // Newest first, as the list comes.
+      if (previous) {
+        if (previous.nextSibling !== label) previous.after(label);
+      } else if (this.picker.firstChild !== label) this.picker.prepend(label);
+      previous = label;
+    }
   }
 
   private async update(): Promise<void> {

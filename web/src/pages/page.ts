@@ -26,3 +26,22 @@ export function progressBar(fraction: number, label: string): HTMLDivElement {
   outer.append(bar, text);
   return outer;
 }
+
+// In-place updates: rows and headers that change several times a second keep their
+// elements, so a click that lands between two updates is never lost.
+
+export function setBadge(badge: HTMLElement, state: string): void {
+  if (badge.textContent === state) return;
+  badge.className = `badge state-${state}`;
+  badge.textContent = state;
+}
+
+export function setProgress(progress: HTMLElement, fraction: number, label: string): void {
+  const bar = progress.querySelector<HTMLElement>(".bar")!;
+  bar.style.width = `${Math.round(Math.min(1, Math.max(0, fraction)) * 1000) / 10}%`;
+  setText(progress.querySelector<HTMLElement>(".label")!, label);
+}
+
+export function setText(el: HTMLElement, text: string): void {
+  if (el.textContent !== text) el.textContent = text;
+}

@@ -7,7 +7,9 @@ import { append, clear, h } from "../dom";
 import * as fmt from "../format";
 import { throttle, type LiveEvent } from "../live";
 import { progressText } from "./renders";
-import { progressBar, stateBadge, type Page } from "./page";
+import { progressBar, setBadge, setProgress, setText, stateBadge, type Page } from "./page";
+
+const ROUND_ROWS = 200;
 
 class HeatMap {
   readonly canvas = h("canvas", { class: "heatmap" });
@@ -83,6 +85,7 @@ export class RenderPage implements Page {
     ],
   });
   private roundBody = h("tbody");
+  private roundNote = h("p", { class: "muted" });
   private resizer: ResizeObserver;
   private refreshImages = throttle(() => void this.loadImages(), 1000);
   private gone = false;
@@ -126,6 +129,7 @@ export class RenderPage implements Page {
       ),
       h("div", { class: "chart-row" }, h("div", { class: "card" }, this.bySamples.el), h("div", { class: "card" }, this.byTime.el)),
       h("h2", {}, "Rounds"),
+      this.roundNote,
       h(
         "div",
         { class: "table-wrap" },
@@ -156,7 +160,7 @@ export class RenderPage implements Page {
       this.rounds = [];
     }
     this.showRounds();
-    await this.loadImages();
+    this.refreshImages(); // through the throttle, like every later refresh
   }
 
   private loadPreview(): void {
@@ -166,16 +170,22 @@ export class RenderPage implements Page {
     this.preview.src = api.previewUrl(this.id, this.exposure, samples);
   }
 
+  // The render's details (outcome, rays), its images and buckets: at most once a second.
   private async loadImages(): Promise<void> {
     if (!this.render || this.gone) return;
     const samples = this.render.samples_done;
     this.loadPreview();
-    const [spp, err, buckets] = await Promise.allSettled([
+    const [detail, spp, err, buckets] = await Promise.allSettled([
+      api.render(this.id),
       api.map(this.id, "spp"),
       api.map(this.id, "error"),
       api.buckets(this.id),
     ]);
     if (this.gone) return;
+    if (detail.status === "fulfilled" && detail.value.samples_done >= (this.render?.samples_done ?? 0)) {
+      this.render = detail.value;
+      this.showHeader();
+    }
     if (spp.status === "fulfilled") this.sppMap.draw(spp.value, samples);
     if (err.status === "fulfilled") this.errorMap.draw(err.value, samples);
     if (buckets.status === "fulfilled") {
@@ -207,13 +217,11 @@ export class RenderPage implements Page {
     }
   }
 
-  private showHeader(): void {
-    const r = this.render;
-    if (!r) return;
+  // Built once, then updated in place several times a second (see page.ts).
+  private buildHeader(r: RenderDetail): void {
     clear(this.header);
-    const active = r.state === "running" || r.state === "queued";
-    const cancel = active ? h("button", { type: "button", id: "cancel-render" }, "cancel") : null;
-    cancel?.addEventListener("click", async () => {
+    const cancel = h("button", { type: "button", id: "cancel-render" }, "cancel");
+    cancel.addEventListener("click", async () => {
       cancel.disabled = true;
       try {
         this.render = await api.cancel(r.id);
@@ -222,35 +230,55 @@ export class RenderPage implements Page {
         cancel.disabled = false;
       }
     });
-    const params = Object.entries(r.strategy ?? {})
-      .filter(([k, v]) => k !== "method" && v !== 0 && v !== "")
-      .map(([k, v]) => `${k} ${v}`)
-      .join(" · ");
-    const outcome = Object.keys(r.outcome ?? {}).length ? JSON.stringify(r.outcome) : "";
-    this.header.dataset.state = r.state;
-    this.header.dataset.progress = r.progress.toFixed(4);
+    const stat = (key: string, label: string) => h("div", {}, h("dt", {}, label), h("dd", { "data-stat": key }));
     append(this.header, [
       h("h1", {}, `${r.id} `, h("span", { class: "muted" }, `${r.scene} · ${r.method} · ${r.width}×${r.height} · seed ${r.seed}`), " ", stateBadge(r.state), " ", cancel),
       h("div", { class: "render-progress", id: "render-progress" }, progressBar(r.progress, progressText(r))),
       h(
         "dl",
         { class: "stats" },
-        ...(
-          [
-            ["samples", fmt.count(r.samples_done)],
-            ["samples/s", fmt.count(r.samples_per_second)],
-            ["rounds", String(r.rounds)],
-            ["error estimate", fmt.error(r.error_estimate)],
-            ["error vs reference", fmt.error(r.error_vs_reference)],
-            ["time", fmt.seconds(r.seconds)],
-            ["rays", fmt.count(r.rays ?? 0)],
-          ] as const
-        ).map(([k, v]) => h("div", {}, h("dt", {}, k), h("dd", {}, v))),
+        stat("samples", "samples"),
+        stat("rate", "samples/s"),
+        stat("rounds", "rounds"),
+        stat("error", "error estimate"),
+        stat("reference", "error vs reference"),
+        stat("time", "time"),
+        stat("rays", "rays"),
       ),
-      params ? h("p", { class: "muted params" }, params) : null,
-      r.error ? h("p", { class: "error" }, r.error) : null,
-      outcome ? h("p", { class: "muted outcome" }, `outcome: ${outcome}`) : null,
+      h("p", { class: "muted params" }),
+      h("p", { class: "error" }),
+      h("p", { class: "muted outcome" }),
     ]);
+  }
+
+  private showHeader(): void {
+    const r = this.render;
+    if (!r) return;
+    if (!this.header.querySelector("#render-progress")) this.buildHeader(r);
+    const q = <T extends HTMLElement>(sel: string) => this.header.querySelector<T>(sel)!;
+    this.header.dataset.state = r.state;
+    this.header.dataset.progress = r.progress.toFixed(4);
+    setBadge(q("h1 .badge"), r.state);
+    q<HTMLButtonElement>("#cancel-render").hidden = r.state !== "running" && r.state !== "queued";
+    setProgress(q("#render-progress .progress"), r.progress, progressText(r));
+    const stats: [string, string][] = [
+      ["samples", fmt.count(r.samples_done)],
+      ["rate", fmt.count(r.samples_per_second)],
+      ["rounds", String(r.rounds)],
+      ["error", fmt.error(r.error_estimate)],
+      ["reference", fmt.error(r.error_vs_reference)],
+      ["time", fmt.seconds(r.seconds)],
+      ["rays", fmt.count(r.rays ?? 0)],
+    ];
+    for (const [key, value] of stats) setText(q(`dd[data-stat="${key}"]`), value);
+    const params = Object.entries(r.strategy ?? {})
+      .filter(([k, v]) => k !== "method" && v !== 0 && v !== "")
+      .map(([k, v]) => `${k} ${v}`)
+      .join(" · ");
+    const outcome = Object.keys(r.outcome ?? {}).length ? `outcome: ${JSON.stringify(r.outcome)}` : "";
+    setText(q("p.params"), params);
+    setText(q("p.error"), r.error ?? "");
+    setText(q("p.outcome"), outcome);
   }
 
   private showRounds(): void {
@@ -267,8 +295,12 @@ export class RenderPage implements Page {
       { x: t, y: ref },
     ]);
     clear(this.roundBody);
-    // Newest first: the table grows at the top while a render runs.
-    for (const r of [...this.rounds].reverse()) {
+    // Newest first: the table grows at the top while a render runs. Dammertz renders may
+    // have thousands of rounds; the charts show them all, the table the newest.
+    const shown = this.rounds.slice(-ROUND_ROWS).reverse();
+    this.roundNote.textContent =
+      this.rounds.length > shown.length ? `newest ${shown.length} of ${this.rounds.length} rounds` : "";
+    for (const r of shown) {
       this.roundBody.append(
         h(
           "tr",

@@ -3,7 +3,7 @@ import { api, ApiError, type RenderSummary, type SceneList } from "../api";
 import { clear, h } from "../dom";
 import * as fmt from "../format";
 import type { LiveEvent } from "../live";
-import { progressBar, stateBadge, type Page } from "./page";
+import { progressBar, setBadge, setProgress, setText, stateBadge, type Page } from "./page";
 
 // The parameters the form offers per method, with the server's defaults filled in.
 const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string }[]> = {
@@ -36,7 +36,9 @@ const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string 
 
 export function progressText(r: RenderSummary): string {
   if (r.buckets_total && r.state !== "done")
-    return `${r.buckets_converged ?? 0}/${r.buckets_total} buckets · ${fmt.percent(r.progress)}`;
+    return `${r.buckets_converged ?? 0}/${r.buckets_total} buckets converged · ${fmt.percent(r.progress)}`;
+  // Dammertz's planned samples are only a cap: it stops where its buckets converge.
+  if (r.method === "dammertz") return `${fmt.count(r.samples_done)} samples · ${fmt.percent(r.progress)}`;
   const planned = r.samples_planned ? ` / ${fmt.count(r.samples_planned)}` : "";
   return `${fmt.count(r.samples_done)}${planned} · ${fmt.percent(r.progress)}`;
 }
@@ -177,21 +179,20 @@ export class RendersPage implements Page {
 
   private upsert(r: RenderSummary, newest: boolean): void {
     this.renders.set(r.id, r);
-    const row = this.row(r);
-    const old = this.rows.get(r.id);
-    if (old) old.replaceWith(row);
-    else if (newest) this.tbody.prepend(row);
-    else this.tbody.append(row);
-    this.rows.set(r.id, row);
+    let row = this.rows.get(r.id);
+    if (!row) {
+      row = this.row(r);
+      if (newest) this.tbody.prepend(row);
+      else this.tbody.append(row);
+      this.rows.set(r.id, row);
+    }
+    this.update(row, r);
     this.empty.hidden = this.rows.size > 0;
   }
 
   private row(r: RenderSummary): HTMLTableRowElement {
-    const active = r.state === "running" || r.state === "queued";
-    const cancel = active
-      ? h("button", { class: "small cancel", "data-cancel": r.id, type: "button" }, "cancel")
-      : null;
-    cancel?.addEventListener("click", async () => {
+    const cancel = h("button", { class: "small cancel", "data-cancel": r.id, type: "button" }, "cancel");
+    cancel.addEventListener("click", async () => {
       cancel.disabled = true;
       try {
         this.upsert(await api.cancel(r.id), false);
@@ -200,21 +201,39 @@ export class RendersPage implements Page {
         cancel.disabled = false;
       }
     });
+    const num = (name: string) => h("td", { class: "num", "data-col": name });
     return h(
       "tr",
-      { "data-id": r.id, "data-state": r.state, "data-progress": r.progress.toFixed(4) },
+      { "data-id": r.id },
       h("td", {}, h("a", { href: `#/render/${encodeURIComponent(r.id)}` }, r.id)),
       h("td", {}, r.scene, h("span", { class: "muted" }, ` ${r.width}×${r.height}`)),
       h("td", {}, r.method),
-      h("td", { class: "state", title: r.error ?? "" }, stateBadge(r.state)),
+      h("td", { class: "state" }, stateBadge(r.state)),
       h("td", { class: "progress-cell" }, progressBar(r.progress, progressText(r))),
-      h("td", { class: "num" }, fmt.count(r.samples_per_second)),
-      h("td", { class: "num" }, fmt.error(r.error_estimate)),
-      h("td", { class: "num" }, fmt.error(r.error_vs_reference)),
-      h("td", { class: "num" }, r.rounds),
-      h("td", { class: "num" }, fmt.seconds(r.seconds)),
-      h("td", {}, cancel),
+      num("rate"),
+      num("error"),
+      num("reference"),
+      num("rounds"),
+      num("time"),
+      h("td", { class: "actions" }, cancel),
     );
+  }
+
+  private update(row: HTMLTableRowElement, r: RenderSummary): void {
+    row.dataset.state = r.state;
+    row.dataset.progress = r.progress.toFixed(4);
+    const state = row.querySelector<HTMLElement>("td.state")!;
+    state.title = r.error ?? "";
+    setBadge(state.querySelector<HTMLElement>(".badge")!, r.state);
+    setProgress(row.querySelector<HTMLElement>(".progress")!, r.progress, progressText(r));
+    const cell = (name: string) => row.querySelector<HTMLElement>(`td[data-col="${name}"]`)!;
+    setText(cell("rate"), fmt.count(r.samples_per_second));
+    setText(cell("error"), fmt.error(r.error_estimate));
+    setText(cell("reference"), fmt.error(r.error_vs_reference));
+    setText(cell("rounds"), String(r.rounds));
+    setText(cell("time"), fmt.seconds(r.seconds));
+    const cancel = row.querySelector<HTMLButtonElement>("button.cancel")!;
+    cancel.hidden = r.state !== "running" && r.state !== "queued";
   }
 
   onEvent(e: LiveEvent): void {

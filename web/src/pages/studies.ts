@@ -64,16 +64,12 @@ export class StudiesPage implements Page {
     this.el.append(body);
     const resolve = (path: string) => api.studyFileUrl(s, path.replace(/^\.\//, ""));
     let referenced = "";
-    if (s.report) {
-      try {
-        const res = await fetch(api.studyFileUrl(s, s.report), { cache: "no-cache" });
-        referenced = await res.text();
-        body.append(renderMarkdown(referenced, { resolve }));
-      } catch (e) {
-        body.append(h("p", { class: "error" }, (e as Error).message));
-      }
-    } else {
-      body.append(h("h1", {}, s.title));
+    try {
+      const res = await fetch(api.studyFileUrl(s, s.report), { cache: "no-cache" });
+      referenced = await res.text();
+      body.append(renderMarkdown(referenced, { resolve }));
+    } catch (e) {
+      body.append(h("h1", {}, s.title), h("p", { class: "error" }, (e as Error).message));
     }
     // Charts the report does not show itself, then every file.
     const extra = s.files.filter((f) => IMAGE.test(f) && !referenced.includes(f));

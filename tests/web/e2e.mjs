@@ -1,0 +1,439 @@
+// The dashboard end to end: a real coordinator (gRPC + HTTP + SQLite) and a real worker on
+// loopback, the built dashboard in headless Chromium (Debian's chromium, playwright-core).
+// It submits a render from the page, watches it converge (progress, preview, heat maps,
+// one chart point per round), cancels one, compares two, reads a study report, kills the
+// worker and sees it turn lost, and saves a screenshot of every page.
+//
+// Usage: node e2e.mjs path/to/aliquot [output-dir]   (run.sh installs what it needs)
+import { spawn } from "node:child_process";
+import fs from "node:fs";
+import net from "node:net";
+import os from "node:os";
+import path from "node:path";
+import { fileURLToPath } from "node:url";
+import { chromium } from "playwright-core";
+
+const HERE = path.dirname(fileURLToPath(import.meta.url));
+const REPO = path.resolve(HERE, "../..");
+const ALIQUOT = path.resolve(process.argv[2] ?? "build/bin/aliquot");
+const OUT = path.resolve(process.argv[3] ?? path.join(path.dirname(path.dirname(ALIQUOT)), "web-e2e"));
+const WEB = path.resolve(process.env.ALIQUOT_WEB ?? path.join(REPO, "web", "dist"));
+const CHROMIUM = process.env.CHROMIUM ?? "/usr/bin/chromium";
+const MAX_RESPONSE = 100 * 1024;
+
+fs.rmSync(OUT, { recursive: true, force: true });
+fs.mkdirSync(OUT, { recursive: true });
+const TMP = fs.mkdtempSync(path.join(os.tmpdir(), "aliquot-web-e2e-"));
+const DATA = path.join(TMP, "data");
+
+const results = [];
+const procs = [];
+let context = null;
+
+function log(...args) {
+  console.log(...args);
+}
+
+async function check(name, fn) {
+  const start = Date.now();
+  try {
+    await fn();
+    results.push({ name, ok: true });
+    log(`PASS ${name} (${((Date.now() - start) / 1000).toFixed(1)} s)`);
+  } catch (e) {
+    results.push({ name, ok: false });
+    log(`FAIL ${name}: ${e?.message ?? e}`);
+  }
+}
+
+function assert(cond, message) {
+  if (!cond) throw new Error(message);
+}
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+async function waitFor(fn, { timeout = 30000, every = 100, what = "condition" } = {}) {
+  const end = Date.now() + timeout;
+  let last;
+  while (Date.now() < end) {
+    try {
+      last = await fn();
+      if (last) return last;
+    } catch (e) {
+      last = e;
+    }
+    await sleep(every);
+  }
+  throw new Error(`timed out after ${timeout / 1000} s waiting for ${what} (last: ${last?.message ?? JSON.stringify(last)})`);
+}
+
+function freePort() {
+  return new Promise((resolve, reject) => {
+    const s = net.createServer();
+    s.once("error", reject);
+    s.listen(0, "127.0.0.1", () => {
+      const { port } = s.address();
+      s.close(() => resolve(port));
+    });
+  });
+}
+
+function start(name, args) {
+  const logFile = fs.openSync(path.join(OUT, `${name}.log`), "w");
+  const p = spawn(ALIQUOT, args, { stdio: ["ignore", logFile, logFile] });
+  p.exited = new Promise((resolve) => p.on("exit", (code, signal) => resolve({ code, signal })));
+  procs.push(p);
+  return p;
+}
+
+async function cleanup() {
+  if (context) await context.close().catch(() => {});
+  for (const p of procs) if (p.exitCode === null && p.signalCode === null) p.kill("SIGKILL");
+  fs.rmSync(TMP, { recursive: true, force: true });
+}
+
+const overall = setTimeout(async () => {
+  log("FAIL the whole test: timed out after 420 s");
+  results.push({ name: "finishes in time", ok: false });
+  await finish();
+}, 420000);
+
+async function finish() {
+  clearTimeout(overall);
+  await cleanup();
+  const passed = results.filter((r) => r.ok).length;
+  const failed = results.length - passed;
+  log(`screenshots and logs in ${OUT}`);
+  log(`${passed} passed, ${failed} failed`);
+  process.exit(failed ? 1 : 0);
+}
+
+// ---- the farm ----
+
+const grpcPort = await freePort();
+const httpPort = await freePort();
+const BASE = `http://127.0.0.1:${httpPort}`;
+
+async function api(pathname, init) {
+  const res = await fetch(BASE + pathname, init);
+  const body = await res.json();
+  if (!res.ok) throw new Error(`${pathname}: ${res.status} ${body.error}`);
+  return body;
+}
+
+const submitJSON = (spec) =>
+  api("/api/renders", { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(spec) });
+
+const coordinator = start("coordinator", [
+  "coordinator",
+  "--grpc", `127.0.0.1:${grpcPort}`,
+  "--http", `127.0.0.1:${httpPort}`,
+  "--data", DATA,
+  "--web", WEB,
+  "--studies", path.join(TMP, "more-studies"), // instead of the source tree's: starts empty
+  "--lease-seconds", "5",
+  "--lost-seconds", "2",
+]);
+let worker = null;
+
+await check("coordinator serves the API and the built dashboard", async () => {
+  assert(fs.existsSync(path.join(WEB, "index.html")), `no built dashboard in ${WEB} (run web/build.sh)`);
+  await waitFor(async () => (await fetch(`${BASE}/healthz`)).ok, { timeout: 20000, what: "/healthz" });
+  const index = await (await fetch(`${BASE}/`)).text();
+  assert(index.includes("<title>Aliquot</title>"), "GET / is not the dashboard");
+  worker = start("worker", ["worker", "--coordinator", `127.0.0.1:${grpcPort}`, "--threads", "1", "--name", "e2e-worker"]);
+  await waitFor(async () => (await api("/api/workers")).workers.length === 1, { what: "the worker to register" });
+});
+
+// ---- the browser ----
+
+const userDataDir = fs.mkdtempSync(path.join(TMP, "chromium-"));
+context = await chromium.launchPersistentContext(userDataDir, {
+  executablePath: CHROMIUM,
+  headless: true,
+  args: [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+  ],
+  viewport: { width: 1440, height: 1000 },
+});
+// Every fetch the page makes, timed by the page's own clock.
+await context.addInitScript(() => {
+  const original = window.fetch.bind(window);
+  window.__fetches = [];
+  window.fetch = (input, init) => {
+    window.__fetches.push([String(input instanceof Request ? input.url : input), performance.now()]);
+    return original(input, init);
+  };
+});
+const page = context.pages()[0] ?? (await context.newPage());
+page.setDefaultTimeout(30000);
+
+const requests = []; // every request the page makes: [url, time]
+const apiSizes = []; // [url, bytes] of every API response
+const pageErrors = [];
+page.on("request", (r) => requests.push({ url: r.url(), t: Date.now() }));
+page.on("response", async (r) => {
+  const url = r.url();
+  if (!url.startsWith(`${BASE}/api/`) || url.includes("/api/events")) return;
+  try {
+    apiSizes.push({ url, bytes: (await r.body()).length });
+  } catch {
+    /* navigation discarded it */
+  }
+});
+page.on("pageerror", (e) => pageErrors.push(String(e)));
+page.on("console", (m) => {
+  if (m.type() === "error" && !/Failed to load resource/.test(m.text())) pageErrors.push(m.text());
+});
+
+const shot = (name) => page.screenshot({ path: path.join(OUT, `${name}.png`), fullPage: true });
+
+// A fingerprint of what a canvas or image shows, computed in the page.
+const pixels = (selector) =>
+  page.$eval(selector, (el) => {
+    let canvas = el;
+    if (el instanceof HTMLImageElement) {
+      if (!el.complete || !el.naturalWidth) return null;
+      canvas = document.createElement("canvas");
+      canvas.width = el.naturalWidth;
+      canvas.height = el.naturalHeight;
+      canvas.getContext("2d").drawImage(el, 0, 0);
+    }
+    const d = canvas.getContext("2d").getImageData(0, 0, canvas.width, canvas.height).data;
+    let hash = 0;
+    let sum = 0;
+    for (let i = 0; i < d.length; i++) {
+      hash = (hash * 31 + d[i]) | 0;
+      if (i % 4 !== 3) sum += d[i];
+    }
+    return { hash, mean: sum / ((d.length / 4) * 3), width: canvas.width };
+  });
+
+const attr = (selector, name) => page.$eval(selector, (el, n) => el.getAttribute(n), name).catch(() => null);
+
+await check("dashboard loads with a live update stream", async () => {
+  await page.goto(`${BASE}/#/renders`);
+  await page.waitForSelector('#live[data-status="live"]');
+  await page.waitForSelector("#submit-scene option[value='cornell-box']", { state: "attached" });
+  await page.waitForSelector("#submit-method option[value='dammertz']", { state: "attached" });
+});
+
+await check("a bad submission shows the server's message", async () => {
+  await page.fill("#submit-resolution", "0x0");
+  await page.click("#submit-button");
+  const text = await page.waitForSelector(".form-message.error").then((e) => e.textContent());
+  assert(/resolution/.test(text), `message was "${text}"`);
+  assert((await api("/api/renders")).renders.length === 0, "a render was created");
+});
+
+let renderId = null;
+await check("submit a render from the page", async () => {
+  await page.selectOption("#submit-scene", "cornell-box");
+  await page.fill("#submit-resolution", "128x128");
+  await page.fill("#submit-seed", "5");
+  await page.selectOption("#submit-method", "dammertz");
+  await page.fill('input[data-param="max_spp"]', "1024");
+  await page.click("#submit-button");
+  const text = await page.waitForSelector(".form-message:not(.error)").then((e) => e.textContent());
+  renderId = /submitted (r-\d+)/.exec(text)?.[1];
+  assert(renderId, `message was "${text}"`);
+  await page.waitForSelector(`tr[data-id="${renderId}"]`);
+  const r = await api(`/api/renders/${renderId}`);
+  assert(r.method === "dammertz" && r.width === 128 && r.seed === 5 && r.strategy.max_spp === 1024, `render is ${JSON.stringify(r)}`);
+});
+
+let early = null;
+const seenPoints = new Set();
+await check("the render page shows progress reaching 100 %", async () => {
+  await page.click(`a[href="#/render/${renderId}"]`);
+  await page.waitForSelector(".render-header[data-state]");
+  // An early view, while the render is still running.
+  await waitFor(async () => Number(await attr("#map-spp canvas", "data-samples")) > 0 && Number(await attr("#preview", "data-samples")) > 0, {
+    what: "the first preview and maps",
+  });
+  early = {
+    samples: Number(await attr("#map-spp canvas", "data-samples")),
+    preview: await pixels("#preview"),
+    spp: await pixels("#map-spp canvas"),
+    error: await pixels("#map-error canvas"),
+    state: await attr(".render-header", "data-state"),
+  };
+  await shot("render-running");
+  await waitFor(
+    async () => {
+      seenPoints.add(Number(await attr("#chart-samples", "data-points")));
+      return (await attr(".render-header", "data-state")) === "done";
+    },
+    { timeout: 180000, every: 200, what: "the render to finish" },
+  );
+  assert((await attr(".render-header", "data-progress")) === "1.0000", "progress is not 1");
+  const label = await page.textContent("#render-progress .label");
+  assert(label.includes("100 %"), `progress label "${label}"`);
+  assert(early.state === "running", `the first view was already ${early.state}: the render was too quick to watch`);
+});
+
+let final = null;
+await check("the preview and heat maps change as the render converges", async () => {
+  final = await api(`/api/renders/${renderId}`);
+  await waitFor(
+    async () =>
+      Number(await attr("#map-spp canvas", "data-samples")) === final.samples_done &&
+      Number(await attr("#map-error canvas", "data-samples")) === final.samples_done &&
+      Number(await attr("#preview", "data-samples")) === final.samples_done,
+    { what: "images of the final samples" },
+  );
+  assert(early.samples < final.samples_done, `early view had ${early.samples} of ${final.samples_done} samples`);
+  const now = { preview: await pixels("#preview"), spp: await pixels("#map-spp canvas"), error: await pixels("#map-error canvas") };
+  for (const k of ["preview", "spp", "error"]) assert(now[k] && early[k] && now[k].hash !== early[k].hash, `${k} did not change`);
+});
+
+await check("the charts gain one point per round", async () => {
+  const { rows, count } = await api(`/api/renders/${renderId}/rounds`);
+  assert(count === final.rounds && count >= 5, `${count} rounds`);
+  const plotted = rows.filter((r) => r[2] > 0 && r[4] > 0).length;
+  await waitFor(async () => Number(await attr("#chart-samples", "data-points")) === plotted, { what: `${plotted} points` });
+  assert(Number(await attr("#chart-time", "data-points")) === plotted, "error-vs-time chart differs");
+  const tableRows = await page.$$eval("#rounds-table tbody tr", (r) => r.length);
+  assert(tableRows === Math.min(200, count), `round table has ${tableRows} rows for ${count} rounds`);
+  const grew = [...seenPoints].filter((n) => n > 0).sort((a, b) => a - b);
+  assert(grew.length >= 3, `while running the chart showed only ${JSON.stringify(grew)} points`);
+});
+
+await check("bucket boundaries are drawn over the image", async () => {
+  const { buckets } = await api(`/api/renders/${renderId}/buckets`);
+  assert(buckets.length > 1, `${buckets.length} buckets`);
+  assert(Number(await attr("#bucket-overlay", "data-buckets")) === buckets.length, "overlay bucket count differs");
+  const overlay = await pixels("#bucket-overlay");
+  assert(overlay.mean > 0, "the overlay is empty");
+});
+
+await check("the exposure slider brightens the preview", async () => {
+  const before = await pixels("#preview");
+  await page.fill("#exposure", "2");
+  await waitFor(async () => (await attr("#preview", "src"))?.includes("exposure=2"), { what: "a new preview URL" });
+  await waitFor(async () => (await pixels("#preview"))?.mean > before.mean * 1.3, { what: "a brighter preview" });
+  await page.fill("#exposure", "0");
+  await waitFor(async () => (await attr("#preview", "src"))?.includes("exposure=0"), { what: "exposure back to 0" });
+  await sleep(300);
+  await shot("render");
+});
+
+await check("nothing is fetched faster than once a second while a render runs", async () => {
+  // Still on the render page that watched the whole render.
+  const fetches = await page.evaluate(() => window.__fetches);
+  const kinds = { spp: /maps\?kind=spp/, error: /maps\?kind=error/, buckets: /\/buckets/, list: /\/api\/renders\?/, workers: /\/api\/workers/ };
+  for (const [kind, re] of Object.entries(kinds)) {
+    const times = fetches.filter(([url]) => re.test(url)).map(([, t]) => t);
+    for (let i = 1; i < times.length; i++)
+      assert(times[i] - times[i - 1] >= 990, `${kind} fetched ${Math.round(times[i] - times[i - 1])} ms after the previous one`);
+  }
+  const maps = fetches.filter(([url]) => kinds.spp.test(url)).length;
+  assert(maps >= 3, `the spp map was fetched only ${maps} times while the render ran`);
+  log(`  ${fetches.length} fetches while watching the render, ${maps} of the spp map`);
+});
+
+await check("cancel from the renders page", async () => {
+  const long = await submitJSON({ scene: "cornell-box", resolution: "128x128", strategy: { method: "uniform", spp: 100000 } });
+  await page.goto(`${BASE}/#/renders`);
+  await page.click(`button[data-cancel="${long.id}"]`);
+  await page.waitForSelector(`tr[data-id="${long.id}"][data-state="cancelled"]`);
+  assert((await api(`/api/renders/${long.id}`)).state === "cancelled", "the API does not say cancelled");
+});
+
+let uniformId = null;
+await check("compare two renders of one scene", async () => {
+  const u = await submitJSON({ scene: "cornell-box", resolution: "128x128", seed: 5, strategy: { method: "uniform", spp: 128 } });
+  uniformId = u.id;
+  await waitFor(async () => (await api(`/api/renders/${uniformId}`)).state === "done", { timeout: 120000, what: "the uniform render" });
+  const points = async (id) => (await api(`/api/renders/${id}/rounds`)).rows.filter((r) => r[2] > 0 && r[4] > 0).length;
+  const want = (await points(renderId)) + (await points(uniformId));
+  await page.goto(`${BASE}/#/compare?scene=cornell-box&ids=${renderId},${uniformId}`);
+  await waitFor(async () => Number(await attr("#compare-time", "data-points")) === want, { what: `${want} points on the time chart` });
+  assert(Number(await attr("#compare-budget", "data-points")) === want, "budget chart differs");
+  const legend = await page.textContent("#compare-time");
+  assert(legend.includes("dammertz") && legend.includes("uniform"), "legend lacks the methods");
+  await sleep(300);
+  await shot("compare");
+});
+
+await check("the renders page lists every render", async () => {
+  await page.goto(`${BASE}/#/renders`);
+  await page.waitForSelector(`tr[data-id="${uniformId}"][data-state="done"]`);
+  const rows = await page.$$eval("#renders-table tbody tr", (r) => r.length);
+  assert(rows === 3, `${rows} rows`);
+  const done = await page.textContent(`tr[data-id="${renderId}"] .progress-cell`);
+  assert(done.includes("100 %"), `progress cell "${done}"`);
+  await shot("renders");
+});
+
+await check("studies: none yet, then a report with its table and chart", async () => {
+  await page.goto(`${BASE}/#/studies`);
+  await page.waitForSelector("#no-studies");
+  await shot("studies-empty");
+  const dir = path.join(DATA, "studies", "e2e-equal-budget");
+  fs.mkdirSync(path.join(dir, "charts"), { recursive: true });
+  const png = Buffer.from(await (await fetch(`${BASE}/api/renders/${renderId}/preview.png?exposure=0`)).arrayBuffer());
+  fs.writeFileSync(path.join(dir, "charts", "dammertz.png"), png);
+  fs.writeFileSync(
+    path.join(dir, "report.md"),
+    [
+      "# Equal budget (end-to-end fixture)",
+      "",
+      "Written by the **web end-to-end test**: a `report.md` like `aliquot study` writes.",
+      "",
+      "| method | samples | error estimate |",
+      "|---|--:|--:|",
+      `| dammertz | ${final.samples_done} | ${final.error_estimate.toFixed(5)} |`,
+      "",
+      "![dammertz preview](charts/dammertz.png)",
+      "",
+    ].join("\n"),
+  );
+  await page.reload();
+  await page.click("#study-list a");
+  await page.waitForSelector("#study-report h1");
+  assert((await page.textContent("#study-report h1")).includes("Equal budget"), "no heading");
+  const cells = await page.$$eval("#study-report td", (t) => t.map((c) => c.textContent));
+  assert(cells.includes("dammertz"), `table cells ${JSON.stringify(cells)}`);
+  await waitFor(() => page.$eval("#study-report img", (i) => i.complete && i.naturalWidth === 128), { what: "the report's image" });
+  await shot("study");
+});
+
+await check("a killed worker turns lost on the workers page", async () => {
+  await page.goto(`${BASE}/#/workers`);
+  await page.waitForSelector('tr[data-name="e2e-worker"][data-state="idle"], tr[data-name="e2e-worker"][data-state="busy"]');
+  await shot("workers");
+  worker.kill("SIGKILL");
+  await page.waitForSelector('tr[data-name="e2e-worker"][data-state="lost"]', { timeout: 15000 });
+  assert((await page.textContent('tr[data-name="e2e-worker"] .state')).trim() === "lost", "badge does not say lost");
+  await shot("workers-lost");
+});
+
+await check("API responses stay under 100 KB", async () => {
+  assert(apiSizes.length > 20, `only ${apiSizes.length} responses seen`);
+  const big = apiSizes.filter((s) => s.bytes >= MAX_RESPONSE);
+  assert(!big.length, `too large: ${big.map((b) => `${b.url} ${b.bytes}`).join(", ")}`);
+  log(`  largest of ${apiSizes.length} API responses: ${Math.max(...apiSizes.map((s) => s.bytes))} bytes`);
+});
+
+await check("the page works offline: every request stays on the coordinator", async () => {
+  const foreign = requests.filter((r) => !r.url.startsWith(BASE) && !r.url.startsWith("data:"));
+  assert(!foreign.length, `requests elsewhere: ${foreign.map((r) => r.url).join(", ")}`);
+  assert(!pageErrors.length, `page errors: ${pageErrors.join(" | ")}`);
+});
+
+await check("the coordinator stops on SIGTERM with the dashboard connected", async () => {
+  coordinator.kill("SIGTERM");
+  const exit = await Promise.race([coordinator.exited, sleep(15000).then(() => null)]);
+  assert(exit, "still running 15 s after SIGTERM");
+  assert(exit.code === 0, `exit ${JSON.stringify(exit)}`);
+});
+
+await finish();
