@@ -21,5 +21,6 @@ void register_worker(CLI::App& app);
 void register_submit(CLI::App& app);
 void register_farm_clients(CLI::App& app);
 void register_reference(CLI::App& app);  // status, watch, fetch, cancel, workers
+void register_study(CLI::App& app);
 
 }  // namespace aliquot::cli

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
     aliquot::cli::register_submit(app);
     aliquot::cli::register_farm_clients(app);
     aliquot::cli::register_reference(app);
+    aliquot::cli::register_study(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -1,5 +1,7 @@
 #include "coordinator.h"
 
+#include <algorithm>
+
 #include <cstdio>
 #include <stdexcept>
 
@@ -95,11 +97,20 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
             rec.seconds = round.seconds;
             rec.error_estimate = round.error_estimate;
             if (round.error_vs_reference >= 0) rec.error_vs_reference = round.error_vs_reference;
-            nlohmann::json buckets = nlohmann::json::array();
-            for (const Bucket& b : r.strategy().buckets())
+            // Buckets are stored when their layout changes, not every round: Dammertz runs
+            // thousands of rounds over hundreds of buckets, and the database would grow by
+            // megabytes a render. A round without buckets_json keeps the previous layout.
+            nlohmann::json buckets = nlohmann::json::array(), shape = nlohmann::json::array();
+            for (const Bucket& b : r.strategy().buckets()) {
                 buckets.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.error,
                                    b.converged});
-            if (!buckets.empty()) rec.buckets_json = buckets.dump();
+                shape.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.converged});
+            }
+            std::string& last_shape = bucket_shapes_[r.id()];
+            if (!buckets.empty() && shape.dump() != last_shape) {
+                rec.buckets_json = buckets.dump();
+                last_shape = shape.dump();
+            }
             rec.created_at = now_ms();
             // The round is recorded before the checkpoint that includes it: a crash between
             // the two re-runs the round, and recording it again is a no-op.
@@ -487,9 +498,12 @@ std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
     if (!store_ || !store_->get_render(id)) return std::nullopt;
     std::vector<Bucket> out;
     const std::vector<RoundRecord> recs = store_->rounds(id);
-    if (recs.empty() || recs.back().buckets_json.empty()) return out;
+    // The latest layout is in the last round that stored one (see on_round).
+    auto last = std::find_if(recs.rbegin(), recs.rend(),
+                             [](const RoundRecord& r) { return !r.buckets_json.empty(); });
+    if (last == recs.rend()) return out;
     // Rows as on_round writes them: [x, y, width, height, error, converged].
-    const nlohmann::json rows = nlohmann::json::parse(recs.back().buckets_json, nullptr, false);
+    const nlohmann::json rows = nlohmann::json::parse(last->buckets_json, nullptr, false);
     if (!rows.is_array()) return out;
     for (const nlohmann::json& row : rows) {
         if (!row.is_array() || row.size() < 6 || !row[0].is_number_unsigned() ||

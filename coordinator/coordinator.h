@@ -107,6 +107,7 @@ private:
     std::unordered_map<uint64_t, std::string> lease_render_;          // lease -> render id
     std::map<std::string, std::string> scenes_;                        // hash -> json
     std::map<std::string, WorkerEntry> workers_;
+    std::map<std::string, std::string> bucket_shapes_;  // render -> last stored bucket layout
     int ticks_ = 0;
     bool stopping_ = false;
     std::thread ticker_;

@@ -178,6 +178,22 @@ public:
         return Status::OK;
     }
 
+    Status GetRounds(ServerContext*, const v1::GetRenderRequest* req,
+                     v1::GetRoundsReply* reply) override {
+        const auto rounds = c_.rounds(req->id());
+        if (!rounds) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        for (const RoundSummary& r : *rounds) {
+            v1::RoundInfo* out = reply->add_rounds();
+            out->set_index(r.index);
+            out->set_samples_in_round(r.samples_in_round);
+            out->set_samples_total(r.samples_total);
+            out->set_seconds(r.seconds);
+            out->set_error_estimate(r.error_estimate);
+            out->set_error_vs_reference(r.error_vs_reference);
+        }
+        return Status::OK;
+    }
+
 private:
     Coordinator& c_;
 };

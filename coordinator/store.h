@@ -94,6 +94,28 @@ struct CheckpointResult {
     int checkpointed = 0;
 };
 
+// A study (docs/STUDIES.md): its id is "name@scale".
+struct StudyRecord {
+    std::string id;
+    std::string name;
+    std::string definition_json;
+    int64_t created_at = 0;
+};
+
+// One render of a study, by its key (group/index/seed): the spec it was rendered with,
+// where it ran (origin "embedded" or "farm ADDR", remote_id the id there), the local
+// render record once there is one, and what it measured against the reference.
+struct StudyResult {
+    std::string study_id, render_key, spec_json, origin, remote_id;
+    std::string render_id;  // local renders.id; empty until recorded
+    std::string state;      // "submitted" or "done"
+    int64_t samples = 0, rays = 0;
+    double seconds = 0, samples_per_second = 0;
+    std::optional<double> mean_abs, rmse, relative_mse, max_bucket, p99_bucket;
+    std::string outcome_json;
+    int64_t updated_at = 0;
+};
+
 // One connection, guarded by a mutex: every method may be called from any thread. Each
 // method is one transaction; a method that returns has made its change durable against a
 // process crash (a power loss may lose the last commits: synchronous=NORMAL).
@@ -173,6 +195,20 @@ private:
     std::filesystem::path path_;
     std::mutex mutex_;
     std::unique_ptr<Connection> db_;
+
+    // ---- Studies (aliquot study) ----
+public:
+    // Inserts a study or replaces its name and definition.
+    void put_study(const StudyRecord& study);
+    std::optional<StudyRecord> get_study(const std::string& id);
+    // Adds (study, render) to study_renders; linking again is a no-op.
+    void link_study_render(const std::string& study_id, const std::string& render_id);
+    // Inserts or replaces the row of (study_id, render_key). Non-finite metrics become NULL.
+    void put_study_result(const StudyResult& result);
+    // In the order they were first recorded.
+    std::vector<StudyResult> study_results(const std::string& study_id);
+    // Forgets one key (the study file no longer has it); its render record stays.
+    void remove_study_result(const std::string& study_id, const std::string& render_key);
 };
 
 }  // namespace aliquot

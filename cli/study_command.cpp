@@ -1,0 +1,140 @@
+// aliquot study FILE: runs a study definition (studies/*.json) embedded or on a farm,
+// then writes its report (report.md, results.csv, charts) with
+// tools/report/aliquot_report.py.
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "commands.h"
+#include "study_runner.h"
+
+extern char** environ;
+
+namespace aliquot::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// The report module: $ALIQUOT_REPORT, else beside the source tree the binary was built in
+// (build*/bin/aliquot), the study file's tree (studies/x.json) or the working directory.
+fs::path find_report_script(const fs::path& study_file) {
+    if (const char* env = std::getenv("ALIQUOT_REPORT")) return env;
+    const fs::path rel = fs::path("tools") / "report" / "aliquot_report.py";
+    std::vector<fs::path> candidates;
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    if (!ec) {
+        candidates.push_back(exe.parent_path() / ".." / ".." / rel);
+        candidates.push_back(exe.parent_path() / ".." / "share" / "aliquot" / "report" /
+                             "aliquot_report.py");
+    }
+    candidates.push_back(fs::absolute(study_file).parent_path() / ".." / rel);
+    candidates.push_back(fs::current_path() / rel);
+    for (const fs::path& c : candidates)
+        if (fs::exists(c)) return fs::weakly_canonical(c);
+    throw CommandError(
+        "cannot find tools/report/aliquot_report.py (set ALIQUOT_REPORT to its path)");
+}
+
+// The repository's .venv (the scripts install matplotlib there), else python3 on PATH.
+std::string find_python(const fs::path& script) {
+    const fs::path venv = script.parent_path() / ".." / ".." / ".venv" / "bin" / "python";
+    // Not canonicalised: a venv's python is a symlink, and only its own path selects the
+    // venv.
+    if (fs::exists(venv)) return fs::absolute(venv).lexically_normal().string();
+    return "python3";
+}
+
+int run_process(const std::vector<std::string>& args) {
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    pid_t pid = 0;
+    if (posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0)
+        return 127;
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
+}
+
+struct StudyCommand {
+    std::string file;
+    std::string scale = "small";
+    std::string coordinator;
+    std::string out;
+    int threads = 0;
+    bool no_report = false;
+
+    void run() {
+        std::ifstream in(file);
+        if (!in) throw CommandError(file + ": cannot open the study file");
+        std::stringstream text;
+        text << in.rdbuf();
+        const StudyDefinition def = parse_study(text.str(), file);
+        const StudyScale sc = study_scale(def, scale);
+        if (threads < 0) throw CommandError("--threads: must be 0 or more");
+        StudyRunOptions options;
+        options.study_file = file;
+        options.out = out.empty()
+                          ? fs::path("out") / ("study-" + def.name + "-" + sc.name)
+                          : fs::path(out);
+        options.coordinator = coordinator;
+        options.threads = threads;
+        const StudyRunSummary s = run_study(def, sc, options);
+        std::printf(
+            "study %s: %zu renders (%zu rendered now, %zu shared, %zu recorded before) "
+            "in %.1f s; data in %s\n",
+            study_id(def, sc).c_str(), s.renders, s.rendered, s.reused,
+            s.renders - s.rendered - s.reused, s.seconds,
+            (options.out / "data").string().c_str());
+        std::fflush(stdout);
+        if (no_report) return;
+        const fs::path script = find_report_script(file);
+        const std::string python = find_python(script);
+        const int rc =
+            run_process({python, script.string(), "--db",
+                         (options.out / "data" / "aliquot.db").string(), "--study",
+                         study_id(def, sc), "--out", options.out.string()});
+        if (rc == 3)
+            throw CommandError(
+                "report not written: " + python +
+                " lacks matplotlib or numpy (install with: " + python +
+                " -m pip install matplotlib numpy); the renders are recorded, "
+                "run the study again to write the report");
+        if (rc != 0)
+            throw CommandError("report not written: " + script.string() +
+                               " exited with status " + std::to_string(rc));
+        std::printf("report: %s\n", (options.out / "report.md").string().c_str());
+    }
+};
+
+}  // namespace
+
+void register_study(CLI::App& app) {
+    auto c = std::make_shared<StudyCommand>();
+    CLI::App* cmd = app.add_subcommand(
+        "study", "run a study (studies/*.json): renders, references, report and charts");
+    cmd->add_option("file", c->file, "study definition (.json)")->required();
+    cmd->add_option("--scale", c->scale,
+                    "small | medium | full (or a scale the file defines)")
+        ->capture_default_str();
+    cmd->add_option("--coordinator", c->coordinator,
+                    "run the renders on this farm (ADDR) instead of embedded");
+    cmd->add_option("--out", c->out, "output directory (default out/study-NAME-SCALE)");
+    cmd->add_option("--threads", c->threads, "embedded tracing threads (0: all cores)");
+    cmd->add_flag("--no-report", c->no_report,
+                  "record the renders only, write no report");
+    cmd->callback([c] { c->run(); });
+}
+
+}  // namespace aliquot::cli
