@@ -11,7 +11,11 @@ if ! command -v npm >/dev/null 2>&1; then
 fi
 
 if [[ ! -f node_modules/.package-lock.json || package-lock.json -nt node_modules/.package-lock.json ]]; then
-    npm ci --no-audit --no-fund --loglevel=error
+    # Some npm 11 releases refuse `npm ci` on this lock file, reporting rollup's optional
+    # per-platform packages as missing although they are in it; `npm install` then installs
+    # the same locked versions.
+    npm ci --no-audit --no-fund --loglevel=error 2>/dev/null ||
+        npm install --no-audit --no-fund --loglevel=error
 fi
 
 stamp=dist/index.html
