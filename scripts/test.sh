@@ -17,6 +17,9 @@ run() {
 run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
 run "cli" bash tests/cli/render_test.sh build/bin/aliquot
 run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
+run "web end-to-end" bash tests/web/run.sh build/bin/aliquot
+run "compose" bash tests/compose/run.sh build/bin/aliquot
+run "study" bash tests/study/run.sh build/bin/aliquot
 run "validation against Mitsuba 3" bash tests/validation/run.sh build/bin/aliquot
 
 if ((${#failures[@]})); then

@@ -6,15 +6,16 @@
 # reachable here), builds deploy/Dockerfile, brings up a coordinator and 3 workers, submits a
 # render from the host CLI, kills one worker container in the middle of it, and checks the
 # fetched EXR is byte-identical to `aliquot render` of the same render on the host. Then the
-# dashboard answers 200, the workers scale to 4, and everything is torn down (volumes too),
-# after a failure as well. The Kubernetes manifests are validated alongside
-# (tests/compose/k8s_check.sh).
+# dashboard answers 200, a crashed worker is restarted, the workers scale to 4, and
+# everything is torn down (volumes too), after a failure as well. The Kubernetes manifests
+# are validated alongside (tests/compose/k8s_check.sh). docs/DEPLOY.md has the details.
 #
 # Usage: tests/compose/run.sh [path/to/aliquot]     (needs root, or sudo, for Docker)
+#        ALIQUOT_COMPOSE="docker compose" tests/compose/run.sh ...   to use compose v2
 # Caches (git-ignored, under build/compose-cache/): the base rootfs tarball, kubeconform and
 # its schemas. Docker's own layer cache keeps the build packages between runs.
 set -uo pipefail
-cd "$(dirname "$0")/../.."
+cd "$(dirname "$0")/../.." || exit 1
 ROOT=$PWD
 ALIQUOT=$(realpath "${1:-build/bin/aliquot}")
 CACHE=$ROOT/build/compose-cache
@@ -27,12 +28,13 @@ COMPOSE_FILE_ARGS=(-f deploy/docker-compose.yml)
 RENDER=(--scene cornell-box --resolution 96x96 --spp 512 --seed 11)
 
 SUDO=()
-[[ $(id -u) -eq 0 ]] || SUDO=(sudo)
+[[ $(id -u) -eq 0 ]] || SUDO=(sudo --preserve-env)  # the ALIQUOT_* settings reach compose
 START=$(date +%s)
 passed=0 failed=0 skipped=0
 DOCKERD_PID=""
 K8S_PID=""
 UP=0
+COMPLETED=0
 
 say() { printf '[%4ss] %s\n' "$(($(date +%s) - START))" "$*"; }
 ok() { passed=$((passed + 1)); say "ok   $*"; }
@@ -120,28 +122,88 @@ ensure_base_images() {
 
 # The build context: the files git would commit (tracked, or untracked and not ignored, so
 # no build*/, .venv or node_modules), plus the built dashboard web/dist when there is one,
-# with deploy/Dockerfile.dockerignore placed as the context's .dockerignore, which the
-# classic builder then applies.
+# less what deploy/Dockerfile.dockerignore leaves out, matched as Docker matches it (the
+# classic builder applies a .dockerignore only when it makes the context from a directory),
+# but with the Dockerfile, which the builder reads from the context.
 build_context() {
     {
         git ls-files -z -co --exclude-standard
         [[ ! -f web/dist/index.html ]] || find web/dist -type f -print0
-    } | while IFS= read -r -d '' f; do [[ -e $f ]] && printf '%s\0' "$f"; done |
-        tar --null -T - --transform='s,^deploy/Dockerfile\.dockerignore$,.dockerignore,' -cf -
+    } | python3 -c '
+import os, re, sys
+
+def pattern(p):
+    out, i = "", 0
+    while i < len(p):
+        if p.startswith("**/", i): out, i = out + "(?:.*/)?", i + 3
+        elif p.startswith("**", i): out, i = out + ".*", i + 2
+        elif p[i] == "*": out, i = out + "[^/]*", i + 1
+        elif p[i] == "?": out, i = out + "[^/]", i + 1
+        else: out, i = out + re.escape(p[i]), i + 1
+    return re.compile(out + "$")
+
+rules = []
+for line in open("deploy/Dockerfile.dockerignore"):
+    line = line.strip()
+    if line and not line.startswith("#"):
+        keep = line.startswith("!")
+        rules.append((keep, pattern(os.path.normpath(line.lstrip("!").strip()).lstrip("/"))))
+for path in sorted(set(sys.stdin.read().split("\0")) - {""}):
+    parts = path.split("/")
+    prefixes = ["/".join(parts[:i]) for i in range(1, len(parts) + 1)]
+    excluded = False
+    for keep, rx in rules:  # the last pattern that matches the path or a parent decides
+        if any(rx.match(p) for p in prefixes):
+            excluded = not keep
+    if (not excluded or path == "deploy/Dockerfile") and os.path.isfile(path):
+        sys.stdout.write(path + "\0")
+' | tar --null -T - -cf -
 }
 
 build_image() {
     # The build stage gets a tag of its own so that pruning old images below never removes
     # the cached layer of build packages.
-    build_context | docker build -f deploy/Dockerfile --target build -t "$IMAGE-build" - \
+    build_context | docker build --force-rm -f deploy/Dockerfile --target build -t "$IMAGE-build" - \
         >"$TMP/build.log" 2>&1 &&
-        build_context | docker build -f deploy/Dockerfile -t "$IMAGE" - >>"$TMP/build.log" 2>&1
+        build_context | docker build --force-rm -f deploy/Dockerfile -t "$IMAGE" - >>"$TMP/build.log" 2>&1
     local rc=$?
     ((rc == 0)) || { tail -30 "$TMP/build.log"; return "$rc"; }
     # Replaced images of earlier runs (only ours, by label) so that runs do not pile up.
     docker image prune -f --filter label=org.opencontainers.image.title=aliquot >/dev/null
     docker image prune -f --filter label=org.opencontainers.image.title=aliquot-build >/dev/null
     return 0
+}
+
+# The Dockerfile keeps up with the project: every package scripts/install-deps.sh installs is
+# in its build list or is one the image build does not use, and every directory the CMake
+# build reads is copied into its build stage.
+dockerfile_keeps_up() {
+    python3 - <<'EOF'
+import glob, re, sys
+NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "nodejs", "npm"}
+dockerfile = open("deploy/Dockerfile").read()
+script = re.sub(r"#.*", "", open("scripts/install-deps.sh").read())
+listed = {w for m in re.finditer(r"packages\+?=\(([^)]*)\)", script) for w in m.group(1).split()}
+m = re.search(r'ARG BUILD_PACKAGES="([^"]*)"', dockerfile)
+image = set(m.group(1).replace("\\", " ").split()) if m else set()
+problems = []
+missing = sorted(listed - image - NOT_FOR_THE_IMAGE)
+if not listed or not image or missing:
+    problems.append("scripts/install-deps.sh installs packages that BUILD_PACKAGES does not "
+                    f"account for: {' '.join(missing) or '(could not read the lists)'}")
+cmake = open("CMakeLists.txt").read()
+dirs = set(re.findall(r"add_subdirectory\(\s*([\w.-]+)", cmake))
+for sub in [""] + sorted(dirs):
+    for f in glob.glob(f"{sub}/**/CMakeLists.txt" if sub else "CMakeLists.txt", recursive=True):
+        dirs |= set(re.findall(r"\$\{(?:PROJECT|CMAKE)_SOURCE_DIR\}/([\w.-]+)", open(f).read()))
+copied = set(re.findall(r"^COPY (?!--)([\w.-]+)/ ", dockerfile, re.M))
+if not dirs or dirs - copied:
+    problems.append("the build stage does not copy what CMake reads: "
+                    f"{' '.join(sorted(dirs - copied)) or '(no directories found)'}")
+for p in problems:
+    print("deploy/Dockerfile: " + p)
+sys.exit(1 if problems else 0)
+EOF
 }
 
 # ---------------------------------------------------------------- the farm
@@ -173,7 +235,7 @@ render_has_samples() {
 render_done() {
     local s
     s=$("$ALIQUOT" status "$RENDER_ID" --json --coordinator "$ADDR" 2>/dev/null) || return 1
-    [[ $(json_field state <<<"$s") == done ]]
+    [[ $(json_field state <<<"$s") == "done" ]]
 }
 
 # The worker container to kill: one holding a lease right now when there is one. A worker's
@@ -205,6 +267,10 @@ except Exception:
 EOF
 }
 
+restarted() {  # restarted CONTAINER: running again after at least one restart
+    [[ $(docker inspect -f '{{.State.Running}} {{.RestartCount}}' "$1") =~ ^true\ [1-9] ]]
+}
+
 running_workers() { dc ps -q worker | xargs -r "${SUDO[@]}" docker inspect -f '{{.State.Running}}' | grep -c true; }
 
 # ---------------------------------------------------------------- teardown
@@ -234,6 +300,8 @@ teardown() {
 
 finish() {
     trap - EXIT INT TERM
+    # An exit nobody counted (a syntax error, `set -u`) must not read as a pass.
+    ((COMPLETED || failed)) || fail "the run stopped before its end (see above)"
     teardown
     if [[ -n $K8S_PID ]]; then
         if wait "$K8S_PID"; then ok "kubernetes manifests (kubeconform)"; else fail "kubernetes manifests (kubeconform)"; fi
@@ -261,12 +329,22 @@ bash tests/compose/k8s_check.sh >"$TMP/k8s.log" 2>&1 &
 K8S_PID=$!
 
 install_missing docker.io docker-compose debootstrap || { fail "install docker.io docker-compose debootstrap"; exit 1; }
-if command -v docker-compose >/dev/null; then COMPOSE=(docker-compose); else COMPOSE=(docker compose); fi
+# ALIQUOT_COMPOSE picks the compose command ("docker compose" for v2); by default Debian's
+# docker-compose (v1), else `docker compose`.
+if [[ -n ${ALIQUOT_COMPOSE:-} ]]; then
+    read -ra COMPOSE <<<"$ALIQUOT_COMPOSE"
+elif command -v docker-compose >/dev/null; then
+    COMPOSE=(docker-compose)
+else
+    COMPOSE=(docker compose)
+fi
 start_engine || { fail "start dockerd"; exit 1; }
 say "engine up ($(docker version -f '{{.Server.Version}}' 2>/dev/null)), compose: $("${COMPOSE[@]}" version --short 2>/dev/null)"
 
 if dc config -q; then ok "compose file is valid for ${COMPOSE[*]}"; else fail "compose file is invalid for ${COMPOSE[*]}"; fi
 
+dockerfile_keeps_up && ok "the Dockerfile covers install-deps.sh's packages and CMake's directories" ||
+    fail "the Dockerfile covers install-deps.sh's packages and CMake's directories"
 ensure_base_images || { fail "base images debian:bookworm, debian:bookworm-slim"; exit 1; }
 say "building $IMAGE (log in the run's files)"
 if build_image; then ok "image builds"; else fail "image builds"; exit 1; fi
@@ -355,10 +433,23 @@ else
     skip "dashboard: this coordinator has no --http flag yet"
 fi
 
+# `docker kill` counts as a deliberate stop, which restart policies respect; a worker that
+# crashes (its process killed from outside Docker) must be restarted by `unless-stopped`.
+crashed=$(dc ps -q worker | while read -r id; do
+    [[ $(docker inspect -f '{{.State.Running}}' "$id") == true ]] && echo "$id" && break
+done)
+if [[ -n $crashed ]] && "${SUDO[@]}" kill -9 "$(docker inspect -f '{{.State.Pid}}' "$crashed")" &&
+    wait_for 30 restarted "$crashed"; then
+    ok "a crashed worker container is restarted (restart: unless-stopped)"
+else
+    fail "a crashed worker container is restarted (restart: unless-stopped)"
+fi
+
 if dc up -d --no-build --scale worker=4 >"$TMP/scale.log" 2>&1 && wait_for 30 workers_alive 4; then
     ok "scaled to 4 workers ($(running_workers) running)"
 else
     cat "$TMP/scale.log"
     fail "scale to 4 workers"
 fi
+COMPLETED=1
 exit 0
