@@ -247,12 +247,13 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     info.error = rec->error;
     info.samples_done = uint64_t(rec->samples_done);
     info.samples_planned = uint64_t(rec->samples_planned);
-    const std::vector<RoundRecord> rounds = store_->rounds(id);
-    info.rounds_done = uint32_t(rounds.size());
-    if (!rounds.empty()) {
-        info.seconds = rounds.back().seconds;
-        info.error_estimate = rounds.back().error_estimate;
-        info.error_vs_reference = rounds.back().error_vs_reference.value_or(-1);
+    // Only the last round: the live-update loop lists renders several times a second, and
+    // a finished Dammertz render can have thousands of rounds.
+    if (const std::optional<RoundRecord> last = store_->last_round(id)) {
+        info.rounds_done = uint32_t(last->idx + 1);  // rounds are recorded 0, 1, 2, ...
+        info.seconds = last->seconds;
+        info.error_estimate = last->error_estimate;
+        info.error_vs_reference = last->error_vs_reference.value_or(-1);
     }
     info.samples_per_second = info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
     info.created_ms = rec->created_at;
@@ -346,7 +347,7 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& worker,
             changed();
             return LeaseGrant{lease_id,
                               id,
-                              scene_hash(s.spec().scene_json),
+                              s.scene_hash(),
                               {s.spec().width, s.spec().height, s.spec().seed},
                               std::move(*job),
                               uint32_t(options_.lease_time.count())};

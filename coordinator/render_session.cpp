@@ -11,6 +11,7 @@ namespace aliquot {
 RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms)
     : id_(std::move(id)),
       spec_(std::move(spec)),
+      scene_hash_(aliquot::scene_hash(spec_.scene_json)),
       created_ms_(created_ms),
       strategy_(make_strategy(spec_.strategy, spec_.width, spec_.height)),
       merged_(spec_.width, spec_.height) {}

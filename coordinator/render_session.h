@@ -62,6 +62,7 @@ public:
 
     const std::string& id() const { return id_; }
     const RenderSpec& spec() const { return spec_; }
+    const std::string& scene_hash() const { return scene_hash_; }
     RenderState state() const { return state_; }
     const std::string& error() const { return error_; }
     const Accumulator& merged() const { return merged_; }
@@ -94,6 +95,7 @@ private:
 
     std::string id_;
     RenderSpec spec_;
+    std::string scene_hash_;  // of spec_.scene_json; every lease carries it
     int64_t created_ms_;
     std::unique_ptr<Strategy> strategy_;
     Accumulator merged_;

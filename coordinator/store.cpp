@@ -617,6 +617,21 @@ bool RunStore::add_round(const RoundRecord& r) {
     return false;
 }
 
+// One row of kRoundColumns, in that order.
+RoundRecord RunStore::round_from_row(Query& q) {
+    RoundRecord r;
+    r.render_id = q.text(0);
+    r.idx = q.int64(1);
+    r.samples_in_round = q.int64(2);
+    r.samples_total = q.int64(3);
+    r.seconds = q.real(4);
+    r.error_estimate = q.real(5);
+    r.error_vs_reference = q.maybe_real(6);
+    r.buckets_json = q.text(7);
+    r.created_at = q.int64(8);
+    return r;
+}
+
 std::vector<RoundRecord> RunStore::rounds(const std::string& render_id) {
     std::lock_guard lock(mutex_);
     static const std::string sql =
@@ -624,20 +639,18 @@ std::vector<RoundRecord> RunStore::rounds(const std::string& render_id) {
     Query q = query(sql, "read rounds of render " + render_id);
     q.bind(render_id);
     std::vector<RoundRecord> rounds;
-    while (q.step()) {
-        RoundRecord r;
-        r.render_id = q.text(0);
-        r.idx = q.int64(1);
-        r.samples_in_round = q.int64(2);
-        r.samples_total = q.int64(3);
-        r.seconds = q.real(4);
-        r.error_estimate = q.real(5);
-        r.error_vs_reference = q.maybe_real(6);
-        r.buckets_json = q.text(7);
-        r.created_at = q.int64(8);
-        rounds.push_back(std::move(r));
-    }
+    while (q.step()) rounds.push_back(round_from_row(q));
     return rounds;
+}
+
+std::optional<RoundRecord> RunStore::last_round(const std::string& render_id) {
+    std::lock_guard lock(mutex_);
+    static const std::string sql = "SELECT " + kRoundColumns +
+                                   " FROM rounds WHERE render_id = ? ORDER BY idx DESC LIMIT 1";
+    Query q = query(sql, "read the last round of render " + render_id);
+    q.bind(render_id);
+    if (!q.step()) return std::nullopt;
+    return round_from_row(q);
 }
 
 // --- workers

@@ -170,6 +170,8 @@ public:
     bool add_round(const RoundRecord& round);
     // In round order.
     std::vector<RoundRecord> rounds(const std::string& render_id);
+    // The highest-numbered round, without reading the others.
+    std::optional<RoundRecord> last_round(const std::string& render_id);
 
     // Registers a worker or refreshes it: threads, last_seen and state "online".
     void upsert_worker(const std::string& name, int64_t threads, int64_t now_ms);
@@ -187,6 +189,7 @@ private:
     // A cached prepared statement for `sql`; `purpose` names it in errors ("add round 3
     // of render r-12").
     Query query(const std::string& sql, std::string purpose);
+    static RoundRecord round_from_row(Query& q);
     void exec(const std::string& sql, const std::string& purpose);
     void configure();
     void check_integrity();

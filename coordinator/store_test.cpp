@@ -191,6 +191,21 @@ TEST_F(RunStoreTest, RoundsRoundTripInOrder) {
     EXPECT_THROW(store.add_round(nan), StoreError);
 }
 
+TEST_F(RunStoreTest, LastRoundIsTheHighestNumberedWhateverTheInsertionOrder) {
+    RunStore store(dir);
+    seed(store);
+    EXPECT_FALSE(store.last_round("r-1"));
+    RoundRecord last = round_of("r-1", 2);
+    last.error_vs_reference = 0.125;
+    EXPECT_TRUE(store.add_round(last));
+    EXPECT_TRUE(store.add_round(round_of("r-1", 0)));
+    const auto got = store.last_round("r-1");
+    ASSERT_TRUE(got);
+    EXPECT_EQ(got->idx, 2);
+    EXPECT_EQ(got->error_vs_reference, 0.125);
+    EXPECT_EQ(got->samples_total, last.samples_total);
+}
+
 TEST_F(RunStoreTest, ListsRendersNewestFirstAndFiltersByState) {
     RunStore store(dir);
     store.put_scene("h1", "cornell-box", "{}", 1);
