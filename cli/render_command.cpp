@@ -39,31 +39,25 @@ struct RenderCommand {
         bar.finish();
         write_exr(out, result.image);
         const RenderInfo& info = result.info;
-        struct {
-            uint64_t samples, rays, rounds;
-            double seconds;
-        } stats{info.samples_done, info.rays, info.rounds_done, info.seconds};
-
-        const double sps = stats.seconds > 0 ? double(stats.samples) / stats.seconds : 0.0;
         if (json) {
             nlohmann::json summary = {
                 {"scene", options.scene},     {"width", options.width},
                 {"height", options.height},   {"spp", options.spp},
                 {"seed", options.seed},       {"threads", options.threads},
-                {"samples", stats.samples},   {"rays", stats.rays},
-                {"rounds", stats.rounds},     {"method", info.method},
+                {"samples", info.samples_done}, {"rays", info.rays},
+                {"rounds", info.rounds_done}, {"method", info.method},
                 {"error_estimate", info.error_estimate},
                 {"error_vs_reference", info.error_vs_reference},
                 {"outcome", nlohmann::json::parse(info.outcome_json)},
-                {"seconds", stats.seconds},   {"samples_per_second", sps},
+                {"seconds", info.seconds},   {"samples_per_second", info.samples_per_second},
                 {"output", out}};
             std::cout << summary.dump() << std::endl;
         } else {
             std::printf("rendered %s %ux%u with %s: %llu samples in %.2f s (%.0f samples/s); "
                         "wrote %s\n",
                         options.scene.c_str(), options.width, options.height,
-                        info.method.c_str(), (unsigned long long)stats.samples, stats.seconds,
-                        sps, out.c_str());
+                        info.method.c_str(), (unsigned long long)info.samples_done, info.seconds,
+                        info.samples_per_second, out.c_str());
             if (info.outcome_json != "{}" && !info.outcome_json.empty())
                 std::printf("outcome: %s\n", info.outcome_json.c_str());
         }

@@ -165,8 +165,21 @@ std::string Coordinator::submit(RenderSpec spec) {
         rec.created_at = created;
         rec.samples_planned = int64_t(session->samples_planned());
         if (spec.reference) {
-            rec.reference_path = (render_dir(id) / "reference.exr").string();
-            write_exr(rec.reference_path, *spec.reference);
+            // Content-addressed: a study judges hundreds of renders against one reference,
+            // which is then written once, not once per render.
+            const Image& ref = *spec.reference;
+            const std::string key = content_hash(std::string(
+                reinterpret_cast<const char*>(ref.rgb.data()), ref.rgb.size() * sizeof(float)));
+            const auto path = options_.data_dir / "references" /
+                              (key + "-" + std::to_string(ref.width) + "x" +
+                               std::to_string(ref.height) + ".exr");
+            if (!std::filesystem::exists(path)) {
+                std::filesystem::create_directories(path.parent_path());
+                Image rgb_only(ref.width, ref.height);
+                rgb_only.rgb = ref.rgb;
+                write_exr(path, rgb_only);
+            }
+            rec.reference_path = path.string();
         }
         store_->create_render(rec);
     }

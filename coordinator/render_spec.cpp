@@ -8,9 +8,9 @@
 
 namespace aliquot {
 
-std::string scene_hash(const std::string& text) {
+std::string content_hash(const std::string& text) {
     // Two independent 64-bit chains of SplitMix64's mixer over 8-byte words: a 128-bit
-    // content address. Not cryptographic; scenes come from the farm's own users.
+    // content address. Not cryptographic; scenes and images come from the farm's own users.
     uint64_t a = 0x243f6a8885a308d3ULL ^ text.size(), b = 0x13198a2e03707344ULL + text.size();
     size_t i = 0;
     for (; i + 8 <= text.size(); i += 8) {

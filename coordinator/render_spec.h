@@ -20,8 +20,10 @@ struct RenderSpec {
     std::optional<Image> reference;
 };
 
-// Hex SHA-256 of the scene JSON: scenes are stored and cached by it.
-std::string scene_hash(const std::string& scene_json);
+// A 128-bit content address (32 hex digits) of any bytes; not cryptographic.
+std::string content_hash(const std::string& bytes);
+// The content address of a scene's self-contained JSON: scenes are stored and cached by it.
+inline std::string scene_hash(const std::string& scene_json) { return content_hash(scene_json); }
 
 // Throws std::invalid_argument naming what is wrong: resolution 0 or above `max_side`,
 // strategy parameters, a reference of another resolution.
