@@ -62,6 +62,7 @@ Coordinator::Coordinator(CoordinatorOptions options)
 Coordinator::~Coordinator() {
     stop();
     if (ticker_.joinable()) ticker_.join();
+    tick();  // the workers' last samples reach the store
 }
 
 void Coordinator::stop() {
@@ -388,13 +389,7 @@ CompleteOutcome Coordinator::complete(const std::string& worker, uint64_t lease_
             const double rate = double(samples) / result.wall_seconds * std::max(w.threads, 1u);
             w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
         }
-        if (store_) {
-            try {
-                store_->record_worker_samples(worker, int64_t(samples), now_ms());
-            } catch (const std::exception& e) {
-                log_error(e.what());
-            }
-        }
+        w.unrecorded += samples;  // written by tick(), not once per merged job
     }
     changed();
     return outcome;
@@ -457,6 +452,14 @@ void Coordinator::tick() {
         if (!s->finished() && s->expire(now) > 0) any = true;
     const int64_t wall = now_ms();
     for (auto& [name, w] : workers_) {
+        if (store_ && w.unrecorded > 0) {
+            try {
+                store_->record_worker_samples(name, int64_t(w.unrecorded), w.last_seen_ms);
+            } catch (const std::exception& e) {
+                log_error(e.what());
+            }
+            w.unrecorded = 0;
+        }
         if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
             w.lost = true;
             any = true;

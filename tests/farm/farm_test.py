@@ -204,6 +204,11 @@ def test_twenty_concurrent_submissions_all_complete():
         db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
         done = db.execute("SELECT COUNT(*) FROM renders WHERE state = 'done'").fetchone()[0]
         assert done == 20, f"{done} renders done in SQLite"
+        db.close()
+        farm.stop()  # the coordinator writes its workers' last samples as it stops
+        db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
+        traced = db.execute("SELECT SUM(samples_traced) FROM workers").fetchone()[0]
+        assert traced == 20 * 16 * 12 * 8, f"workers traced {traced} samples in SQLite"
     finally:
         farm.stop()
 
