@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include "scene.h"
 #include "vec3.h"
@@ -22,6 +23,10 @@ struct Hit {
 // slow on denormals. Every thread that traces calls it first.
 void enable_flush_to_zero();
 
+// Whether the mesh is made only of triangle pairs (a0, a1, a2), (a0, a2, b2), as the loader
+// makes rectangles and cubes, so Embree may trace it as quads.
+bool pairs_into_quads(const TriangleMesh& mesh);
+
 class EmbreeScene {
 public:
     explicit EmbreeScene(const Scene& scene);
@@ -40,6 +45,8 @@ private:
     RTCDeviceTy* device_ = nullptr;
     RTCSceneTy* scene_ = nullptr;
     uint32_t sphere_geom_id_ = ~0u;
+    std::vector<bool> quad_mesh_;  // by mesh index: traced as quads
+    std::vector<std::vector<Vec3>> normals_;  // by mesh, by triangle: unit geometric normal
 };
 
 }  // namespace aliquot
