@@ -12,7 +12,7 @@ constexpr float kInvPi = float(1.0 / std::numbers::pi);
 
 // Rays leave a surface from a point pushed off it along the geometric normal, to the side
 // they travel to; scaled by the point's magnitude so float spacing never swallows it.
-Vec3 offset_origin(const Vec3& p, const Vec3& ng, const Vec3& dir) {
+inline Vec3 offset_origin(const Vec3& p, const Vec3& ng, const Vec3& dir) {
     const float scale = 1e-4f * (1.0f + std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
     return dot(dir, ng) > 0 ? p + ng * scale : p - ng * scale;
 }
