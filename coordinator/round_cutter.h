@@ -10,7 +10,12 @@
 namespace aliquot {
 
 // Tiles of `tile` x `tile` pixels (smaller at the edges); tiles with no samples are skipped.
-// With tile 0 the side follows the round's mean spp (see job_tile_side).
+// With tile 0 the side follows the round's mean spp (see job_tile_side), halved while the
+// image has fewer than kMinJobsPerRound tiles. Jobs are in issue order; the last quarter of
+// the tiles is cut into quadrants so that the round's end waits on small jobs.
+inline constexpr uint32_t kMinAutoTile = 16;
+inline constexpr size_t kMinJobsPerRound = 16;
+
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
                                  uint32_t tile = 0);
 

@@ -42,6 +42,27 @@ TEST(RoundCutter, SkipsTilesWithoutSamples) {
     EXPECT_EQ(jobs[0].rect.x, 32u);
 }
 
+TEST(RoundCutter, LastQuarterOfTheRoundIsCutIntoQuadrants) {
+    Accumulator acc(128, 128);
+    const Round round{0, std::vector<uint32_t>(128 * 128, 2)};
+    const auto jobs = cut_round(round, acc, 32);  // 16 tiles: 12 whole, 4 in quadrants
+    ASSERT_EQ(jobs.size(), 12u + 16u);
+    for (size_t j = 0; j < jobs.size(); ++j)
+        EXPECT_EQ(jobs[j].rect.width, j < 12 ? 32u : 16u) << "job " << j;
+    uint64_t samples = 0;
+    for (const SampleJob& job : jobs)
+        for (uint32_t c : job.counts) samples += c;
+    EXPECT_EQ(samples, 2u * 128 * 128);
+}
+
+TEST(RoundCutter, SmallImagesGetEnoughJobsForSeveralWorkers) {
+    Accumulator acc(256, 256);
+    const auto jobs = cut_round(Round{0, std::vector<uint32_t>(256 * 256, 1)}, acc);
+    // job_tile_side(1) is 128, which would leave 4 jobs: halved to 64 (16 tiles).
+    EXPECT_EQ(jobs.front().rect.width, 64u);
+    EXPECT_EQ(jobs.size(), 12u + 16u);
+}
+
 TEST(RoundCutter, SparseRoundsGetLargerTilesUpTo128) {
     EXPECT_EQ(job_tile_side(1), 128u);
     EXPECT_EQ(job_tile_side(8), 64u);
