@@ -27,6 +27,9 @@ void enable_flush_to_zero();
 // makes rectangles and cubes, so Embree may trace it as quads.
 bool pairs_into_quads(const TriangleMesh& mesh);
 
+// Whether the scene is only small meshes, which Embree's two-level BVH traces fastest.
+bool two_level_bvh(const Scene& scene);
+
 class EmbreeScene {
 public:
     explicit EmbreeScene(const Scene& scene);

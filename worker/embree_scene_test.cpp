@@ -58,5 +58,16 @@ TEST(EmbreeScene, QuadHitsReportTheirTriangleAndItsNormal) {
     EXPECT_GT(hits[1], 100);
 }
 
+TEST(EmbreeScene, TwoLevelBvhOnlyForScenesOfSmallMeshes) {
+    Scene scene;
+    scene.meshes.push_back(test::horizontal_rectangle(1, 1, 0, false));
+    EXPECT_TRUE(two_level_bvh(scene));
+    TriangleMesh big;
+    big.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    big.triangles.assign(300, {0, 1, 2});
+    scene.meshes.push_back(big);
+    EXPECT_FALSE(two_level_bvh(scene));
+}
+
 }  // namespace
 }  // namespace aliquot
