@@ -35,8 +35,10 @@ LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(
         const TriangleMesh& mesh = scene.meshes[m];
         pdf_by_mesh_[m].assign(mesh.is_emitter() ? mesh.triangles.size() : 0, 0.0f);
     }
-    for (const EmitterTriangle& tri : triangles_)
-        pdf_by_mesh_[tri.mesh][tri.triangle] = float(luminance(tri.radiance) / total);
+    for (EmitterTriangle& tri : triangles_) {
+        tri.pdf_area = float(luminance(tri.radiance) / total);
+        pdf_by_mesh_[tri.mesh][tri.triangle] = tri.pdf_area;
+    }
 }
 
 LightSample LightSampler::sample(float u_select, float u1, float u2) const {
@@ -46,8 +48,7 @@ LightSample LightSampler::sample(float u_select, float u1, float u2) const {
     // Uniform point on the triangle (square-root parameterisation).
     const float su = std::sqrt(u1);
     const float b1 = 1.0f - su, b2 = u2 * su;
-    return {tri.p0 + tri.e1 * b1 + tri.e2 * b2, tri.normal, tri.radiance,
-            pdf_by_mesh_[tri.mesh][tri.triangle]};
+    return {tri.p0 + tri.e1 * b1 + tri.e2 * b2, tri.normal, tri.radiance, tri.pdf_area};
 }
 
 float LightSampler::pdf_area(uint32_t mesh, uint32_t triangle) const {

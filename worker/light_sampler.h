@@ -30,6 +30,7 @@ private:
     struct EmitterTriangle {
         Vec3 p0, e1, e2, normal, radiance;
         uint32_t mesh, triangle;
+        float pdf_area = 0;  // filled once the total weight is known
     };
     std::vector<EmitterTriangle> triangles_;
     std::vector<float> cdf_;  // inclusive, normalised to 1

@@ -4,6 +4,8 @@
 #include <limits>
 #include <numbers>
 
+#include "warp.h"
+
 namespace aliquot {
 
 namespace {
@@ -12,33 +14,16 @@ constexpr float kInvPi = float(1.0 / std::numbers::pi);
 
 // Rays leave a surface from a point pushed off it along the geometric normal, to the side
 // they travel to; scaled by the point's magnitude so float spacing never swallows it.
-inline Vec3 offset_origin(const Vec3& p, const Vec3& ng, const Vec3& dir) {
-    const float scale = 1e-4f * (1.0f + std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
+float offset_scale(const Vec3& p) {
+    return 1e-4f * (1.0f + std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
+}
+Vec3 offset_origin(const Vec3& p, const Vec3& ng, float scale, const Vec3& dir) {
     return dot(dir, ng) > 0 ? p + ng * scale : p - ng * scale;
 }
 
 float power_heuristic(float a, float b) {
     const float a2 = a * a;
     return a2 > 0 ? a2 / (a2 + b * b) : 0.0f;
-}
-
-// An orthonormal frame around unit n (Duff et al., "Building an Orthonormal Basis,
-// Revisited", JCGT 2017).
-void build_frame(const Vec3& n, Vec3& s, Vec3& t) {
-    const float sign = std::copysign(1.0f, n.z);
-    const float a = -1.0f / (sign + n.z);
-    const float b = n.x * n.y * a;
-    s = {1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x};
-    t = {b, sign + n.y * n.y * a, -n.y};
-}
-
-Vec3 cosine_hemisphere(const Vec3& n, float u1, float u2) {
-    const float r = std::sqrt(u1);
-    const float phi = 2.0f * float(std::numbers::pi) * u2;
-    Vec3 s, t;
-    build_frame(n, s, t);
-    const float z = std::sqrt(std::max(0.0f, 1.0f - u1));
-    return s * (r * std::cos(phi)) + t * (r * std::sin(phi)) + n * z;
 }
 
 // Unpolarised Fresnel reflectance of a smooth dielectric interface; eta = n_t / n_i.
@@ -100,6 +85,7 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleR
         // Path length counted in segments, as Mitsuba's max_depth: the next vertex would
         // make depth + 2 segments.
         if (depth + 1 >= max_depth) break;
+        const float offset = offset_scale(p);
 
         const Material& mat = material_at(hit);
         const Vec3 n = front ? hit.ng : -hit.ng;  // facing the incoming ray
@@ -117,7 +103,7 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleR
                     const float cos_light = -dot(to_light, ls.normal);
                     const float cos_surf = dot(to_light, n);
                     if (cos_light > 0 && cos_surf > 0 && ls.pdf_area > 0) {
-                        const Vec3 so = offset_origin(p, hit.ng, to_light);
+                        const Vec3 so = offset_origin(p, hit.ng, offset, to_light);
                         ++out.rays;
                         // Stop short of the light so its own surface does not occlude.
                         if (!embree_.occluded(so, to_light, dist * (1.0f - 1e-3f))) {
@@ -167,7 +153,7 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleR
             beta *= 1.0f / q;
         }
         if (max_component(beta) <= 0.0f) break;
-        o = offset_origin(p, hit.ng, wo);
+        o = offset_origin(p, hit.ng, offset, wo);
         d = wo;
     }
     out.value = L;
