@@ -26,6 +26,9 @@ EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
         info = *coordinator.info(id);
         if (info.state != "running" && info.state != "queued") break;
         if (progress) progress(info);
+        // Every merged job is a change; reading the render's state on each would contend for
+        // the coordinator's lock with the threads doing the work. A progress bar needs less.
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     workers.stop();
     pool.join();
