@@ -142,6 +142,60 @@ EmbreeScene::~EmbreeScene() {
     if (device_) rtcReleaseDevice(device_);
 }
 
+Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x,
+                        float ng_y, float ng_z) const {
+    Hit hit;
+    hit.t = t;
+    hit.geom_id = geom;
+    if (geom == sphere_geom_id_) {
+        hit.prim_id = prim;
+        hit.ng = normalize(Vec3(ng_x, ng_y, ng_z));
+    } else {
+        // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
+        hit.prim_id = quad_mesh_[geom] ? 2 * prim + (u + v > 1.0f) : prim;
+        // Embree's Ng has the same direction (counter-clockwise winding); the unit normal
+        // made once per triangle saves a square root and a division on every hit.
+        hit.ng = normals_[geom][hit.prim_id];
+    }
+    return hit;
+}
+
+void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int count, Hit* hits,
+                                   bool* found) const {
+    if (count < 0 || count > kPacket)
+        throw std::invalid_argument("intersect_packet: more rays than a packet holds");
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    alignas(64) RTCRayHit16 rh;
+    alignas(64) int valid[kPacket];
+    for (int i = 0; i < kPacket; ++i) {
+        valid[i] = i < count ? -1 : 0;
+        const Vec3& d = dirs[i < count ? i : 0];
+        rh.ray.org_x[i] = origin.x;
+        rh.ray.org_y[i] = origin.y;
+        rh.ray.org_z[i] = origin.z;
+        rh.ray.dir_x[i] = d.x;
+        rh.ray.dir_y[i] = d.y;
+        rh.ray.dir_z[i] = d.z;
+        rh.ray.tnear[i] = 0.0f;
+        rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
+        rh.ray.time[i] = 0.0f;
+        rh.ray.mask[i] = ~0u;
+        rh.ray.id[i] = unsigned(i);
+        rh.ray.flags[i] = 0;
+        rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, scene_, &context, &rh);
+    for (int i = 0; i < count; ++i) {
+        found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+        if (found[i])
+            hits[i] = to_hit(rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
+                             rh.hit.v[i], rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+    }
+}
+
 bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
@@ -163,20 +217,8 @@ bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    hit.t = rh.ray.tfar;
-    hit.geom_id = rh.hit.geomID;
-    if (rh.hit.geomID == sphere_geom_id_) {
-        hit.prim_id = rh.hit.primID;
-        hit.ng = normalize(Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
-    } else {
-        // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
-        hit.prim_id = quad_mesh_[rh.hit.geomID]
-                          ? 2 * rh.hit.primID + (rh.hit.u + rh.hit.v > 1.0f)
-                          : rh.hit.primID;
-        // Embree's Ng has the same direction (counter-clockwise winding); the unit normal
-        // made once per triangle saves a square root and a division on every hit.
-        hit.ng = normals_[rh.hit.geomID][hit.prim_id];
-    }
+    hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.hit.Ng_x,
+                 rh.hit.Ng_y, rh.hit.Ng_z);
     return true;
 }
 

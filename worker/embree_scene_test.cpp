@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "camera_model.h"
+#include "scene_loader.h"
 #include "test_scenes.h"
 
 namespace aliquot {
@@ -56,6 +58,50 @@ TEST(EmbreeScene, QuadHitsReportTheirTriangleAndItsNormal) {
     }
     EXPECT_GT(hits[0], 100);
     EXPECT_GT(hits[1], 100);
+}
+
+// Camera rays traced as packets find what single rays find. The packet kernel may round
+// differently, so hits are compared to a tolerance, and a ray grazing an edge may pick the
+// neighbouring primitive.
+TEST(EmbreeScene, PacketHitsAgreeWithSingleRayHits) {
+    const Scene scene = load_scene("cornell-box");
+    const EmbreeScene embree(scene);
+    const CameraModel camera(scene.camera, 64, 64);
+    size_t rays = 0, hits = 0, other_primitive = 0;
+    for (uint32_t y = 0; y < 64; ++y) {
+        for (uint32_t x = 0; x < 64; ++x) {
+            const int count = 1 + int((x + 3 * y) % EmbreeScene::kPacket);  // partial packets
+            Vec3 dirs[EmbreeScene::kPacket];
+            for (int j = 0; j < count; ++j)
+                dirs[j] = camera.direction(x + (j % 4 + 0.5f) / 4, y + (j / 4 + 0.5f) / 4);
+            Hit packet[EmbreeScene::kPacket];
+            bool found[EmbreeScene::kPacket];
+            embree.intersect_packet(camera.origin(), dirs, count, packet, found);
+            for (int j = 0; j < count; ++j) {
+                ++rays;
+                Hit single;
+                const bool single_found = embree.intersect(camera.origin(), dirs[j], 1e30f, single);
+                ASSERT_EQ(found[j], single_found);
+                if (!found[j]) continue;
+                ++hits;
+                EXPECT_NEAR(packet[j].t, single.t, 1e-5f * single.t);
+                if (packet[j].geom_id != single.geom_id || packet[j].prim_id != single.prim_id)
+                    ++other_primitive;
+            }
+        }
+    }
+    EXPECT_GT(hits, rays * 9 / 10);
+    EXPECT_LE(other_primitive, rays / 1000);
+}
+
+TEST(EmbreeScene, PacketRejectsMoreRaysThanItHolds) {
+    const Scene scene = load_scene("cornell-box");
+    const EmbreeScene embree(scene);
+    Vec3 dirs[EmbreeScene::kPacket + 1];
+    Hit hits[EmbreeScene::kPacket + 1];
+    bool found[EmbreeScene::kPacket + 1];
+    EXPECT_THROW(embree.intersect_packet({0, 1, 3}, dirs, EmbreeScene::kPacket + 1, hits, found),
+                 std::invalid_argument);
 }
 
 TEST(EmbreeScene, TwoLevelBvhOnlyForScenesOfSmallMeshes) {

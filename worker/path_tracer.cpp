@@ -51,6 +51,14 @@ const Material& PathTracer::material_at(const Hit& hit) const {
 }
 
 Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleRng& rng) const {
+    Hit hit;
+    const bool found =
+        embree_.intersect(origin, direction, std::numeric_limits<float>::infinity(), hit);
+    return radiance(origin, direction, found ? &hit : nullptr, rng);
+}
+
+Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const Hit* first,
+                              SampleRng& rng) const {
     Radiance out;
     Vec3 L{0, 0, 0};
     Vec3 beta{1, 1, 1};
@@ -60,10 +68,15 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleR
     Vec3 o = origin, d = direction;
     const int max_depth = scene_.max_depth;
 
+    Hit hit;
     for (int depth = 0;; ++depth) {
-        Hit hit;
         ++out.rays;
-        if (!embree_.intersect(o, d, std::numeric_limits<float>::infinity(), hit)) break;
+        if (depth == 0) {
+            if (!first) break;
+            hit = *first;
+        } else if (!embree_.intersect(o, d, std::numeric_limits<float>::infinity(), hit)) {
+            break;
+        }
         const Vec3 p = o + d * hit.t;
         const float cos_ng = dot(d, hit.ng);
         const bool front = cos_ng < 0;

@@ -28,6 +28,10 @@ public:
 
     // Radiance arriving at `origin` from direction `dir` (unit length).
     Radiance radiance(const Vec3& origin, const Vec3& dir, SampleRng& rng) const;
+    // The same, with the first hit already traced (nullptr: the ray hit nothing), as
+    // camera rays are, a packet at a time. It counts as the path's first ray.
+    Radiance radiance(const Vec3& origin, const Vec3& dir, const Hit* first,
+                      SampleRng& rng) const;
 
 private:
     const Material& material_at(const Hit& hit) const;

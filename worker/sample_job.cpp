@@ -1,6 +1,9 @@
 #include "sample_job.h"
 
+#include <algorithm>
+#include <array>
 #include <atomic>
+#include <optional>
 #include <chrono>
 #include <stdexcept>
 #include <thread>
@@ -45,19 +48,35 @@ namespace {
 void trace_row(const PathTracer& tracer, const CameraModel& camera,
                const RenderGeometry& geometry, const SampleJob& job, uint32_t row,
                SampleJobResult& result) {
+    constexpr int kPacket = EmbreeScene::kPacket;
     const PixelRect& r = job.rect;
+    std::array<std::optional<SampleRng>, kPacket> rngs;
+    std::array<Vec3, kPacket> dirs;
+    std::array<Hit, kPacket> hits;
+    std::array<bool, kPacket> found;
     for (uint32_t col = 0; col < r.width; ++col) {
         const size_t i = size_t(row) * r.width + col;
         const uint32_t x = r.x + col, y = r.y + row;
         PixelSums& sums = result.pixels[i];
-        const uint64_t first = job.first_sample[i];
-        for (uint64_t k = first; k < first + job.counts[i]; ++k) {
-            SampleRng rng(geometry.seed, x, y, k);
-            // Box filter: a uniform point in the pixel, so the pixel is its area's average.
-            const float px = float(x) + rng.next_float();
-            const float py = float(y) + rng.next_float();
-            const Radiance L = tracer.radiance(camera.origin(), camera.direction(px, py), rng);
-            add_sample(sums, k, L.value, L.rays);
+        const uint64_t first = job.first_sample[i], end = first + job.counts[i];
+        // The pixel's camera rays leave together, kPacket at a time, always cut from the
+        // job's first sample of the pixel: what shares a packet depends on the job alone.
+        for (uint64_t k0 = first; k0 < end; k0 += kPacket) {
+            const int n = int(std::min<uint64_t>(kPacket, end - k0));
+            for (int j = 0; j < n; ++j) {
+                SampleRng& rng = rngs[j].emplace(geometry.seed, x, y, k0 + j);
+                // Box filter: a uniform point in the pixel, so the pixel is its area's average.
+                const float px = float(x) + rng.next_float();
+                const float py = float(y) + rng.next_float();
+                dirs[j] = camera.direction(px, py);
+            }
+            tracer.embree().intersect_packet(camera.origin(), dirs.data(), n, hits.data(),
+                                             found.data());
+            for (int j = 0; j < n; ++j) {
+                const Radiance L = tracer.radiance(camera.origin(), dirs[j],
+                                                   found[j] ? &hits[j] : nullptr, *rngs[j]);
+                add_sample(sums, k0 + j, L.value, L.rays);
+            }
         }
     }
 }
