@@ -43,7 +43,7 @@ public:
     // Embree packet query, several times faster than one query per ray for such coherent
     // rays. found[i] says whether ray i hit; hits[i] is valid only then. Embree's packet
     // kernel may round a hit differently from its single-ray kernel, and a ray's result may
-    // depend on the packet it travels in: callers keep packets a function of the job alone.
+    // depend on the packet it travels in: callers make packets from what the render fixes.
     static constexpr int kPacket = 16;
     void intersect_packet(const Vec3& origin, const Vec3* dirs, int count, Hit* hits,
                           bool* found) const;

@@ -59,8 +59,10 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
         const uint32_t x = r.x + col, y = r.y + row;
         PixelSums& sums = result.pixels[i];
         const uint64_t first = job.first_sample[i], end = first + job.counts[i];
-        // The pixel's camera rays leave together, kPacket at a time, always cut from the
-        // job's first sample of the pixel: what shares a packet depends on the job alone.
+        // The pixel's camera rays leave together, kPacket at a time, cut from its first
+        // sample here. A job holds all of a pixel's samples of its round, so which samples
+        // share a packet follows from the render's rounds, never from how rounds are cut
+        // into jobs or jobs spread over threads and workers.
         for (uint64_t k0 = first; k0 < end; k0 += kPacket) {
             const int n = int(std::min<uint64_t>(kPacket, end - k0));
             for (int j = 0; j < n; ++j) {
