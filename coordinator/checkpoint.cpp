@@ -43,6 +43,10 @@ void save_checkpoint(const std::filesystem::path& path, const Checkpoint& cp) {
     std::filesystem::rename(tmp, path);
 }
 
+bool checkpoint_due(double since_last_seconds, double last_cost_seconds) {
+    return since_last_seconds >= kCheckpointShare * last_cost_seconds;
+}
+
 std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) return std::nullopt;

@@ -46,5 +46,13 @@ TEST(Checkpoint, MissingIsNoneAndDamagedIsAnError) {
     std::filesystem::remove(path);
 }
 
+TEST(Checkpoint, DueWhenItsCostIsASmallShareOfTheTimeSinceTheLast) {
+    EXPECT_TRUE(checkpoint_due(0.0, 0.0));  // none written yet
+    EXPECT_FALSE(checkpoint_due(0.05, 0.01));
+    EXPECT_TRUE(checkpoint_due(0.2, 0.01));
+    EXPECT_TRUE(checkpoint_due(kCheckpointShare * 0.3, 0.3));
+    EXPECT_FALSE(checkpoint_due(kCheckpointShare * 0.3 - 0.01, 0.3));
+}
+
 }  // namespace
 }  // namespace aliquot

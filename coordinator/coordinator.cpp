@@ -116,10 +116,18 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
             // The round is recorded before the checkpoint that includes it: a crash between
             // the two re-runs the round, and recording it again is a no-op.
             store_->add_round(rec);
-            Checkpoint cp{r.merged(), r.strategy().save_state(), r.rounds_done(), round.seconds};
-            save_checkpoint(render_dir(r.id()) / "checkpoint.bin", cp);
-            store_->update_render_progress(r.id(), int64_t(round.samples_total),
-                                           cp.strategy_state.dump());
+            CheckpointTiming& timing = checkpoint_timing_[r.id()];
+            const auto start = std::chrono::steady_clock::now();
+            if (checkpoint_due(std::chrono::duration<double>(start - timing.ended).count(),
+                               timing.cost_seconds)) {
+                Checkpoint cp{r.merged(), r.strategy().save_state(), r.rounds_done(),
+                              round.seconds};
+                save_checkpoint(render_dir(r.id()) / "checkpoint.bin", cp);
+                store_->update_render_progress(r.id(), int64_t(round.samples_total),
+                                               cp.strategy_state.dump());
+                timing.ended = std::chrono::steady_clock::now();
+                timing.cost_seconds = std::chrono::duration<double>(timing.ended - start).count();
+            }
         } catch (const std::exception& e) {
             // The render goes on; only resumability from this round is lost.
             log_error("cannot record round " + std::to_string(round.index) + " of " + r.id() +
@@ -127,6 +135,7 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
         }
     };
     s->on_finished = [this](RenderSession& r) {
+        checkpoint_timing_.erase(r.id());
         if (!store_) return;
         try {
             write_exr(render_dir(r.id()) / "image.exr", r.merged().image(true));

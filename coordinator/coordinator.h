@@ -109,6 +109,11 @@ private:
     std::map<std::string, std::string> scenes_;                        // hash -> json
     std::map<std::string, WorkerEntry> workers_;
     std::map<std::string, std::string> bucket_shapes_;  // render -> last stored bucket layout
+    struct CheckpointTiming {
+        std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
+        double cost_seconds = 0;                        // how long writing it took
+    };
+    std::map<std::string, CheckpointTiming> checkpoint_timing_;  // render -> its checkpoints
     int ticks_ = 0;
     bool stopping_ = false;
     std::thread ticker_;
