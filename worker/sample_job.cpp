@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <optional>
 #include <chrono>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
