@@ -47,6 +47,21 @@ class HeatMap {
   }
 }
 
+// A render's error against samples or time: the estimate and, when attached, the reference.
+function errorChart(title: string, xLabel: string): ErrorChart {
+  return new ErrorChart({
+    title,
+    xLabel,
+    yLabel: "mean abs. error",
+    logX: true,
+    logY: true,
+    series: [
+      { label: "estimate", color: PALETTE[0] },
+      { label: "vs reference", color: PALETTE[1] },
+    ],
+  });
+}
+
 export class RenderPage implements Page {
   el = h("section", { class: "page render-page" });
   private render: RenderDetail | null = null;
@@ -62,28 +77,8 @@ export class RenderPage implements Page {
   private exposureLabel = h("span", { class: "muted" }, "+0.0 EV");
   private sppMap = new HeatMap("spp", "samples per pixel");
   private errorMap = new HeatMap("error", "error estimate (std. error of the mean)");
-  private bySamples = new ErrorChart({
-    title: "error vs samples",
-    xLabel: "samples",
-    yLabel: "mean abs. error",
-    logX: true,
-    logY: true,
-    series: [
-      { label: "estimate", color: PALETTE[0] },
-      { label: "vs reference", color: PALETTE[1] },
-    ],
-  });
-  private byTime = new ErrorChart({
-    title: "error vs wall time",
-    xLabel: "seconds",
-    yLabel: "mean abs. error",
-    logX: true,
-    logY: true,
-    series: [
-      { label: "estimate", color: PALETTE[0] },
-      { label: "vs reference", color: PALETTE[1] },
-    ],
-  });
+  private bySamples = errorChart("error vs samples", "samples");
+  private byTime = errorChart("error vs wall time", "seconds");
   private roundBody = h("tbody");
   private roundNote = h("p", { class: "muted" });
   private resizer: ResizeObserver;
