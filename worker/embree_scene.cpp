@@ -27,6 +27,31 @@ void throw_if_failed(RTCDevice device, const char* what) {
     }
 }
 
+// Paths' rays go every which way: Embree is told so (it matters for its stream paths).
+RTCIntersectContext incoherent_context() {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    return context;
+}
+
+RTCRay single_ray(const Vec3& origin, const Vec3& dir, float tmax) {
+    RTCRay ray;
+    ray.org_x = origin.x;
+    ray.org_y = origin.y;
+    ray.org_z = origin.z;
+    ray.dir_x = dir.x;
+    ray.dir_y = dir.y;
+    ray.dir_z = dir.z;
+    ray.tnear = 0.0f;
+    ray.tfar = tmax;
+    ray.time = 0.0f;
+    ray.mask = ~0u;
+    ray.id = 0;
+    ray.flags = 0;
+    return ray;
+}
+
 }  // namespace
 
 // Rectangles and cube faces arrive as triangle pairs (a0, a1, a2), (a0, a2, b2). Embree
@@ -197,22 +222,9 @@ void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int cou
 }
 
 bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    RTCIntersectContext context = incoherent_context();
     RTCRayHit rh;
-    rh.ray.org_x = origin.x;
-    rh.ray.org_y = origin.y;
-    rh.ray.org_z = origin.z;
-    rh.ray.dir_x = dir.x;
-    rh.ray.dir_y = dir.y;
-    rh.ray.dir_z = dir.z;
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = tmax;
-    rh.ray.time = 0.0f;
-    rh.ray.mask = ~0u;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
+    rh.ray = single_ray(origin, dir, tmax);
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &context, &rh);
@@ -223,22 +235,8 @@ bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit
 }
 
 bool EmbreeScene::occluded(const Vec3& origin, const Vec3& dir, float tmax) const {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-    RTCRay ray;
-    ray.org_x = origin.x;
-    ray.org_y = origin.y;
-    ray.org_z = origin.z;
-    ray.dir_x = dir.x;
-    ray.dir_y = dir.y;
-    ray.dir_z = dir.z;
-    ray.tnear = 0.0f;
-    ray.tfar = tmax;
-    ray.time = 0.0f;
-    ray.mask = ~0u;
-    ray.id = 0;
-    ray.flags = 0;
+    RTCIntersectContext context = incoherent_context();
+    RTCRay ray = single_ray(origin, dir, tmax);
     rtcOccluded1(scene_, &context, &ray);
     // Embree marks an occluded ray by setting tfar to -inf.
     return ray.tfar < 0.0f;
