@@ -359,9 +359,12 @@ StudyRunSummary run_study(const StudyDefinition& def, const StudyScale& scale,
         const std::string scene = resolve_scene(r.scene, opt.study_file);
         const std::string res = std::to_string(r.width) + "x" + std::to_string(r.height);
         Reference ref;
+        // Named by the scene's content, not only its name: an edited scene file gets a new
+        // reference instead of silently reusing the old one.
         ref.path = data / "references" /
-                   (safe_name(fs::path(r.scene).stem().string()) + "-" + res + "-" +
-                    std::to_string(reference_spp) + "spp.exr");
+                   (safe_name(fs::path(r.scene).stem().string()) + "-" +
+                    scene_hash(self_contained_scene_json(scene)).substr(0, 12) + "-" + res +
+                    "-" + std::to_string(reference_spp) + "spp.exr");
         if (!fs::exists(ref.path)) {
             std::fprintf(stderr, "study: reference %s %s at %llu spp\n", r.scene.c_str(),
                          res.c_str(), (unsigned long long)reference_spp);
