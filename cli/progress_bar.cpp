@@ -6,9 +6,9 @@
 
 namespace aliquot::cli {
 
-ProgressBar::ProgressBar(std::string label, bool enabled)
+ProgressBar::ProgressBar(std::string label)
     : label_(std::move(label)),
-      enabled_(enabled && isatty(STDERR_FILENO)),
+      enabled_(isatty(STDERR_FILENO)),
       start_(std::chrono::steady_clock::now()) {}
 
 ProgressBar::~ProgressBar() { finish(); }

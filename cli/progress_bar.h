@@ -10,7 +10,7 @@ namespace aliquot::cli {
 
 class ProgressBar {
 public:
-    explicit ProgressBar(std::string label, bool enabled = true);
+    explicit ProgressBar(std::string label);
     ~ProgressBar();
 
     // done / total with a free-form note (e.g. "round 3, 1.2 M samples/s").

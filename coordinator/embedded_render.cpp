@@ -34,7 +34,7 @@ EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
     pool.join();
     if (progress) progress(info);
     if (info.state == "failed") throw std::runtime_error("render failed: " + info.error);
-    EmbeddedResult result{info, *coordinator.image(id, aovs), info.rays};
+    EmbeddedResult result{info, *coordinator.image(id, aovs)};
     return result;
 }
 

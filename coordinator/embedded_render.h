@@ -11,7 +11,6 @@ namespace aliquot {
 struct EmbeddedResult {
     RenderInfo info;
     Image image;
-    uint64_t rays = 0;
 };
 
 // Renders `spec` with `threads` local workers; `progress` is called from this thread a few
