@@ -272,13 +272,8 @@ def chart_error_vs_budget(study, c, out):
         xs = np.geomspace(min(allx), max(allx), 20)
         ax.plot(xs, anchor[1] * np.sqrt(anchor[0] / xs), ":", color="gray", label="1/√N slope")
     ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("samples (budget)")
-    ax.set_ylabel("E: mean |image − reference| per pixel")
-    ax.set_title(c.get("title", "Error against budget"))
-    ax.grid(True, which="both", alpha=0.3)
-    legend(ax)
-    return save(fig, out, c["name"])
+    return finish_chart(fig, ax, c, out, "samples (budget)", "E: mean |image − reference| per pixel",
+                        "Error against budget")
 
 
 def pareto(points):
@@ -295,7 +290,7 @@ def pareto(points):
 def chart_error_vs_time(study, c, out):
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     groups = c["groups"]
-    every, names = [], []
+    every = []
     for i, g in enumerate(groups):
         pts = study.points(g)
         if not pts:
@@ -305,7 +300,6 @@ def chart_error_vs_time(study, c, out):
         order = np.argsort(x)
         ax.plot(x[order], y[order], style(study, g), marker="o", ms=4, color=color(study, g, groups, i), label=study.label(g, groups))
         every += list(zip(x, y))
-        names += [study.label(g, groups)] * len(x)
     if every:
         front = pareto(every)
         fx = [every[i][0] for i in front]
@@ -313,10 +307,15 @@ def chart_error_vs_time(study, c, out):
         ax.step(fx, fy, where="post", color="black", lw=1, alpha=0.6, label="Pareto front")
         ax.scatter(fx, fy, s=90, facecolors="none", edgecolors="black", zorder=5)
     ax.set_xscale("log")
+    return finish_chart(fig, ax, c, out, "wall time (s)", "E", "Speed against accuracy")
+
+
+def finish_chart(fig, ax, c, out, xlabel, ylabel, default_title):
+    """The end every error chart shares: log error axis, labels, grid, legend, files."""
     ax.set_yscale("log")
-    ax.set_xlabel("wall time (s)")
-    ax.set_ylabel("E")
-    ax.set_title(c.get("title", "Speed against accuracy"))
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(c.get("title", default_title))
     ax.grid(True, which="both", alpha=0.3)
     legend(ax)
     return save(fig, out, c["name"])
@@ -385,13 +384,8 @@ def chart_seed_spread(study, c, out):
         ax.errorbar(x, y, yerr=e, fmt=style(study, g) + "o", ms=4, capsize=3, color=color(study, g, groups, i),
                     label=f"{study.label(g, groups)} ({pts[0].n} seeds)")
     ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("samples (budget)")
-    ax.set_ylabel("E, mean ± standard deviation over seeds")
-    ax.set_title(c.get("title", "Spread of the error over seeds"))
-    ax.grid(True, which="both", alpha=0.3)
-    legend(ax)
-    return save(fig, out, c["name"])
+    return finish_chart(fig, ax, c, out, "samples (budget)", "E, mean ± standard deviation over seeds",
+                        "Spread of the error over seeds")
 
 
 def chart_sweep(study, c, out):
@@ -406,13 +400,7 @@ def chart_sweep(study, c, out):
         ax.plot(x, y, "-o", ms=4, color=color(study, g, groups, i), label=study.label(g, groups))
         if x.min() > 0 and x.max() / x.min() > 10:
             ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel(param)
-    ax.set_ylabel("E")
-    ax.set_title(c.get("title", f"Error against {param}"))
-    ax.grid(True, which="both", alpha=0.3)
-    legend(ax)
-    return save(fig, out, c["name"])
+    return finish_chart(fig, ax, c, out, param, "E", f"Error against {param}")
 
 
 # ---------------------------------------------------------------------------- conclusions
@@ -487,7 +475,7 @@ def conclude_beats(study, c):
 def conclude_loses_bounds(study, c):
     d = study.points(c["group"])
     others = c["groups"]
-    loses, total, bounds, btotal, ties, parts = 0, 0, 0, 0, 0, []
+    loses, pairs, bounds, ties, parts = 0, 0, 0, 0, []
     for i, p in enumerate(d):
         ed, md = p.mean("mean_abs"), p.mean("max_bucket")
         row = [f"{fmt(int(round(p.mean('samples'))))}: E {ed:.6f}, max bucket {md:.4f}"]
@@ -499,16 +487,15 @@ def conclude_loses_bounds(study, c):
             if abs(ed - eo) <= 1e-12 * max(ed, eo):
                 ties += 1  # the same image: e.g. Dammertz converged in its first, uniform round
                 continue
-            total += 1
-            btotal += 1
+            pairs += 1
             loses += ed > eo
             bounds += md <= mo
             row.append(f"{study.label(g, others)} E {eo:.6f}, max {mo:.4f}")
         parts.append(" / ".join(row))
     capped = [p for p in d if p.first.outcome.get("stopped_by") not in (None, "converged")]
     text = (
-        f"Dammertz has the higher E in **{loses} of {total}** equal-budget pairs and the lower (or equal) "
-        f"worst-bucket error in **{bounds} of {btotal}**"
+        f"Dammertz has the higher E in **{loses} of {pairs}** equal-budget pairs and the lower (or equal) "
+        f"worst-bucket error in **{bounds} of {pairs}**"
         + (f" ({ties} pairs left out: the same image, where Dammertz stopped after its first, uniform round)" if ties else "")
         + ". Per budget: " + "; ".join(parts) + ". "
     )
@@ -521,7 +508,16 @@ def conclude_loses_bounds(study, c):
         "the few buckets that are hardest to converge (light edges, caustics), where each extra "
         "sample buys little mean error; uniform and adaptive spend those samples where they lower E most. "
     )
-    return text, (loses, total, bounds, btotal)
+    first = loses / pairs if pairs else 0.0
+    second = bounds / pairs if pairs else 0.0
+    holds = True if first == 1 and second == 1 else (False if first < 0.5 and second < 0.5 else "partly")
+    if holds == "partly":
+        text += (
+            f"So the claim holds in part: it loses at equal budget "
+            f"{'everywhere' if first == 1 else f'in {loses} of {pairs} pairs'}, and its worst "
+            f"bucket is {'no worse than the others everywhere' if second == 1 else f'no worse in {bounds} of {pairs} pairs'}. "
+        )
+    return text, holds
 
 
 def monotone(values):
@@ -596,16 +592,7 @@ def conclusions(study):
         elif kind == "beats_everywhere":
             text, holds = conclude_beats(study, c)
         elif kind == "loses_but_bounds_worst":
-            text, (loses, total, bounds, btotal) = conclude_loses_bounds(study, c)
-            first = loses / total if total else 0.0
-            second = bounds / btotal if btotal else 0.0
-            holds = True if first == 1 and second == 1 else (False if first < 0.5 and second < 0.5 else "partly")
-            if holds == "partly":
-                text += (
-                    f"So the claim holds in part: it loses at equal budget "
-                    f"{'everywhere' if first == 1 else f'in {loses} of {total} pairs'}, and its worst "
-                    f"bucket is {'no worse than the others everywhere' if second == 1 else f'no worse in {bounds} of {btotal} pairs'}. "
-                )
+            text, holds = conclude_loses_bounds(study, c)
         elif kind == "sweep_effect":
             text, holds = conclude_sweep(study, c)
         elif kind == "ranking":

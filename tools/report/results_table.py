@@ -10,7 +10,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from aliquot_report import Study  # noqa: E402
+from aliquot_report import Study, md_table  # noqa: E402
 
 METHODS = ["uniform", "dammertz", "adaptive", "optimal", "optimal-time"]
 
@@ -24,15 +24,13 @@ def main():
     study = Study(args.db, args.study)
     for prefix in args.scenes.split(","):
         groups = {m: f"{prefix}-{m}" for m in METHODS}
-        groups["dammertz"] = f"{prefix}-dammertz"
         pts = {m: study.points(g) for m, g in groups.items()}
         scene = pts["dammertz"][0].first.scene
         w, h = pts["dammertz"][0].first.width, pts["dammertz"][0].first.height
         seeds = pts["dammertz"][0].n
         print(f"### {scene}, {w}x{h}, {seeds} seeds\n")
         head = ["budget (spp)"] + [f"{m} E" for m in METHODS] + ["wall s: " + " / ".join(m[:4] for m in METHODS)]
-        print("| " + " | ".join(head) + " |")
-        print("|" + "---|" * len(head))
+        rows = []
         for i, d in enumerate(pts["dammertz"]):
             spp = d.mean("samples") / d.first.pixels
             best = min(METHODS, key=lambda m: pts[m][i].mean("mean_abs"))
@@ -42,7 +40,8 @@ def main():
                 cell = f"{p.mean('mean_abs'):.5f} ± {p.sd('mean_abs'):.5f}"
                 cells.append(f"**{cell}**" if m == best else cell)
             times = " / ".join(f"{pts[m][i].mean('seconds'):.2f}" for m in METHODS)
-            print(f"| {spp:.1f} | " + " | ".join(cells) + f" | {times} |")
+            rows.append([f"{spp:.1f}"] + cells + [times])
+        print(md_table(head, rows))
         print()
 
 
