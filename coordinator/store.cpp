@@ -602,7 +602,16 @@ bool RunStore::add_round(const RoundRecord& r) {
                              .bind(or_null(r.buckets_json))
                              .bind(r.created_at)
                              .run();
-    if (inserted) return true;
+    if (inserted) {
+        // The render's progress is its last recorded round's: kept with the round, not with
+        // the checkpoint, which is written less often (see checkpoint_due).
+        query("UPDATE renders SET samples_done = MAX(samples_done, ?) WHERE id = ?",
+              "record progress of render " + r.render_id)
+            .bind(r.samples_total)
+            .bind(r.render_id)
+            .run();
+        return true;
+    }
 
     Query old = query(
         "SELECT samples_in_round, samples_total FROM rounds WHERE render_id = ? AND idx "

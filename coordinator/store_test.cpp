@@ -166,6 +166,15 @@ TEST_F(RunStoreTest, RecordingARoundAgainIsANoOp) {
     EXPECT_EQ(store.rounds("r-1").size(), 1u);
 }
 
+TEST_F(RunStoreTest, RecordingARoundRecordsTheRendersProgress) {
+    RunStore store(dir);
+    seed(store);
+    RoundRecord r = round_of("r-1", 0);
+    r.samples_total = 12345;
+    store.add_round(r);
+    EXPECT_EQ(store.get_render("r-1")->samples_done, 12345);
+}
+
 TEST_F(RunStoreTest, RoundsRoundTripInOrder) {
     RunStore store(dir);
     seed(store);
