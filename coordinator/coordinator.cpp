@@ -426,10 +426,11 @@ bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
     touch_worker(worker);
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end()) return false;
-    const bool ok = sessions_.at(it->second)->abandon(lease_id, worker);
+    // Only the holder may give a lease back; anyone else's word leaves it with its holder.
+    if (!sessions_.at(it->second)->abandon(lease_id, worker)) return false;
     lease_render_.erase(it);
     changed();
-    return ok;
+    return true;
 }
 
 std::vector<WorkerStatus> Coordinator::workers() {

@@ -112,6 +112,13 @@ TEST_F(WorkerServiceTest, RejectsNonFiniteSums) {
     EXPECT_EQ(samples_merged(), 0u);
 }
 
+TEST_F(WorkerServiceTest, OnlyTheHolderCanGiveALeaseBack) {
+    const v1::Lease l = lease();
+    EXPECT_FALSE(coordinator_->abandon("intruder", l.lease_id()));
+    EXPECT_EQ(complete(l.lease_id(), trace(l)), "merged");
+    EXPECT_EQ(samples_merged(), 64u);
+}
+
 TEST_F(WorkerServiceTest, IgnoresAResultForAnUnknownLease) {
     const v1::Lease l = lease();
     EXPECT_EQ(complete(l.lease_id() + 12345, trace(l)), "ignored");
