@@ -13,12 +13,21 @@ void WorkerLoop::log(const std::string& line) const {
     if (!options_.quiet) std::fprintf(stderr, "worker %s: %s\n", options_.name.c_str(), line.c_str());
 }
 
-void WorkerLoop::backoff(std::chrono::milliseconds& delay) {
-    // Sleep in short steps so stop() is honoured promptly.
-    const auto until = std::chrono::steady_clock::now() + delay;
+void WorkerLoop::sleep_unless_stopping(std::chrono::milliseconds duration) {
+    // Short steps, so that stop() is honoured promptly.
+    const auto until = std::chrono::steady_clock::now() + duration;
     while (!stopping_ && std::chrono::steady_clock::now() < until)
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
+}
+
+void WorkerLoop::backoff(std::chrono::milliseconds& delay) {
+    sleep_unless_stopping(delay);
     delay = std::min(delay * 2, std::chrono::milliseconds(5000));
+}
+
+bool WorkerLoop::release(uint64_t lease_id) {
+    std::lock_guard lock(held_mutex_);
+    return held_.erase(lease_id) > 0;
 }
 
 void WorkerLoop::run() {
@@ -52,8 +61,10 @@ void WorkerLoop::thread_main() {
             delay = std::chrono::milliseconds(200);
             if (announced) log("coordinator back");
             announced = false;
-        } catch (const LinkUnavailable& e) {
-            if (!announced) log(std::string("coordinator unavailable, retrying: ") + e.what());
+        } catch (const std::exception& e) {
+            // Unreachable, or an answer this worker cannot read: wait and ask again; a
+            // worker thread never dies of what the coordinator said.
+            if (!announced) log(std::string("cannot get a lease, retrying: ") + e.what());
             announced = true;
             backoff(delay);
             continue;
@@ -68,10 +79,7 @@ void WorkerLoop::thread_main() {
                                      [&](const std::string& h) { return link_.fetch_scene(h); });
             const SampleJobResult result =
                 trace_sample_job(*scene->tracer, grant->geometry, grant->job, 1, &stopping_);
-            {
-                std::lock_guard lock(held_mutex_);
-                held_.erase(grant->lease_id);
-            }
+            release(grant->lease_id);  // from here on the result answers for the lease
             const CompleteOutcome outcome = link_.complete(options_.name, grant->lease_id, result);
             if (outcome.status == CompleteStatus::Merged) {
                 samples_traced_ += result.total_samples();
@@ -82,19 +90,17 @@ void WorkerLoop::thread_main() {
         } catch (const JobCancelled&) {
             // Stopping: the lease is given back below.
         } catch (const LinkUnavailable& e) {
-            log(std::string("lost the coordinator while returning a job: ") + e.what());
-            std::lock_guard lock(held_mutex_);
-            held_.erase(grant->lease_id);
+            log(std::string("lost the coordinator: ") + e.what());
         } catch (const std::exception& e) {
             // A scene that does not load or a job that does not fit: give the lease back
             // so the render is not stuck on it, and report why.
             log(std::string("cannot trace lease: ") + e.what());
         }
-        std::lock_guard lock(held_mutex_);
-        if (held_.erase(grant->lease_id)) {
+        // Still held: not traced to the end. Given back outside the lock (an RPC).
+        if (release(grant->lease_id)) {
             try {
                 link_.abandon(options_.name, grant->lease_id);
-            } catch (const LinkUnavailable&) {
+            } catch (const std::exception&) {
                 // The lease expires on its own.
             }
         }
@@ -103,10 +109,7 @@ void WorkerLoop::thread_main() {
 
 void WorkerLoop::keeper_main() {
     while (!stopping_) {
-        const auto period = std::chrono::milliseconds(std::max<uint32_t>(lease_ms_ / 3, 100));
-        const auto until = std::chrono::steady_clock::now() + period;
-        while (!stopping_ && std::chrono::steady_clock::now() < until)
-            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        sleep_unless_stopping(std::chrono::milliseconds(std::max<uint32_t>(lease_ms_ / 3, 100)));
         std::set<uint64_t> held;
         {
             std::lock_guard lock(held_mutex_);
@@ -115,8 +118,8 @@ void WorkerLoop::keeper_main() {
         for (uint64_t lease : held) {
             try {
                 link_.renew(options_.name, lease);
-            } catch (const LinkUnavailable&) {
-                break;
+            } catch (const std::exception&) {
+                break;  // unreachable: the next period tries again, or the leases expire
             }
         }
     }

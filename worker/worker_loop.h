@@ -37,6 +37,9 @@ private:
     void keeper_main();
     void log(const std::string& line) const;
     void backoff(std::chrono::milliseconds& delay);
+    void sleep_unless_stopping(std::chrono::milliseconds duration);
+    // Drops the lease from the held set; whether it was still there.
+    bool release(uint64_t lease_id);
 
     WorkerLink& link_;
     WorkerOptions options_;
