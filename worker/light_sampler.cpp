@@ -5,7 +5,7 @@
 
 namespace aliquot {
 
-LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size()) {
+LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(), 0.0f) {
     double total = 0;
     std::vector<double> weights;
     for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
@@ -19,7 +19,7 @@ LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(
             const Vec3 c = cross(e1, e2);
             const float area = 0.5f * length(c);
             if (!(area > 0)) continue;
-            triangles_.push_back({p0, e1, e2, c / (2 * area), mesh.emission, m, t});
+            triangles_.push_back({p0, e1, e2, c / (2 * area), mesh.emission, m});
             const double w = double(area) * luminance(mesh.emission);
             weights.push_back(w);
             total += w;
@@ -31,14 +31,11 @@ LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(
         cdf_.push_back(float(running / total));
     }
     if (!cdf_.empty()) cdf_.back() = 1.0f;
-    for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
-        const TriangleMesh& mesh = scene.meshes[m];
-        pdf_by_mesh_[m].assign(mesh.is_emitter() ? mesh.triangles.size() : 0, 0.0f);
-    }
-    for (EmitterTriangle& tri : triangles_) {
-        tri.pdf_area = float(luminance(tri.radiance) / total);
-        pdf_by_mesh_[tri.mesh][tri.triangle] = tri.pdf_area;
-    }
+    // A triangle picked by area x luminance and a point uniform on it: the density per unit
+    // area is luminance / total, the same on every triangle of a mesh.
+    for (uint32_t m = 0; m < scene.meshes.size(); ++m)
+        if (scene.meshes[m].is_emitter() && total > 0)
+            pdf_by_mesh_[m] = float(luminance(scene.meshes[m].emission) / total);
 }
 
 LightSample LightSampler::sample(float u_select, float u1, float u2) const {
@@ -48,12 +45,9 @@ LightSample LightSampler::sample(float u_select, float u1, float u2) const {
     // Uniform point on the triangle (square-root parameterisation).
     const float su = std::sqrt(u1);
     const float b1 = 1.0f - su, b2 = u2 * su;
-    return {tri.p0 + tri.e1 * b1 + tri.e2 * b2, tri.normal, tri.radiance, tri.pdf_area};
+    return {tri.p0 + tri.e1 * b1 + tri.e2 * b2, tri.normal, tri.radiance, pdf_by_mesh_[tri.mesh]};
 }
 
-float LightSampler::pdf_area(uint32_t mesh, uint32_t triangle) const {
-    const auto& pdfs = pdf_by_mesh_[mesh];
-    return triangle < pdfs.size() ? pdfs[triangle] : 0.0f;
-}
+float LightSampler::pdf_area(uint32_t mesh) const { return pdf_by_mesh_[mesh]; }
 
 }  // namespace aliquot

@@ -23,19 +23,18 @@ public:
 
     bool empty() const { return triangles_.empty(); }
     LightSample sample(float u_select, float u1, float u2) const;
-    // Area density of sampling the given point of the given mesh triangle (0 if not emitting).
-    float pdf_area(uint32_t mesh, uint32_t triangle) const;
+    // Area density of sampling any point of the given mesh (0 if it does not emit).
+    float pdf_area(uint32_t mesh) const;
 
 private:
     struct EmitterTriangle {
         Vec3 p0, e1, e2, normal, radiance;
-        uint32_t mesh, triangle;
-        float pdf_area = 0;  // filled once the total weight is known
+        uint32_t mesh;
     };
     std::vector<EmitterTriangle> triangles_;
     std::vector<float> cdf_;  // inclusive, normalised to 1
-    // pdf_area per mesh triangle: weight / (area * total_weight) = luminance / total_weight.
-    std::vector<std::vector<float>> pdf_by_mesh_;
+    // pdf_area by mesh: weight / (area * total_weight) = luminance / total_weight.
+    std::vector<float> pdf_by_mesh_;
 };
 
 }  // namespace aliquot

@@ -89,7 +89,7 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const H
                 float w = 1.0f;
                 if (!prev_specular) {
                     const float light_pdf =
-                        lights_.pdf_area(hit.geom_id, hit.prim_id) * hit.t * hit.t / -cos_ng;
+                        lights_.pdf_area(hit.geom_id) * hit.t * hit.t / -cos_ng;
                     w = power_heuristic(prev_bsdf_pdf, light_pdf);
                 }
                 L += beta * mesh.emission * w;
