@@ -68,15 +68,10 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const H
     Vec3 o = origin, d = direction;
     const int max_depth = scene_.max_depth;
 
-    Hit hit;
+    out.rays = 1;  // the first ray, traced by the caller
+    if (!first) return out;
+    Hit hit = *first;
     for (int depth = 0;; ++depth) {
-        ++out.rays;
-        if (depth == 0) {
-            if (!first) break;
-            hit = *first;
-        } else if (!embree_.intersect(o, d, std::numeric_limits<float>::infinity(), hit)) {
-            break;
-        }
         const Vec3 p = o + d * hit.t;
         const float cos_ng = dot(d, hit.ng);
         const bool front = cos_ng < 0;
@@ -168,6 +163,8 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const H
         if (max_component(beta) <= 0.0f) break;
         o = offset_origin(p, hit.ng, offset, wo);
         d = wo;
+        ++out.rays;
+        if (!embree_.intersect(o, d, std::numeric_limits<float>::infinity(), hit)) break;
     }
     out.value = L;
     return out;
