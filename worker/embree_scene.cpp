@@ -96,8 +96,9 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
 
     for (const TriangleMesh& mesh : scene.meshes) {
         const bool quads = pairs_into_quads(mesh);
-        quad_mesh_.push_back(quads);
-        std::vector<Vec3>& normals = normals_.emplace_back();
+        MeshInfo& info = meshes_.emplace_back();
+        info.quads = quads;
+        std::vector<Vec3>& normals = info.normals;
         normals.reserve(mesh.triangles.size());
         for (const auto& tri : mesh.triangles) {
             const Vec3 p0 = mesh.positions[tri[0]];
@@ -177,10 +178,11 @@ Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
         hit.ng = normalize(Vec3(ng_x, ng_y, ng_z));
     } else {
         // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
-        hit.prim_id = quad_mesh_[geom] ? 2 * prim + (u + v > 1.0f) : prim;
+        const MeshInfo& mesh = meshes_[geom];
+        hit.prim_id = mesh.quads ? 2 * prim + (u + v > 1.0f) : prim;
         // Embree's Ng has the same direction (counter-clockwise winding); the unit normal
         // made once per triangle saves a square root and a division on every hit.
-        hit.ng = normals_[geom][hit.prim_id];
+        hit.ng = mesh.normals[hit.prim_id];
     }
     return hit;
 }

@@ -59,8 +59,11 @@ private:
     RTCDeviceTy* device_ = nullptr;
     RTCSceneTy* scene_ = nullptr;
     uint32_t sphere_geom_id_ = ~0u;
-    std::vector<bool> quad_mesh_;  // by mesh index: traced as quads
-    std::vector<std::vector<Vec3>> normals_;  // by mesh, by triangle: unit geometric normal
+    struct MeshInfo {
+        bool quads = false;         // traced as quads (see pairs_into_quads)
+        std::vector<Vec3> normals;  // by triangle: unit geometric normal
+    };
+    std::vector<MeshInfo> meshes_;  // by mesh index (= Embree geometry id)
 };
 
 }  // namespace aliquot
