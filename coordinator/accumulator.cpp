@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include "vec3.h"
+
 namespace aliquot {
 
 Accumulator::Accumulator(uint32_t width, uint32_t height)
@@ -55,8 +57,8 @@ double Accumulator::luminance_variance(size_t i) const {
     const PixelSums& p = pixels_[i];
     if (p.samples < 2) return 0.0;
     const double n = double(p.samples);
-    const double sum = 0.212671 * (p.even[0] + p.odd[0]) + 0.715160 * (p.even[1] + p.odd[1]) +
-                       0.072169 * (p.even[2] + p.odd[2]);
+    const double sum =
+        luminance(p.even[0] + p.odd[0], p.even[1] + p.odd[1], p.even[2] + p.odd[2]);
     const double var = (p.sum_sq_luminance - sum * sum / n) / (n - 1.0);
     return var > 0 ? var : 0.0;  // cancellation can leave a tiny negative
 }

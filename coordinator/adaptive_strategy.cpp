@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "allocation.h"
+#include "vec3.h"
 
 namespace aliquot {
 
@@ -18,7 +19,7 @@ constexpr uint64_t kRoundSamples = uint64_t(1) << 22;
 double pixel_value(const Accumulator& merged, size_t i) {
     double rgb[3];
     merged.mean(i, rgb);
-    return 0.212671 * rgb[0] + 0.715160 * rgb[1] + 0.072169 * rgb[2];
+    return luminance(rgb[0], rgb[1], rgb[2]);
 }
 
 }  // namespace

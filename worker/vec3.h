@@ -39,8 +39,19 @@ constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
 inline float length(const Vec3& v) { return std::sqrt(dot(v, v)); }
 inline Vec3 normalize(const Vec3& v) { return v / length(v); }
 constexpr float max_component(const Vec3& v) { return std::max(v.x, std::max(v.y, v.z)); }
-// Rec. 709 luminance, the weights Mitsuba uses for linear sRGB.
-constexpr float luminance(const Vec3& c) { return 0.212671f * c.x + 0.715160f * c.y + 0.072169f * c.z; }
+// Rec. 709 luminance, the weights Mitsuba uses for linear sRGB. The coordinator's variance
+// and adaptive measures use the double version: they must weigh colour as the worker's
+// sum of squared luminance did.
+inline constexpr double kLuminanceWeights[3] = {0.212671, 0.715160, 0.072169};
+constexpr double luminance(double r, double g, double b) {
+    return kLuminanceWeights[0] * r + kLuminanceWeights[1] * g + kLuminanceWeights[2] * b;
+}
+constexpr float luminance(const Vec3& c) {
+    return float(kLuminanceWeights[0]) * c.x + float(kLuminanceWeights[1]) * c.y +
+           float(kLuminanceWeights[2]) * c.z;
+}
+static_assert(float(kLuminanceWeights[0]) == 0.212671f && float(kLuminanceWeights[1]) == 0.715160f &&
+              float(kLuminanceWeights[2]) == 0.072169f);
 inline bool is_finite(const Vec3& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
