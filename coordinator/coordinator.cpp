@@ -14,12 +14,6 @@ namespace aliquot {
 
 namespace {
 
-int64_t now_ms() {
-    return std::chrono::duration_cast<std::chrono::milliseconds>(
-               std::chrono::system_clock::now().time_since_epoch())
-        .count();
-}
-
 nlohmann::json spec_json(const RenderSpec& spec) {
     return {{"scene_name", spec.scene_name}, {"width", spec.width},
             {"height", spec.height},         {"seed", spec.seed},
@@ -34,7 +28,7 @@ Coordinator::Coordinator(CoordinatorOptions options)
     : options_(std::move(options)),
       // Lease ids start from the clock so that a restarted coordinator never re-uses the id
       // of a lease a worker may still be holding from before the restart.
-      next_lease_id_(uint64_t(now_ms()) << 16) {
+      next_lease_id_(uint64_t(unix_millis_now()) << 16) {
     if (!options_.data_dir.empty()) {
         std::filesystem::create_directories(options_.data_dir / "renders");
         store_ = std::make_unique<RunStore>(options_.data_dir);
@@ -112,7 +106,7 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
                 rec.buckets_json = buckets.dump();
                 last_shape = shape.dump();
             }
-            rec.created_at = now_ms();
+            rec.created_at = unix_millis_now();
             // The round is recorded before the checkpoint that includes it: a crash between
             // the two re-runs the round, and recording it again is a no-op.
             store_->add_round(rec);
@@ -139,8 +133,8 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
         if (!store_) return;
         try {
             write_exr(render_dir(r.id()) / "image.exr", r.merged().image(true));
-            store_->finish_render(r.id(), r.state(), r.strategy().outcome().dump(), now_ms());
-            if (!r.error().empty()) store_->update_render_state(r.id(), r.state(), r.error(), now_ms());
+            store_->finish_render(r.id(), r.state(), r.strategy().outcome().dump(), unix_millis_now());
+            if (!r.error().empty()) store_->update_render_state(r.id(), r.state(), r.error(), unix_millis_now());
         } catch (const std::exception& e) {
             log_error("cannot record the end of " + r.id() + ": " + e.what());
         }
@@ -149,7 +143,7 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     sessions_[s->id()] = std::move(session);
     s->start();
     if (store_ && s->state() == RenderState::Running)
-        store_->update_render_state(s->id(), RenderState::Running, "", now_ms());
+        store_->update_render_state(s->id(), RenderState::Running, "", unix_millis_now());
     changed();
 }
 
@@ -162,7 +156,7 @@ std::string Coordinator::submit(RenderSpec spec) {
     char id_text[32];
     std::snprintf(id_text, sizeof id_text, "r-%06llu", (unsigned long long)next_render_number_++);
     const std::string id = id_text;
-    const int64_t created = now_ms();
+    const int64_t created = unix_millis_now();
     scenes_[hash] = spec.scene_json;
     auto session = std::make_unique<RenderSession>(id, spec, created);
     if (store_) {
@@ -219,9 +213,9 @@ void Coordinator::resume_unfinished() {
             attach(std::move(session));
         } catch (const std::exception& e) {
             log_error("cannot resume " + rec.id + ": " + e.what());
-            store_->finish_render(rec.id, RenderState::Failed, "{}", now_ms());
+            store_->finish_render(rec.id, RenderState::Failed, "{}", unix_millis_now());
             store_->update_render_state(rec.id, RenderState::Failed,
-                                        std::string("cannot resume: ") + e.what(), now_ms());
+                                        std::string("cannot resume: ") + e.what(), unix_millis_now());
         }
     }
 }
@@ -336,8 +330,7 @@ uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds t
 
 Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     WorkerEntry& w = workers_[name];
-    const int64_t now = now_ms();
-    if (w.first_seen_ms == 0) w.first_seen_ms = now;
+    const int64_t now = unix_millis_now();
     w.last_seen_ms = now;
     if (w.lost && store_) store_->upsert_worker(name, w.threads, now);
     w.lost = false;
@@ -348,7 +341,7 @@ uint32_t Coordinator::register_worker(const std::string& name, uint32_t threads)
     std::lock_guard lock(mutex_);
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
-    if (store_) store_->upsert_worker(name, threads, now_ms());
+    if (store_) store_->upsert_worker(name, threads, unix_millis_now());
     changed();
     return uint32_t(options_.lease_time.count());
 }
@@ -460,7 +453,7 @@ void Coordinator::tick() {
     bool any = false;
     for (auto& [id, s] : sessions_)
         if (!s->finished() && s->expire(now) > 0) any = true;
-    const int64_t wall = now_ms();
+    const int64_t wall = unix_millis_now();
     for (auto& [name, w] : workers_) {
         if (store_ && w.unrecorded > 0) {
             try {

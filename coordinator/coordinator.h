@@ -81,7 +81,7 @@ public:
 private:
     struct WorkerEntry {
         uint32_t threads = 0;
-        int64_t first_seen_ms = 0, last_seen_ms = 0;
+        int64_t last_seen_ms = 0;
         uint64_t samples = 0;
         uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
         double rate = 0;          // samples/s, smoothed over recent jobs

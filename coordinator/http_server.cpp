@@ -16,6 +16,7 @@
 
 #include "http_api.h"
 #include "scene_loader.h"
+#include "store.h"
 
 namespace aliquot {
 
@@ -23,12 +24,6 @@ using nlohmann::json;
 using http_api::ApiError;
 
 namespace {
-
-int64_t now_ms() {
-    return std::chrono::duration_cast<std::chrono::milliseconds>(
-               std::chrono::system_clock::now().time_since_epoch())
-        .count();
-}
 
 // Live updates: the broadcaster publishes numbered messages, each event stream sends those
 // it has not sent yet. A stream that falls further behind than the ring holds is told to
@@ -242,7 +237,7 @@ struct HttpServer::Impl {
             workers_sent = now;
             json list = json::array();
             for (const WorkerStatus& w : workers) list.push_back(http_api::worker_json(w));
-            hub.publish(json{{"type", "workers"}, {"workers", list}, {"now_ms", now_ms()}}.dump());
+            hub.publish(json{{"type", "workers"}, {"workers", list}, {"now_ms", unix_millis_now()}}.dump());
         }
     }
 
@@ -274,7 +269,7 @@ struct HttpServer::Impl {
                 if (!*greeted) {
                     *greeted = true;
                     out = "retry: 2000\n\ndata: " +
-                          json{{"type", "hello"}, {"now_ms", now_ms()}}.dump() + "\n\n";
+                          json{{"type", "hello"}, {"now_ms", unix_millis_now()}}.dump() + "\n\n";
                     return sink.write(out.data(), out.size());
                 }
                 std::vector<std::string> messages;
@@ -304,20 +299,12 @@ struct HttpServer::Impl {
                 if (e.is_directory()) studies.push_back(e.path());
             std::sort(studies.begin(), studies.end());
             for (const fs::path& s : studies) {
-                json files = json::array();
                 std::vector<std::string> names;
-                int64_t modified = 0;
                 for (auto it = fs::recursive_directory_iterator(s, ec);
                      it != fs::recursive_directory_iterator() && names.size() < 200; ++it) {
                     if (it.depth() > 2) it.disable_recursion_pending();
                     if (!it->is_regular_file() || content_type_of(it->path()).empty()) continue;
                     names.push_back(fs::relative(it->path(), s).generic_string());
-                    const auto t = fs::last_write_time(it->path(), ec);
-                    if (!ec)
-                        modified = std::max<int64_t>(
-                            modified, std::chrono::duration_cast<std::chrono::milliseconds>(
-                                          t.time_since_epoch())
-                                          .count());
                 }
                 std::sort(names.begin(), names.end());
                 std::string report;
@@ -391,7 +378,7 @@ struct HttpServer::Impl {
         server.Get("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
             const size_t limit = size_t(http_api::number_param(
                 "limit", query(req, "limit", "200"), 1, double(options.max_list)));
-            send_json(res, {{"renders", list_renders(limit)}, {"now_ms", now_ms()}});
+            send_json(res, {{"renders", list_renders(limit)}, {"now_ms", unix_millis_now()}});
         }));
         server.Post("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
             RenderSpec spec = http_api::parse_render_request(req.body);
@@ -477,7 +464,7 @@ struct HttpServer::Impl {
                                        {"buckets", http_api::buckets_json(*buckets)}});
                    }));
         server.Get("/api/workers", guarded([this](const httplib::Request&, auto& res) {
-            send_json(res, {{"workers", workers_json()}, {"now_ms", now_ms()}});
+            send_json(res, {{"workers", workers_json()}, {"now_ms", unix_millis_now()}});
         }));
         server.Get("/api/scenes", guarded([](const httplib::Request&, auto& res) {
             send_json(res, {{"scenes", builtin_scene_names()},

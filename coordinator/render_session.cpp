@@ -71,8 +71,6 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id, const std::stri
     const size_t j = pending_.front();
     pending_.pop_front();
     JobSlot& slot = jobs_[j];
-    slot.stage = JobSlot::Stage::Leased;
-    slot.lease_id = lease_id;
     slot.worker = worker;
     slot.deadline = deadline;
     lease_to_job_[lease_id] = j;
@@ -111,14 +109,10 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const SampleJobResult
     lease_to_job_.erase(it);
     if (std::string why = check_result(slot, result); !why.empty()) {
         // The job is traced again by whoever asks next; nothing was merged.
-        slot.stage = JobSlot::Stage::Pending;
-        slot.lease_id = 0;
         pending_.push_front(size_t(&slot - jobs_.data()));
         return {CompleteStatus::Rejected, why};
     }
     merged_.merge(result);
-    slot.stage = JobSlot::Stage::Merged;
-    slot.lease_id = 0;
     if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
 
     ++rounds_done_;
@@ -149,8 +143,6 @@ bool RenderSession::abandon(uint64_t lease_id, const std::string& worker) {
     if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
     JobSlot& slot = jobs_[it->second];
     lease_to_job_.erase(it);
-    slot.stage = JobSlot::Stage::Pending;
-    slot.lease_id = 0;
     pending_.push_front(size_t(&slot - jobs_.data()));
     return true;
 }
@@ -160,8 +152,6 @@ size_t RenderSession::expire(Clock::time_point now) {
     for (auto it = lease_to_job_.begin(); it != lease_to_job_.end();) {
         JobSlot& slot = jobs_[it->second];
         if (slot.deadline <= now) {
-            slot.stage = JobSlot::Stage::Pending;
-            slot.lease_id = 0;
             pending_.push_front(it->second);
             it = lease_to_job_.erase(it);
             ++n;

@@ -82,9 +82,8 @@ public:
 
 private:
     struct JobSlot {
+        // Pending, leased or merged is where its index is: pending_, lease_to_job_, neither.
         SampleJob job;
-        enum class Stage { Pending, Leased, Merged } stage = Stage::Pending;
-        uint64_t lease_id = 0;
         std::string worker;
         Clock::time_point deadline;
     };
