@@ -17,6 +17,7 @@ run() {
 run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
 run "cli" bash tests/cli/render_test.sh build/bin/aliquot
 run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
+run "web unit tests" npm --prefix web test --silent
 run "web end-to-end" bash tests/web/run.sh build/bin/aliquot
 run "compose" bash tests/compose/run.sh build/bin/aliquot
 run "study" bash tests/study/run.sh build/bin/aliquot
