@@ -122,7 +122,7 @@ ensure_base_images() {
 
 # The build context: the files git would commit (tracked, or untracked and not ignored, so
 # no build*/, .venv or node_modules), plus the built dashboard web/dist when there is one,
-# less what deploy/Dockerfile.dockerignore leaves out, matched as Docker matches it (the
+# less what .dockerignore leaves out, matched as Docker matches it (the
 # classic builder applies a .dockerignore only when it makes the context from a directory),
 # but with the Dockerfile, which the builder reads from the context.
 build_context() {
@@ -143,7 +143,7 @@ def pattern(p):
     return re.compile(out + "$")
 
 rules = []
-for line in open("deploy/Dockerfile.dockerignore"):
+for line in open(".dockerignore"):
     line = line.strip()
     if line and not line.startswith("#"):
         keep = line.startswith("!")
