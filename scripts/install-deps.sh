@@ -8,12 +8,14 @@ packages=(
     libembree-dev libtbb-dev libopenexr-dev
     libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
     libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
-    python3 python3-venv
+    python3 python3-venv python3-pip
     libcpp-httplib-dev zlib1g-dev
 )
 # The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own Node
 # keeps it.
 command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
+# The Kubernetes manifest check builds kubeconform with Go; a machine with its own Go keeps it.
+command -v go >/dev/null 2>&1 || packages+=(golang-go)
 
 missing=()
 for p in "${packages[@]}"; do

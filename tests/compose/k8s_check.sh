@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 CACHE=$PWD/build/compose-cache
-KUBECONFORM_VERSION=v0.8.0
+KUBECONFORM_VERSION=v0.6.7  # builds with Debian bookworm's Go 1.19 (v0.8.0 asks for a newer Go)
 K8S_VALIDATE_VERSION=1.37.0
 K8S_VERSIONS=(1.30.0 1.37.0)  # the oldest and newest schemas that package ships
 mkdir -p "$CACHE/bin"
