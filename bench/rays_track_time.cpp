@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "sample_job.h"
+#include "trace_job.h"
 #include "scene_loader.h"
 
 using namespace aliquot;

@@ -14,6 +14,7 @@
 #include "commands.h"
 #include "embedded_render.h"
 #include "render_options.h"
+#include "path_tracer.h"
 #include "scene_loader.h"
 
 namespace aliquot::cli {

@@ -26,7 +26,7 @@ struct GrpcLink::Stub {
 
 GrpcLink::GrpcLink(const std::string& address) : stub_(new Stub), address_(address) {
     grpc::ChannelArguments args;
-    // Keepalive matched with the coordinator's server settings (coordinator/grpc_server.cpp).
+    // Keepalive matched with the coordinator's server settings (coordinator/api/grpc_server.cpp).
     args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
     args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
     args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);

@@ -4,6 +4,8 @@
 #include <thread>
 #include <vector>
 
+#include "trace_job.h"
+
 namespace aliquot {
 
 WorkerLoop::WorkerLoop(WorkerLink& link, WorkerOptions options)

@@ -1,4 +1,4 @@
-#include "sample_job.h"
+#include "trace_job.h"
 
 #include <gtest/gtest.h>
 

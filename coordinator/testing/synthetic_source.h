@@ -1,7 +1,7 @@
 // SyntheticImage: an in-process image function with known per-pixel mean and standard
 // deviation, for testing strategies in milliseconds without Embree. Samples are a
 // function of (seed, x, y, k) only, with the sample-index semantics of
-// worker/sample_job.cpp.
+// worker/job/sample_job.cpp.
 #pragma once
 
 #include <functional>

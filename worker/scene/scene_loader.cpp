@@ -17,7 +17,7 @@
 
 namespace aliquot {
 
-// Generated from scenes/*.json by worker/embed_scenes.cmake.
+// Generated from scenes/*.json by worker/scene/embed_scenes.cmake.
 const std::vector<std::pair<std::string_view, std::string_view>>& builtin_scene_table();
 
 namespace {

@@ -9,6 +9,7 @@
 
 #include "aliquot.grpc.pb.h"
 #include "scene_loader.h"
+#include "trace_job.h"
 #include "wire.h"
 
 namespace aliquot {

@@ -1,14 +1,12 @@
 // SampleJob: the unit of work. A pixel rectangle, how many samples each pixel gets, and the
-// index of each pixel's first sample. The same function traces it for the embedded render
-// and for a networked worker.
+// index of each pixel's first sample; and SampleJobResult, the per-pixel sums it returns.
+// Plain data shared by the worker that traces a job and the coordinator that merges it.
 #pragma once
 
-#include <atomic>
 #include <cstdint>
-#include <stdexcept>
 #include <vector>
 
-#include "path_tracer.h"
+#include "vec3.h"
 
 namespace aliquot {
 
@@ -51,19 +49,6 @@ struct RenderGeometry {
     uint32_t width = 0, height = 0;  // the whole image
     uint64_t seed = 0;
 };
-
-class JobCancelled : public std::runtime_error {
-public:
-    JobCancelled() : std::runtime_error("sample job cancelled") {}
-};
-
-// Traces a job with `threads` threads (rows are shared out; each pixel is traced by one
-// thread, so the result does not depend on the count). When `cancel` becomes true the
-// job stops between pixels and throws JobCancelled: a worker told to stop gives the lease
-// back instead of finishing a long job.
-SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry& geometry,
-                                 const SampleJob& job, int threads = 1,
-                                 const std::atomic<bool>* cancel = nullptr);
 
 // One sample's contribution before it is summed: exposed for tests of the NaN guard.
 void add_sample(PixelSums& sums, uint64_t index, const Vec3& radiance, uint32_t rays);
