@@ -9,7 +9,7 @@ packages=(
     libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
     libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
     python3 python3-venv python3-pip
-    libcpp-httplib-dev zlib1g-dev
+    libcpp-httplib-dev zlib1g-dev clang-format
 )
 # The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own Node
 # keeps it.
