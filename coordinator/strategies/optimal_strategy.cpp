@@ -55,6 +55,24 @@ std::vector<double> median3x3(const std::vector<double>& v, uint32_t w, uint32_t
     return out;
 }
 
+// Mean rays a sample costs so far; 1 before anything is traced.
+double rays_per_sample(const Accumulator& merged) {
+    return merged.total_samples() && merged.total_rays()
+               ? double(merged.total_rays()) / merged.total_samples()
+               : 1.0;
+}
+
+// Each pixel's measured rays per sample; pixels not yet sampled cost the mean.
+std::vector<double> pixel_costs(const Accumulator& merged) {
+    const double mean_cost = rays_per_sample(merged);
+    std::vector<double> cost(merged.pixel_count());
+    for (size_t i = 0; i < cost.size(); ++i) {
+        const PixelSums& p = merged.at(i);
+        cost[i] = p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
+    }
+    return cost;
+}
+
 }  // namespace
 
 OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32_t height,
@@ -137,78 +155,16 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
 
 std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     if (finished_) return std::nullopt;
-    const size_t pixels = size_t(width_) * height_;
     Round round{rounds_, {}};
-
     if (!piloted_) {
-        piloted_ = true;
-        const uint64_t pilot = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
-        if (pilot > 0) {
-            round.spp.assign(pixels, uint32_t(pilot));
-        } else {
-            // Less than a sample per pixel: nothing can be estimated, so the budget is
-            // spread evenly (hash-ordered, not the first rows) in one round.
-            round.spp = apportion(std::vector<double>(pixels, 1.0), double(budget_),
-                                  std::vector<uint32_t>(pixels, cap_));
-            finished_ = true;
-        }
+        round.spp = pilot_round();
     } else {
-        if (cost_aware_ && ray_budget_ == 0) {
-            // The budget is given in samples; in rays it is what those samples would cost
-            // at the pilot's mean rays per sample.
-            const double per_sample =
-                merged.total_samples() && merged.total_rays()
-                    ? double(merged.total_rays()) / merged.total_samples()
-                    : 1.0;
-            ray_budget_ = double(budget_) * per_sample;
-        }
-        const double spent =
-            cost_aware_ ? double(merged.total_rays()) : double(merged.total_samples());
-        const double limit = cost_aware_ ? ray_budget_ : double(budget_);
-        const double remaining = limit - spent;
-        if (!(remaining >= 1)) {
+        std::optional<std::vector<uint32_t>> spp = steered_round(merged);
+        if (!spp) {
             finished_ = true;
             return std::nullopt;
         }
-        // Each round spends as much as all before it (at most what is left), so the
-        // estimates that steer a round rest on at least half of the render so far.
-        const double share = std::min(remaining, std::max(spent, 1.0));
-
-        const std::vector<double> sigma = sigma_estimates(merged);
-        std::vector<double> cost;
-        if (cost_aware_) {
-            const double mean_cost =
-                merged.total_samples() && merged.total_rays()
-                    ? double(merged.total_rays()) / merged.total_samples()
-                    : 1.0;
-            cost.resize(pixels);
-            for (size_t i = 0; i < pixels; ++i) {
-                const PixelSums& p = merged.at(i);
-                cost[i] =
-                    p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
-            }
-        }
-        std::vector<double> weight(pixels);
-        bool any = false;
-        for (size_t i = 0; i < pixels; ++i) {
-            weight[i] = std::cbrt(cost_aware_ ? std::pow(sigma[i] / cost[i], 2.0)
-                                              : sigma[i] * sigma[i]);
-            any = any || weight[i] > 0;
-        }
-        if (!any) std::fill(weight.begin(), weight.end(), 1.0);  // no noise seen anywhere
-
-        const std::vector<double> target =
-            optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
-        // The round closes the gap between what each pixel has and its target; pixels
-        // already past their target get nothing, so the gaps are scaled to the share.
-        std::vector<double> gap(pixels);
-        std::vector<uint32_t> room(pixels);
-        for (size_t i = 0; i < pixels; ++i) {
-            const uint64_t have = merged.samples(i);
-            gap[i] = std::max(0.0, target[i] - double(have));
-            room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
-        }
-        round.spp = apportion(gap, share, room, cost);
+        round.spp = std::move(*spp);
     }
     const uint64_t total = round.total();
     if (total == 0) {
@@ -218,6 +174,57 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     issued_ += total;
     ++rounds_;
     return round;
+}
+
+std::vector<uint32_t> OptimalStrategy::pilot_round() {
+    piloted_ = true;
+    const size_t pixels = size_t(width_) * height_;
+    const uint64_t pilot = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
+    if (pilot > 0) return std::vector<uint32_t>(pixels, uint32_t(pilot));
+    // Less than a sample per pixel: nothing can be estimated, so the budget is spread
+    // evenly (hash-ordered, not the first rows) in one round.
+    finished_ = true;
+    return apportion(std::vector<double>(pixels, 1.0), double(budget_),
+                     std::vector<uint32_t>(pixels, cap_));
+}
+
+std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
+    const Accumulator& merged) {
+    const size_t pixels = size_t(width_) * height_;
+    // A budget given in samples is, in rays, what those samples cost at the pilot's mean.
+    if (cost_aware_ && ray_budget_ == 0) ray_budget_ = double(budget_) * rays_per_sample(merged);
+    const double spent =
+        cost_aware_ ? double(merged.total_rays()) : double(merged.total_samples());
+    const double limit = cost_aware_ ? ray_budget_ : double(budget_);
+    const double remaining = limit - spent;
+    if (!(remaining >= 1)) return std::nullopt;
+    // Each round spends as much as all before it (at most what is left), so the estimates
+    // that steer a round rest on at least half of the render so far.
+    const double share = std::min(remaining, std::max(spent, 1.0));
+
+    const std::vector<double> sigma = sigma_estimates(merged);
+    const std::vector<double> cost = cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
+    std::vector<double> weight(pixels);
+    bool any = false;
+    for (size_t i = 0; i < pixels; ++i) {
+        weight[i] = std::cbrt(cost_aware_ ? std::pow(sigma[i] / cost[i], 2.0)
+                                          : sigma[i] * sigma[i]);
+        any = any || weight[i] > 0;
+    }
+    if (!any) std::fill(weight.begin(), weight.end(), 1.0);  // no noise seen anywhere
+
+    const std::vector<double> target =
+        optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
+    // The round closes the gap between what each pixel has and its target; pixels already
+    // past their target get nothing, so the gaps are scaled to the share.
+    std::vector<double> gap(pixels);
+    std::vector<uint32_t> room(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        const uint64_t have = merged.samples(i);
+        gap[i] = std::max(0.0, target[i] - double(have));
+        room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
+    }
+    return apportion(gap, share, room, cost);
 }
 
 nlohmann::json OptimalStrategy::outcome() const {

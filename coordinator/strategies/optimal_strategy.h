@@ -38,6 +38,11 @@ class OptimalStrategy : public Strategy {
                                               double total, double lo, double hi);
 
   private:
+    // The first round: min_spp everywhere, the estimates' foundation.
+    std::vector<uint32_t> pilot_round();
+    // A later round from the merged estimates; nullopt when the budget is spent.
+    std::optional<std::vector<uint32_t>> steered_round(const Accumulator& merged);
+
     uint32_t width_, height_;
     uint64_t budget_;
     uint32_t min_spp_, cap_;

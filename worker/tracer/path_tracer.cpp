@@ -57,6 +57,10 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleR
     return radiance(origin, direction, found ? &hit : nullptr, rng);
 }
 
+// One bounce loop, kept whole on purpose (longer than our ~80-line rule): the path's
+// state (throughput, IOR product, the previous BSDF pdf for MIS, the order of random
+// draws) lives in its locals, and the order in which it draws from `rng` is the sample's
+// identity; split into functions, that state and order would be threaded through every call.
 Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const Hit* first,
                               SampleRng& rng) const {
     Radiance out;
