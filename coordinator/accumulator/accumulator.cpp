@@ -1,10 +1,24 @@
 #include "accumulator.h"
 
+#include <cmath>
 #include <string>
 
 #include "vec3.h"
 
 namespace aliquot {
+
+namespace {
+
+// No physical pixel's sum comes near this, and its square (the variance estimate squares
+// sums) stays finite: a result that would push a merged sum past it is refused whole.
+constexpr double kMaxMergedSum = 1e100;
+
+bool stays_finite(double merged, double added) {
+    const double sum = merged + added;
+    return std::isfinite(added) && std::isfinite(sum) && std::abs(sum) <= kMaxMergedSum;
+}
+
+}  // namespace
 
 Accumulator::Accumulator(uint32_t width, uint32_t height)
     : width_(width), height_(height), pixels_(size_t(width) * height) {}
@@ -17,6 +31,7 @@ void Accumulator::merge(const SampleJobResult& result) {
     if (result.pixels.size() != r.size())
         throw MergeError("result has " + std::to_string(result.pixels.size()) +
                          " pixels for a rectangle of " + std::to_string(r.size()));
+    check_finite_after(result);
     for (uint32_t row = 0; row < r.height; ++row) {
         for (uint32_t col = 0; col < r.width; ++col) {
             const PixelSums& src = result.pixels[size_t(row) * r.width + col];
@@ -32,6 +47,24 @@ void Accumulator::merge(const SampleJobResult& result) {
             total_samples_ += src.samples;
             total_rays_ += src.rays;
             total_nonfinite_ += src.nonfinite;
+        }
+    }
+}
+
+void Accumulator::check_finite_after(const SampleJobResult& result) const {
+    const PixelRect& r = result.rect;
+    for (uint32_t row = 0; row < r.height; ++row) {
+        for (uint32_t col = 0; col < r.width; ++col) {
+            const PixelSums& src = result.pixels[size_t(row) * r.width + col];
+            const PixelSums& dst = pixels_[size_t(r.y + row) * width_ + r.x + col];
+            bool ok = stays_finite(dst.sum_sq_luminance, src.sum_sq_luminance);
+            for (int c = 0; c < 3; ++c)
+                ok = ok && stays_finite(dst.even[c], src.even[c]) &&
+                     stays_finite(dst.odd[c], src.odd[c]);
+            if (!ok)
+                throw MergeError("merging would make pixel (" + std::to_string(r.x + col) +
+                                 ", " + std::to_string(r.y + row) +
+                                 ")'s sums non-finite or larger than 1e100");
         }
     }
 }

@@ -26,7 +26,8 @@ public:
     size_t pixel_count() const { return pixels_.size(); }
 
     // Adds a job's sums. Throws MergeError, touching nothing, when the result does not fit
-    // the image (rectangle outside it, wrong pixel count).
+    // the image (rectangle outside it, wrong pixel count) or would make a merged sum
+    // non-finite or absurdly large: the buffers stay finite whatever a worker sends.
     void merge(const SampleJobResult& result);
 
     const PixelSums& at(size_t i) const { return pixels_[i]; }
@@ -48,6 +49,8 @@ public:
     Image image(bool aovs = false) const;
 
 private:
+    void check_finite_after(const SampleJobResult& result) const;
+
     uint32_t width_ = 0, height_ = 0;
     std::vector<PixelSums> pixels_;
     uint64_t total_samples_ = 0, total_rays_ = 0, total_nonfinite_ = 0;

@@ -67,5 +67,32 @@ TEST(Accumulator, RefusesResultsOutsideTheImageWithoutTouchingIt) {
     EXPECT_EQ(acc.total_samples(), 0u);
 }
 
+// Issue 12, reproduction 3: each incoming value was finite, the merged one was not, and the
+// image held inf while the render still ended done.
+TEST(Accumulator, RefusesAResultThatWouldMakeAMergedSumNonFinite) {
+    Accumulator acc(2, 1);
+    EXPECT_THROW(acc.merge(one_pixel(0, 0, 1.7e308, 0.0, 2, 0)), MergeError);
+    acc.merge(one_pixel(0, 0, 6e99, 0.0, 2, 0));
+    EXPECT_THROW(acc.merge(one_pixel(0, 0, 6e99, 0.0, 2, 0)), MergeError);  // sum 1.2e100
+    double rgb[3];
+    acc.mean(0, rgb);
+    EXPECT_DOUBLE_EQ(rgb[0], 3e99);
+    EXPECT_EQ(acc.total_samples(), 2u);
+}
+
+TEST(Accumulator, ARefusedResultMergesNoneOfItsPixels) {
+    Accumulator acc(2, 1);
+    SampleJobResult r;
+    r.rect = {0, 0, 2, 1};
+    r.pixels.resize(2);
+    r.pixels[0].even[0] = 1.0;
+    r.pixels[0].samples = r.pixels[1].samples = 1;
+    r.pixels[1].sum_sq_luminance = 1e300;  // its square would not be finite
+    EXPECT_THROW(acc.merge(r), MergeError);
+    EXPECT_EQ(acc.total_samples(), 0u);
+    EXPECT_EQ(acc.at(0).samples, 0u);
+    EXPECT_EQ(acc.at(0).even[0], 0.0);
+}
+
 }  // namespace
 }  // namespace aliquot
