@@ -32,12 +32,7 @@ Coordinator::Coordinator(CoordinatorOptions options)
     if (!options_.data_dir.empty()) {
         std::filesystem::create_directories(options_.data_dir / "renders");
         store_ = std::make_unique<RunStore>(options_.data_dir);
-        for (const RenderRecord& r : store_->list_renders(0)) {
-            const auto dash = r.id.rfind('-');
-            if (dash != std::string::npos)
-                next_render_number_ =
-                    std::max<uint64_t>(next_render_number_, std::stoull(r.id.substr(dash + 1)) + 1);
-        }
+        next_render_number_ = first_free_render_number();
         resume_unfinished();
     }
     ticker_ = std::thread([this] {
@@ -48,7 +43,12 @@ Coordinator::Coordinator(CoordinatorOptions options)
                                        [this] { return stopping_; }))
                     return;
             }
-            tick();
+            // Nothing the ticker meets may end the process: it logs and ticks again.
+            try {
+                tick();
+            } catch (const std::exception& e) {
+                log_error(std::string("tick: ") + e.what());
+            }
         }
     });
 }
@@ -66,6 +66,25 @@ void Coordinator::stop() {
     }
     progress_.notify_all();
     work_ready_.notify_all();
+}
+
+uint64_t Coordinator::first_free_render_number() const {
+    // Numbers come from the store and from the render directories on disk: a database lost
+    // or moved aside (as its integrity error advises) must not hand out r-000001 again and
+    // overwrite that render's image and checkpoint.
+    uint64_t next = 1;
+    auto consider = [&next](const std::string& id) {
+        unsigned long long n = 0;
+        char tail = 0;
+        if (std::sscanf(id.c_str(), "r-%llu%c", &n, &tail) == 1 && n < UINT64_MAX)
+            next = std::max<uint64_t>(next, n + 1);
+    };
+    for (const RenderRecord& r : store_->list_renders(0)) consider(r.id);
+    std::error_code ec;
+    for (const auto& entry :
+         std::filesystem::directory_iterator(options_.data_dir / "renders", ec))
+        consider(entry.path().filename().string());
+    return next;
 }
 
 std::filesystem::path Coordinator::render_dir(const std::string& id) const {
@@ -147,20 +166,28 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     changed();
 }
 
+std::string Coordinator::claim_render_id() {
+    for (;;) {
+        char id_text[32];
+        std::snprintf(id_text, sizeof id_text, "r-%06llu",
+                      (unsigned long long)next_render_number_++);
+        // create_directory is the claim: an existing directory is some earlier render's,
+        // never to be overwritten, so its number is skipped.
+        if (!store_ || std::filesystem::create_directory(render_dir(id_text))) return id_text;
+    }
+}
+
 std::string Coordinator::submit(RenderSpec spec) {
     validate(spec, options_.max_side);
     // Parse now so a broken scene is the submitter's error, not every worker's.
     parse_scene(spec.scene_json, spec.scene_name.empty() ? "scene" : spec.scene_name, ".");
     const std::string hash = scene_hash(spec.scene_json);
     std::lock_guard lock(mutex_);
-    char id_text[32];
-    std::snprintf(id_text, sizeof id_text, "r-%06llu", (unsigned long long)next_render_number_++);
-    const std::string id = id_text;
+    const std::string id = claim_render_id();
     const int64_t created = unix_millis_now();
     scenes_[hash] = spec.scene_json;
     auto session = std::make_unique<RenderSession>(id, spec, created);
     if (store_) {
-        std::filesystem::create_directories(render_dir(id));
         store_->put_scene(hash, spec.scene_name, spec.scene_json, created);
         RenderRecord rec;
         rec.id = id;
@@ -329,10 +356,20 @@ uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds t
 }
 
 Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
-    WorkerEntry& w = workers_[name];
+    const auto [it, is_new] = workers_.try_emplace(name);
+    WorkerEntry& w = it->second;
     const int64_t now = unix_millis_now();
     w.last_seen_ms = now;
-    if (w.lost && store_) store_->upsert_worker(name, w.threads, now);
+    // A worker first heard of here never registered with this coordinator (it registered
+    // with one before a restart on another --data): it gets its row now, so that marking
+    // it lost later has a row to mark.
+    if ((is_new || w.lost) && store_) {
+        try {
+            store_->upsert_worker(name, w.threads, now);
+        } catch (const std::exception& e) {
+            log_error(e.what());
+        }
+    }
     w.lost = false;
     return w;
 }
@@ -466,12 +503,25 @@ void Coordinator::tick() {
         if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
             w.lost = true;
             any = true;
-            if (store_) store_->mark_worker_state(name, "lost");
+            if (store_) {
+                try {
+                    store_->mark_worker_state(name, "lost");
+                } catch (const std::exception& e) {
+                    log_error(e.what());
+                }
+            }
         }
     }
     if (any) changed();
-    // Every ~10 s: keep the WAL from growing without bound.
-    if (store_ && ++ticks_ % 50 == 0) store_->checkpoint();
+    // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the next
+    // one tries again.
+    if (store_ && ++ticks_ % 50 == 0) {
+        try {
+            store_->checkpoint();
+        } catch (const std::exception& e) {
+            log_error(e.what());
+        }
+    }
 }
 
 // ---- Read-only views for the HTTP API and dashboard ----

@@ -89,6 +89,8 @@ private:
     };
 
     void resume_unfinished();
+    uint64_t first_free_render_number() const;
+    std::string claim_render_id();
     void attach(std::unique_ptr<RenderSession> session);
     RenderInfo info_of(const RenderSession& s) const;
     std::filesystem::path render_dir(const std::string& id) const;
