@@ -10,6 +10,9 @@ packages=(
     libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
     python3 python3-venv python3-pip
     libcpp-httplib-dev zlib1g-dev clang-format
+    # scripts/fuzz.sh: clang, and the compiler-rt archives that carry libFuzzer
+    # (libclang_rt.fuzzer) and the sanitizers for Debian's clang 14.
+    clang libclang-rt-14-dev
 )
 # The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own Node
 # keeps it.

@@ -22,6 +22,8 @@ run "web end-to-end" bash tests/web/run.sh build/bin/aliquot
 run "compose" bash tests/compose/run.sh build/bin/aliquot
 run "study" bash tests/study/run.sh build/bin/aliquot
 run "validation against Mitsuba 3" bash tests/validation/run.sh build/bin/aliquot
+# libFuzzer targets, about a minute in all; builds its own build-fuzz/ with clang.
+run "fuzz" bash scripts/fuzz.sh
 
 if ((${#failures[@]})); then
     echo "failed: ${failures[*]}"

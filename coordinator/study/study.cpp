@@ -254,7 +254,7 @@ StudyDefinition parse_study(const std::string& text, const std::string& file) {
     json j;
     try {
         j = json::parse(text);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // parse_error, or out_of_range for 1e309
         throw StudyError(file + ": not valid JSON: " + e.what());
     }
     if (!j.is_object()) w.fail("", "a study must be a JSON object");

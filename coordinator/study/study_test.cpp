@@ -40,6 +40,12 @@ const char* kStudy = R"({
   "charts": [{"kind": "maps", "name": "maps", "groups": ["eu", "d"], "index": 1}]
 })";
 
+TEST(Study, ANumberTooLargeForADoubleIsAStudyError) {
+    // nlohmann's parser throws out_of_range, not parse_error, for it (found by fuzz/).
+    const std::string error = error_of(R"({"name": "t", "reference_spp": 1e309})");
+    EXPECT_NE(error.find("studies/x.json: not valid JSON"), std::string::npos) << error;
+}
+
 TEST(Study, ExpandsSweepsTimesSeedsInDependencyOrder) {
     const StudyDefinition def = parse_study(kStudy, "x.json");
     const std::vector<StudyRender> r = expand_study(def, study_scale(def, "full"));
