@@ -23,24 +23,37 @@ void get(std::ifstream& in, T& v) {
 
 }  // namespace
 
+namespace {
+
+void write_checkpoint_file(const std::filesystem::path& tmp, const Checkpoint& cp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
+    out.write(kMagic, sizeof kMagic);
+    put(out, cp.merged.width());
+    put(out, cp.merged.height());
+    put(out, cp.rounds_done);
+    put(out, cp.seconds);
+    const std::string state = cp.strategy_state.dump();
+    put(out, uint64_t(state.size()));
+    out.write(state.data(), std::streamsize(state.size()));
+    for (size_t i = 0; i < cp.merged.pixel_count(); ++i) put(out, cp.merged.at(i));
+    out.flush();
+    if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
+}
+
+}  // namespace
+
 void save_checkpoint(const std::filesystem::path& path, const Checkpoint& cp) {
     const std::filesystem::path tmp = path.string() + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
-        out.write(kMagic, sizeof kMagic);
-        put(out, cp.merged.width());
-        put(out, cp.merged.height());
-        put(out, cp.rounds_done);
-        put(out, cp.seconds);
-        const std::string state = cp.strategy_state.dump();
-        put(out, uint64_t(state.size()));
-        out.write(state.data(), std::streamsize(state.size()));
-        for (size_t i = 0; i < cp.merged.pixel_count(); ++i) put(out, cp.merged.at(i));
-        out.flush();
-        if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
+    try {
+        write_checkpoint_file(tmp, cp);
+        std::filesystem::rename(tmp, path);
+    } catch (...) {
+        // A half-written temp file on a full disk holds the space the next try needs.
+        std::error_code ignored;
+        std::filesystem::remove(tmp, ignored);
+        throw;
     }
-    std::filesystem::rename(tmp, path);
 }
 
 bool checkpoint_due(double since_last_seconds, double last_cost_seconds) {

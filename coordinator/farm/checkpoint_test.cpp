@@ -46,6 +46,21 @@ TEST(Checkpoint, MissingIsNoneAndDamagedIsAnError) {
     std::filesystem::remove(path);
 }
 
+// Issue 12, reproduction 2: a full disk left checkpoint.bin.tmp behind, holding the space
+// the next try needed. /dev/full fails every write with ENOSPC, as a full disk does.
+TEST(Checkpoint, AFailedWriteLeavesNoTempFileAndKeepsTheLastCheckpoint) {
+    const auto path = temp_file("full.bin");
+    const std::filesystem::path tmp = path.string() + ".tmp";
+    Accumulator merged(64, 64);
+    save_checkpoint(path, {merged, nlohmann::json::object(), 1, 0.5});
+    std::filesystem::create_symlink("/dev/full", tmp);
+    EXPECT_THROW(save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0}),
+                 std::runtime_error);
+    EXPECT_FALSE(std::filesystem::exists(std::filesystem::symlink_status(tmp)));
+    EXPECT_EQ(load_checkpoint(path)->rounds_done, 1u);
+    std::filesystem::remove(path);
+}
+
 TEST(Checkpoint, DueWhenItsCostIsASmallShareOfTheTimeSinceTheLast) {
     EXPECT_TRUE(checkpoint_due(0.0, 0.0));  // none written yet
     EXPECT_FALSE(checkpoint_due(0.05, 0.01));
