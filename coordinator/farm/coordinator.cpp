@@ -128,7 +128,8 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
             rec.created_at = unix_millis_now();
             // The round is recorded before the checkpoint that includes it: a crash between
             // the two re-runs the round, and recording it again is a no-op.
-            store_->add_round(rec);
+            backlog_.submit("record round " + std::to_string(round.index) + " of " + r.id(),
+                            [this, rec] { store_->add_round(rec); });
             CheckpointTiming& timing = checkpoint_timing_[r.id()];
             const auto start = std::chrono::steady_clock::now();
             if (checkpoint_due(std::chrono::duration<double>(start - timing.ended).count(),
@@ -136,33 +137,40 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
                 Checkpoint cp{r.merged(), r.strategy().save_state(), r.rounds_done(),
                               round.seconds};
                 save_checkpoint(render_dir(r.id()) / "checkpoint.bin", cp);
-                store_->update_render_progress(r.id(), int64_t(round.samples_total),
-                                               cp.strategy_state.dump());
+                backlog_.submit("record the progress of " + r.id(),
+                                [this, id = r.id(), samples = int64_t(round.samples_total),
+                                 state = cp.strategy_state.dump()] {
+                                    store_->update_render_progress(id, samples, state);
+                                });
                 timing.ended = std::chrono::steady_clock::now();
                 timing.cost_seconds = std::chrono::duration<double>(timing.ended - start).count();
             }
         } catch (const std::exception& e) {
-            // The render goes on; only resumability from this round is lost.
-            log_error("cannot record round " + std::to_string(round.index) + " of " + r.id() +
-                      ": " + e.what());
+            // The render goes on; the next round's checkpoint tries again.
+            log_error("cannot checkpoint round " + std::to_string(round.index) + " of " +
+                      r.id() + ": " + e.what());
         }
     };
     s->on_finished = [this](RenderSession& r) {
         checkpoint_timing_.erase(r.id());
         if (!store_) return;
-        try {
-            write_exr(render_dir(r.id()) / "image.exr", r.merged().image(true));
-            store_->finish_render(r.id(), r.state(), r.strategy().outcome().dump(), unix_millis_now());
-            if (!r.error().empty()) store_->update_render_state(r.id(), r.state(), r.error(), unix_millis_now());
-        } catch (const std::exception& e) {
-            log_error("cannot record the end of " + r.id() + ": " + e.what());
-        }
+        // The session stays in memory until this is written, so a retry finds its buffers.
+        backlog_.submit("record the end of " + r.id(), [this, id = r.id()] {
+            const RenderSession& done = *sessions_.at(id);
+            write_exr(render_dir(id) / "image.exr", done.merged().image(true));
+            store_->finish_render(id, done.state(), done.strategy().outcome().dump(),
+                                  unix_millis_now());
+            if (!done.error().empty())
+                store_->update_render_state(id, done.state(), done.error(), unix_millis_now());
+        });
     };
     order_.push_back(s->id());
     sessions_[s->id()] = std::move(session);
     s->start();
     if (store_ && s->state() == RenderState::Running)
-        store_->update_render_state(s->id(), RenderState::Running, "", unix_millis_now());
+        backlog_.submit("record " + s->id() + " as running", [this, id = s->id()] {
+            store_->update_render_state(id, RenderState::Running, "", unix_millis_now());
+        });
     changed();
 }
 
@@ -240,9 +248,14 @@ void Coordinator::resume_unfinished() {
             attach(std::move(session));
         } catch (const std::exception& e) {
             log_error("cannot resume " + rec.id + ": " + e.what());
-            store_->finish_render(rec.id, RenderState::Failed, "{}", unix_millis_now());
-            store_->update_render_state(rec.id, RenderState::Failed,
-                                        std::string("cannot resume: ") + e.what(), unix_millis_now());
+            backlog_.submit("record that " + rec.id + " cannot resume",
+                            [this, id = rec.id, why = std::string(e.what())] {
+                                store_->finish_render(id, RenderState::Failed, "{}",
+                                                      unix_millis_now());
+                                store_->update_render_state(id, RenderState::Failed,
+                                                            "cannot resume: " + why,
+                                                            unix_millis_now());
+                            });
         }
     }
 }
@@ -484,8 +497,14 @@ std::vector<WorkerStatus> Coordinator::workers() {
     return out;
 }
 
+std::string Coordinator::storage_warning() {
+    std::lock_guard lock(mutex_);
+    return backlog_.warning();
+}
+
 void Coordinator::tick() {
     std::lock_guard lock(mutex_);
+    backlog_.retry();
     const auto now = RenderSession::Clock::now();
     bool any = false;
     for (auto& [id, s] : sessions_)

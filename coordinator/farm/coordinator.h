@@ -15,6 +15,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "record_backlog.h"
 #include "render_session.h"
 
 namespace aliquot {
@@ -73,6 +74,9 @@ public:
     bool renew(const std::string& worker, uint64_t lease_id) override;
     bool abandon(const std::string& worker, uint64_t lease_id) override;
 
+    // Why writes to the run record are failing (a full disk), empty when they are not.
+    std::string storage_warning();
+
     // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls it.
     void tick();
     // Wakes every waiting call and refuses new leases: the first step of shutting down.
@@ -99,6 +103,7 @@ private:
 
     CoordinatorOptions options_;
     std::unique_ptr<RunStore> store_;
+    RecordBacklog backlog_;  // store writes waiting for the disk, in order
     std::mutex mutex_;
     std::condition_variable work_ready_;
     std::condition_variable progress_;

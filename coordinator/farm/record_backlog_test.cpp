@@ -1,0 +1,61 @@
+#include "record_backlog.h"
+
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <vector>
+
+namespace aliquot {
+namespace {
+
+using Clock = RecordBacklog::Clock;
+using std::chrono::milliseconds;
+
+TEST(RecordBacklog, AWriteThatFailsIsKeptAndRetriedInOrderWithBackoff) {
+    RecordBacklog backlog;
+    std::vector<int> written;
+    bool disk_full = true;
+    auto write = [&](int n) {
+        return [&, n] {
+            if (disk_full) throw std::runtime_error("database or disk is full");
+            written.push_back(n);
+        };
+    };
+    const Clock::time_point t0 = Clock::now();
+    backlog.submit("round 0", write(0), t0);
+    disk_full = false;
+    backlog.submit("round 1", write(1), t0);  // waits behind round 0: order is kept
+    EXPECT_TRUE(written.empty());
+    EXPECT_EQ(backlog.waiting(), 2u);
+    EXPECT_NE(backlog.warning().find("database or disk is full"), std::string::npos);
+
+    backlog.retry(t0 + milliseconds(100));  // before the backoff has passed: nothing tried
+    EXPECT_TRUE(written.empty());
+    backlog.retry(t0 + milliseconds(600));
+    EXPECT_EQ(written, (std::vector<int>{0, 1}));
+    EXPECT_EQ(backlog.waiting(), 0u);
+    EXPECT_TRUE(backlog.warning().empty());
+}
+
+TEST(RecordBacklog, TheBackoffDoublesWhileTheDiskStaysFull) {
+    RecordBacklog backlog;
+    int tries = 0;
+    const Clock::time_point t0 = Clock::now();
+    backlog.submit("x", [&] { ++tries, throw std::runtime_error("full"); }, t0);
+    for (int ms = 0; ms <= 3500; ms += 100) backlog.retry(t0 + milliseconds(ms));
+    // Tried at 0, then 0.5 s later, 1 s after that, then 2 s after that: 4 tries by 3.5 s.
+    EXPECT_EQ(tries, 4);
+    EXPECT_EQ(backlog.waiting(), 1u);
+}
+
+TEST(RecordBacklog, WritesRunAtOnceWhenNothingWaits) {
+    RecordBacklog backlog;
+    int n = 0;
+    backlog.submit("x", [&] { ++n; });
+    EXPECT_EQ(n, 1);
+    EXPECT_EQ(backlog.waiting(), 0u);
+    EXPECT_TRUE(backlog.warning().empty());
+}
+
+}  // namespace
+}  // namespace aliquot
