@@ -2,11 +2,11 @@
 
 #include <unistd.h>
 
-#include <cstdio>
 #include <thread>
 
 #include "commands.h"
 #include "exr_io.h"
+#include "resolution.h"
 #include "scene_loader.h"
 
 namespace aliquot::cli {
@@ -43,16 +43,13 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
 }
 
 void check_render_options(RenderOptions& o) {
-    unsigned w = 0, h = 0;
-    char x = 0, tail = 0;
-    if (std::sscanf(o.resolution.c_str(), "%u%c%u%c", &w, &x, &h, &tail) != 3 || x != 'x')
-        throw CommandError("--resolution: expected WxH, e.g. 256x256, got \"" + o.resolution +
-                           "\"");
-    if (w == 0 || h == 0 || w > kMaxResolution || h > kMaxResolution)
-        throw CommandError("--resolution: each side must be in 1.." +
-                           std::to_string(kMaxResolution) + ", got " + o.resolution);
-    o.width = w;
-    o.height = h;
+    try {
+        const Resolution r = parse_resolution(o.resolution);
+        o.width = r.width;
+        o.height = r.height;
+    } catch (const std::invalid_argument& e) {
+        throw CommandError(std::string("--resolution: ") + e.what());
+    }
     if (o.spp != kSppNotGiven && (o.spp < 1 || o.spp > (int64_t(1) << 31)))
         throw CommandError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
     if (o.spp == kSppNotGiven) o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;

@@ -33,7 +33,6 @@ RenderSpec make_render_spec(const RenderOptions& options);
 // Fails early, before any work, if `path` cannot be written.
 void check_writable(const std::filesystem::path& path, const std::string& option);
 
-constexpr uint32_t kMaxResolution = 8192;
 constexpr int64_t kSppNotGiven = -1;
 
 }  // namespace aliquot::cli

@@ -1,22 +1,19 @@
 // aliquot study FILE: runs a study definition (studies/*.json) embedded or on a farm,
 // then writes its report (report.md, results.csv, charts) with
 // tools/report/aliquot_report.py.
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
+#include "child_process.h"
 #include "commands.h"
+#include "progress_bar.h"
+#include "study_farm.h"
 #include "study_runner.h"
-
-extern char** environ;
 
 namespace aliquot::cli {
 
@@ -54,19 +51,6 @@ std::string find_python(const fs::path& script) {
     return "python3";
 }
 
-int run_process(const std::vector<std::string>& args) {
-    std::vector<char*> argv;
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    pid_t pid = 0;
-    if (posix_spawnp(&pid, argv[0], nullptr, nullptr, argv.data(), environ) != 0)
-        return 127;
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-}
-
 struct StudyCommand {
     std::string file;
     std::string scale = "small";
@@ -76,20 +60,27 @@ struct StudyCommand {
     bool no_report = false;
 
     void run() {
-        std::ifstream in(file);
-        if (!in) throw CommandError(file + ": cannot open the study file");
-        std::stringstream text;
-        text << in.rdbuf();
-        const StudyDefinition def = parse_study(text.str(), file);
+        const StudyDefinition def = parse_study(read_file(), file);
         const StudyScale sc = study_scale(def, scale);
         if (threads < 0) throw CommandError("--threads: must be 0 or more");
         StudyRunOptions options;
         options.study_file = file;
-        options.out = out.empty()
-                          ? fs::path("out") / ("study-" + def.name + "-" + sc.name)
-                          : fs::path(out);
-        options.coordinator = coordinator;
+        options.out = out.empty() ? fs::path("out") / ("study-" + def.name + "-" + sc.name)
+                                  : fs::path(out);
         options.threads = threads;
+        if (!coordinator.empty())
+            options.backend = [this](const fs::path& data) {
+                return make_farm_backend(coordinator, data);
+            };
+        // Made at the first update, once the references are there, as before the split.
+        std::optional<ProgressBar> bar;
+        options.progress = [&](uint64_t done, uint64_t total, const std::string& note) {
+            if (!bar) bar.emplace("study " + study_id(def, sc));
+            bar->update(done, total, note);
+        };
+        options.done = [&] {
+            if (bar) bar->finish();
+        };
         const StudyRunSummary s = run_study(def, sc, options);
         std::printf(
             "study %s: %zu renders (%zu rendered now, %zu shared, %zu recorded before) "
@@ -98,13 +89,24 @@ struct StudyCommand {
             s.renders - s.rendered - s.reused, s.seconds,
             (options.out / "data").string().c_str());
         std::fflush(stdout);
-        if (no_report) return;
+        if (!no_report) write_report(def, sc, options.out);
+    }
+
+  private:
+    std::string read_file() const {
+        std::ifstream in(file);
+        if (!in) throw CommandError(file + ": cannot open the study file");
+        std::stringstream text;
+        text << in.rdbuf();
+        return text.str();
+    }
+
+    void write_report(const StudyDefinition& def, const StudyScale& sc, const fs::path& dir) {
         const fs::path script = find_report_script(file);
         const std::string python = find_python(script);
-        const int rc =
-            run_process({python, script.string(), "--db",
-                         (options.out / "data" / "aliquot.db").string(), "--study",
-                         study_id(def, sc), "--out", options.out.string()});
+        const int rc = run_process({python, script.string(), "--db",
+                                    (dir / "data" / "aliquot.db").string(), "--study",
+                                    study_id(def, sc), "--out", dir.string()});
         if (rc == 3)
             throw CommandError(
                 "report not written: " + python +
@@ -114,7 +116,7 @@ struct StudyCommand {
         if (rc != 0)
             throw CommandError("report not written: " + script.string() +
                                " exited with status " + std::to_string(rc));
-        std::printf("report: %s\n", (options.out / "report.md").string().c_str());
+        std::printf("report: %s\n", (dir / "report.md").string().c_str());
     }
 };
 

@@ -2,7 +2,7 @@
 # rooms see each other only through their include directories, which their CMake links grant,
 # and a path would walk around that wall. Run by ctest as include_walls.
 file(GLOB_RECURSE sources ${ROOT}/coordinator/*.cpp ${ROOT}/coordinator/*.h ${ROOT}/worker/*.cpp
-     ${ROOT}/worker/*.h ${ROOT}/cli/*.cpp ${ROOT}/cli/*.h ${ROOT}/proto/*.cpp ${ROOT}/proto/*.h
+     ${ROOT}/worker/*.h ${ROOT}/cli/*.cpp ${ROOT}/cli/*.h ${ROOT}/proto/*.cpp ${ROOT}/proto/*.h ${ROOT}/input/*.cpp ${ROOT}/input/*.h
      ${ROOT}/bench/*.cpp ${ROOT}/fuzz/*.cpp)
 set(bad "")
 foreach(f ${sources})

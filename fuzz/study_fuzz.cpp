@@ -4,7 +4,8 @@
 #include <cstdint>
 #include <string>
 
-#include "study.h"
+#include "study_definition.h"
+#include "study_plan.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const std::string text(reinterpret_cast<const char*>(data), size);

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "png_encoder.h"
+#include "resolution.h"
 #include "scene_loader.h"
 
 namespace aliquot::http_api {
@@ -200,18 +201,13 @@ RenderSpec parse_render_request(const std::string& body) {
             spec.scene_name = v.get<std::string>();
         } else if (key == "resolution") {
             require(v.is_string(), "'resolution' must be a string like \"256x256\"");
-            const std::string text = v.get<std::string>();
-            unsigned long w = 0, h = 0;
-            char* end = nullptr;
-            const char* s = text.c_str();
-            bool ok = !text.empty() && std::isdigit((unsigned char)s[0]);
-            if (ok) w = std::strtoul(s, &end, 10);
-            ok = ok && *end == 'x' && std::isdigit((unsigned char)end[1]);
-            if (ok) h = std::strtoul(end + 1, &end, 10);
-            ok = ok && *end == '\0' && w <= UINT32_MAX && h <= UINT32_MAX;
-            require(ok, "'resolution' must look like \"256x256\", got \"" + text + "\"");
-            spec.width = uint32_t(w);
-            spec.height = uint32_t(h);
+            try {
+                const Resolution r = parse_resolution(v.get<std::string>());
+                spec.width = r.width;
+                spec.height = r.height;
+            } catch (const std::invalid_argument& e) {
+                throw ApiError(400, std::string("'resolution': ") + e.what());
+            }
             have_resolution = true;
         } else if (key == "width") {
             spec.width = uint32_t(whole_number(v, key, UINT32_MAX));

@@ -8,6 +8,7 @@
 #include "adaptive_strategy.h"
 #include "allocation.h"
 #include "dammertz_strategy.h"
+#include "json_field.h"
 #include "optimal_strategy.h"
 #include "uniform_strategy.h"
 
@@ -34,78 +35,59 @@ void to_json(json& j, const StrategyParams& p) {
 
 namespace {
 
-void read(const std::string& key, const json& v, std::string& out) {
-    if (!v.is_string())
-        throw std::invalid_argument("strategy parameter '" + key + "' must be a string");
-    out = v.get<std::string>();
-}
-
-void read(const std::string& key, const json& v, double& out) {
-    if (!v.is_number())
-        throw std::invalid_argument("strategy parameter '" + key + "' must be a number");
-    out = v.get<double>();
-}
-
 template <typename Unsigned>
-void read(const std::string& key, const json& v, Unsigned& out) {
-    // nlohmann converts -1 or 2.5 to an unsigned silently; a budget must not wrap around.
-    constexpr uint64_t top = std::numeric_limits<Unsigned>::max();
-    bool ok = false;
-    uint64_t value = 0;
-    if (v.is_number_unsigned()) {
-        value = v.get<uint64_t>();
-        ok = value <= top;
-    } else if (v.is_number_integer()) {
-        ok = v.get<int64_t>() >= 0 && uint64_t(v.get<int64_t>()) <= top;
-        value = ok ? uint64_t(v.get<int64_t>()) : 0;
-    } else if (v.is_number_float()) {  // 16.0 from a client that only has doubles
-        const double d = v.get<double>();
-        ok = d >= 0 && d <= double(top) && d == std::floor(d) && d < 0x1p64;
-        value = ok ? uint64_t(d) : 0;
-    }
-    if (!ok)
-        throw std::invalid_argument("strategy parameter '" + key +
-                                    "' must be a whole number from 0 to " +
-                                    std::to_string(top));
-    out = Unsigned(value);
+Unsigned whole(const JsonField& f) {
+    return Unsigned(f.whole(0, std::numeric_limits<Unsigned>::max()));
+}
+
+void read_member(const std::string& key, const JsonField& v, StrategyParams& p) {
+    if (key == "method")
+        p.method = v.string();
+    else if (key == "spp")
+        p.spp = whole<uint64_t>(v);
+    else if (key == "budget")
+        p.budget = whole<uint64_t>(v);
+    else if (key == "max_variance")
+        p.max_variance = v.number();
+    else if (key == "samples_per_iteration")
+        p.samples_per_iteration = whole<uint32_t>(v);
+    else if (key == "split_factor")
+        p.split_factor = v.number();
+    else if (key == "min_bucket_size")
+        p.min_bucket_size = whole<uint32_t>(v);
+    else if (key == "error_norm")
+        p.error_norm = v.string();
+    else if (key == "initial_spp")
+        p.initial_spp = whole<uint32_t>(v);
+    else if (key == "alpha")
+        p.alpha = v.number();
+    else if (key == "bucket_size")
+        p.bucket_size = whole<uint32_t>(v);
+    else if (key == "min_spp")
+        p.min_spp = whole<uint32_t>(v);
+    else if (key == "max_spp")
+        p.max_spp = whole<uint32_t>(v);
+    else if (key == "max_samples")
+        p.max_samples = whole<uint64_t>(v);
 }
 
 }  // namespace
 
 void from_json(const json& j, StrategyParams& p) {
-    if (!j.is_object())
-        throw std::invalid_argument("strategy parameters must be a JSON object");
-    for (const auto& [key, v] : j.items()) {
-        if (key == "method")
-            read(key, v, p.method);
-        else if (key == "spp")
-            read(key, v, p.spp);
-        else if (key == "budget")
-            read(key, v, p.budget);
-        else if (key == "max_variance")
-            read(key, v, p.max_variance);
-        else if (key == "samples_per_iteration")
-            read(key, v, p.samples_per_iteration);
-        else if (key == "split_factor")
-            read(key, v, p.split_factor);
-        else if (key == "min_bucket_size")
-            read(key, v, p.min_bucket_size);
-        else if (key == "error_norm")
-            read(key, v, p.error_norm);
-        else if (key == "initial_spp")
-            read(key, v, p.initial_spp);
-        else if (key == "alpha")
-            read(key, v, p.alpha);
-        else if (key == "bucket_size")
-            read(key, v, p.bucket_size);
-        else if (key == "min_spp")
-            read(key, v, p.min_spp);
-        else if (key == "max_spp")
-            read(key, v, p.max_spp);
-        else if (key == "max_samples")
-            read(key, v, p.max_samples);
-        else
-            throw std::invalid_argument("unknown strategy parameter '" + key + "'");
+    try {
+        const JsonField root(j);
+        root.expect_object("strategy parameters must be a JSON object");
+        root.allow_keys({"method", "spp", "budget", "max_variance", "samples_per_iteration",
+                         "split_factor", "min_bucket_size", "error_norm", "initial_spp",
+                         "alpha", "bucket_size", "min_spp", "max_spp", "max_samples"});
+        for (const auto& [key, v] : root.members()) read_member(key, v, p);
+    } catch (const JsonError& e) {
+        // Parameters arrive inside other documents (a request, a study): name the
+        // parameter, and let the caller say where its parameters sit.
+        const std::string& at = e.pointer().value_or("");
+        if (at.empty()) throw std::invalid_argument(e.reason());
+        throw std::invalid_argument("strategy parameter '" + at.substr(1) + "': " +
+                                    e.reason());
     }
 }
 

@@ -1,6 +1,7 @@
 // Study definitions: parsing with errors that name the field, scaling, expansion into
 // renders, budgets taken from other renders.
-#include "study.h"
+#include "study_definition.h"
+#include "study_plan.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -153,9 +154,9 @@ TEST(Study, ErrorsNameTheFileAndTheField) {
               0u)
         << error_of(text);
 
-    EXPECT_EQ(error_of("{\"name\": \"x\"}"), "studies/x.json: /renders: missing");
+    EXPECT_EQ(error_of("{\"name\": \"x\"}"), "studies/x.json: /: missing key \"renders\"");
     EXPECT_EQ(error_of("[1]"), "studies/x.json: /: a study must be a JSON object");
-    EXPECT_NE(error_of("{").find("studies/x.json: not valid JSON"), std::string::npos);
+    EXPECT_NE(error_of("{").find("studies/x.json: invalid JSON at line 1"), std::string::npos);
 }
 
 TEST(Study, RejectsEachKindOfMistakeAtItsPointer) {
@@ -169,7 +170,7 @@ TEST(Study, RejectsEachKindOfMistakeAtItsPointer) {
               std::string::npos);
     EXPECT_NE(
         bad(R"([{"name": "u", "method": "uniform", "params": {"colour": 1, "spp": 1}}])")
-            .find("/renders/0/params: unknown strategy parameter 'colour'"),
+            .find("/renders/0/params: strategy parameter 'colour': unknown key"),
         std::string::npos);
     EXPECT_NE(bad(R"([{"name": "u", "method": "uniform", "sweep": {"spp": [1, 0]}}])")
                   .find("/renders/0/sweep/spp/1:"),
@@ -199,7 +200,7 @@ TEST(Study, RejectsEachKindOfMistakeAtItsPointer) {
               std::string::npos);
     EXPECT_NE(
         bad(R"([{"name": "u", "method": "uniform", "params": {"spp": 1}, "colour": 2}])")
-            .find("/renders/0/colour: unknown field \"colour\""),
+            .find("/renders/0/colour: unknown key (expected name, scene, resolution"),
         std::string::npos);
 }
 

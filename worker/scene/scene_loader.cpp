@@ -9,9 +9,9 @@
 #include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <sstream>
 
+#include "json_field.h"
 #include "obj_loader.h"
 #include "transform.h"
 
@@ -33,70 +33,11 @@ std::string in_quotes(std::string_view s) {
     return out;
 }
 
-std::string joined(std::initializer_list<std::string_view> words) {
-    std::string out;
-    for (std::string_view w : words) out += (out.empty() ? "" : ", ") + std::string(w);
-    return out;
+// Scene readers fail through JsonField (a JsonError); the entry points below add the
+// origin and turn it into a SceneError.
+[[noreturn]] void fail_scene(const std::string& origin, const JsonError& e) {
+    throw SceneError(origin + ": " + e.what());
 }
-
-// RFC 6901: '~' and '/' inside a key are escaped so the pointer stays unambiguous.
-std::string pointer_token(std::string_view key) {
-    std::string out;
-    for (char c : key) {
-        if (c == '~')
-            out += "~0";
-        else if (c == '/')
-            out += "~1";
-        else
-            out += c;
-    }
-    return out;
-}
-
-[[noreturn]] void fail_at(const std::string& origin, const std::string& pointer,
-                          const std::string& what) {
-    throw SceneError(origin + ": " + (pointer.empty() ? "/" : pointer) + ": " + what);
-}
-
-// A JSON value together with where it sits, so that each check can say where it failed.
-class Node {
-  public:
-    Node(const json& value, std::string pointer, const std::string& origin)
-        : value_(&value), pointer_(std::move(pointer)), origin_(&origin) {}
-
-    const json& value() const { return *value_; }
-    [[noreturn]] void fail(const std::string& what) const {
-        fail_at(*origin_, pointer_, what);
-    }
-
-    std::optional<Node> find(std::string_view key) const {
-        const auto it = value_->find(std::string(key));
-        if (it == value_->end()) return std::nullopt;
-        return Node(*it, pointer_ + "/" + pointer_token(key), *origin_);
-    }
-    Node require(std::string_view key) const {
-        if (auto node = find(key)) return *node;
-        fail("missing key " + in_quotes(key));
-    }
-    Node at(size_t index) const {
-        return Node((*value_)[index], pointer_ + "/" + std::to_string(index), *origin_);
-    }
-    // A misspelt key would otherwise be ignored silently and its default used.
-    void allow_keys(std::initializer_list<std::string_view> allowed) const {
-        for (const auto& [key, v] : value_->items()) {
-            if (std::find(allowed.begin(), allowed.end(), key) == allowed.end())
-                find(key)->fail("unknown key (expected " + joined(allowed) + ")");
-        }
-    }
-    void expect_object(const std::string& what) const {
-        if (!value_->is_object()) fail(what);
-    }
-
-  private:
-    const json* value_;
-    std::string pointer_;
-    const std::string* origin_;
-};
 
 // ---- values --------------------------------------------------------------------------
 
@@ -110,7 +51,7 @@ std::optional<float> as_float(const json& v, const FloatCheck& valid) {
     return f;
 }
 
-float read_float(const Node& n, const std::string& expected,
+float read_float(const JsonField& n, const std::string& expected,
                  const FloatCheck& valid = nullptr) {
     if (auto f = as_float(n.value(), valid)) return *f;
     n.fail(expected);
@@ -119,7 +60,7 @@ float read_float(const Node& n, const std::string& expected,
 // [x, y, z], or a single number for all three when `allow_scalar` (grey colours, uniform
 // scale). A bad component is reported at the array, whose form is what the message
 // describes.
-Vec3 read_vec3(const Node& n, const std::string& expected, bool allow_scalar = false,
+Vec3 read_vec3(const JsonField& n, const std::string& expected, bool allow_scalar = false,
                const FloatCheck& valid = nullptr) {
     const json& v = n.value();
     if (allow_scalar && v.is_number()) return Vec3(read_float(n, expected, valid));
@@ -133,25 +74,20 @@ Vec3 read_vec3(const Node& n, const std::string& expected, bool allow_scalar = f
     return {c[0], c[1], c[2]};
 }
 
-std::string read_string(const Node& n, const std::string& expected) {
-    if (!n.value().is_string()) n.fail(expected);
-    return n.value().get<std::string>();
-}
-
 const std::string kPoint = "expected [x, y, z]";
 const std::string kReflectance = "expected [r, g, b] or a number, each in [0, 1]";
 const std::string kEmission = "expected [r, g, b] or a number, each >= 0";
 
-Vec3 read_reflectance(const Node& n) {
+Vec3 read_reflectance(const JsonField& n) {
     return read_vec3(n, kReflectance, true, [](float c) { return c >= 0 && c <= 1; });
 }
 
 // ---- transforms ----------------------------------------------------------------------
 
-Transform read_rotate(const Node& n) {
+Transform read_rotate(const JsonField& n) {
     const json& v = n.value();
     if (!v.is_array() || v.size() != 2) n.fail("expected [axis, degrees]");
-    const Node axis_node = n.at(0);
+    const JsonField axis_node = n.at(0);
     const std::string axis_expected =
         "expected \"x\", \"y\", \"z\" or a non-zero [x, y, z]";
     Vec3 axis;
@@ -173,7 +109,7 @@ Transform read_rotate(const Node& n) {
 }
 
 // One of translate / rotate / scale, by key.
-Transform read_step(const Node& n, std::string_view key) {
+Transform read_step(const JsonField& n, std::string_view key) {
     if (key == "translate") return Transform::translate(read_vec3(n, kPoint));
     if (key == "rotate") return read_rotate(n);
     // A zero scale flattens the shape and makes its normals undefined.
@@ -184,7 +120,7 @@ Transform read_step(const Node& n, std::string_view key) {
 
 // Object form {translate, rotate, scale} means T * R * S; array form is Mitsuba's chain
 // of single steps, first element outermost.
-Transform read_transform(const Node& n) {
+Transform read_transform(const JsonField& n) {
     Transform m;
     if (n.value().is_object()) {
         n.allow_keys({"translate", "rotate", "scale"});
@@ -196,7 +132,7 @@ Transform read_transform(const Node& n) {
         "expected an object with translate, rotate, scale, or an array of such steps";
     if (!n.value().is_array()) n.fail(expected);
     for (size_t i = 0; i < n.value().size(); ++i) {
-        const Node step = n.at(i);
+        const JsonField step = n.at(i);
         const json& v = step.value();
         const std::string key = v.is_object() && v.size() == 1 ? v.begin().key() : "";
         if (key != "translate" && key != "rotate" && key != "scale")
@@ -268,10 +204,10 @@ LocalMesh to_local_mesh(const ObjMesh& obj) {
     return mesh;
 }
 
-LocalMesh read_inline_mesh(const Node& shape) {
+LocalMesh read_inline_mesh(const JsonField& shape) {
     LocalMesh mesh;
-    const Node positions = shape.require("positions");
-    const Node triangles = shape.require("triangles");
+    const JsonField positions = shape.require("positions");
+    const JsonField triangles = shape.require("triangles");
     const std::string positions_expected = "expected a non-empty array of [x, y, z]";
     if (!positions.value().is_array() || positions.value().empty())
         positions.fail(positions_expected);
@@ -283,7 +219,7 @@ LocalMesh read_inline_mesh(const Node& shape) {
     const std::string index_expected =
         "expected [i, j, k] of vertex indices in [0, " + std::to_string(count) + ")";
     for (size_t t = 0; t < triangles.value().size(); ++t) {
-        const Node tri = triangles.at(t);
+        const JsonField tri = triangles.at(t);
         const json& v = tri.value();
         if (!v.is_array() || v.size() != 3) tri.fail(index_expected);
         std::array<uint32_t, 3> indices{};
@@ -300,8 +236,8 @@ LocalMesh read_inline_mesh(const Node& shape) {
 
 // Mesh files resolve against the scene file's folder; an OBJ error keeps its own
 // file:line and is prefixed with the scene path that named the file.
-ObjMesh load_mesh_file(const Node& file_node, const std::filesystem::path& base_dir) {
-    const std::string file = read_string(file_node, "expected a path to an .obj file");
+ObjMesh load_mesh_file(const JsonField& file_node, const std::filesystem::path& base_dir) {
+    const std::string file = file_node.string("expected a path to an .obj file");
     std::string extension = std::filesystem::path(file).extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(),
                    [](unsigned char c) { return std::tolower(c); });
@@ -331,11 +267,11 @@ class SceneBuilder {
   public:
     explicit SceneBuilder(const std::filesystem::path& base_dir) : base_dir_(base_dir) {}
 
-    Scene build(const Node& root, const std::string& origin) {
+    Scene build(const JsonField& root, const std::string& origin) {
         root.expect_object("expected an object with camera, materials and shapes");
         root.allow_keys({"description", "camera", "max_depth", "materials", "shapes"});
         scene_.name = origin;
-        if (auto d = root.find("description")) read_string(*d, "expected a string");
+        if (auto d = root.find("description")) d->string("expected a string");
         read_camera(root.require("camera"));
         if (auto depth = root.find("max_depth")) read_max_depth(*depth);
         read_materials(root.require("materials"));
@@ -344,14 +280,14 @@ class SceneBuilder {
     }
 
   private:
-    void read_camera(const Node& n) {
+    void read_camera(const JsonField& n) {
         n.expect_object("expected an object with position, target, up and fov");
         n.allow_keys({"position", "target", "up", "fov"});
         Camera& c = scene_.camera;
         c.position = read_vec3(n.require("position"), kPoint);
-        const Node target = n.require("target");
+        const JsonField target = n.require("target");
         c.target = read_vec3(target, kPoint);
-        const Node up = n.require("up");
+        const JsonField up = n.require("up");
         c.up = read_vec3(up, kPoint);
         c.fov_degrees = read_float(n.require("fov"), "expected a number in (0, 180)",
                                    [](float f) { return f > 0 && f < 180; });
@@ -362,7 +298,7 @@ class SceneBuilder {
             up.fail("expected a direction not parallel to the view direction");
     }
 
-    void read_max_depth(const Node& n) {
+    void read_max_depth(const JsonField& n) {
         const json& v = n.value();
         const std::string expected =
             "expected an integer in [1, " + std::to_string(kMaxDepthLimit) + "]";
@@ -372,14 +308,14 @@ class SceneBuilder {
         scene_.max_depth = v.get<int>();
     }
 
-    void read_materials(const Node& n) {
+    void read_materials(const JsonField& n) {
         n.expect_object("expected an object mapping names to materials");
         for (const auto& [name, value] : n.value().items()) {
-            const Node m = *n.find(name);
+            const JsonField m = *n.find(name);
             m.expect_object("expected an object with a \"type\"");
-            const Node type_node = m.require("type");
+            const JsonField type_node = m.require("type");
             const std::string type =
-                read_string(type_node, "expected a material type string");
+                type_node.string("expected a material type string");
             Material material;
             material.name = name;
             if (type == "diffuse") {
@@ -410,14 +346,14 @@ class SceneBuilder {
         }
     }
 
-    uint32_t read_material_ref(const Node& n) {
-        const std::string name = read_string(n, "expected the name of a material");
+    uint32_t read_material_ref(const JsonField& n) {
+        const std::string name = n.string("expected the name of a material");
         const auto it = material_index_.find(name);
         if (it == material_index_.end()) n.fail("unknown material " + in_quotes(name));
         return it->second;
     }
 
-    void read_shapes(const Node& n) {
+    void read_shapes(const JsonField& n) {
         if (!n.value().is_array()) n.fail("expected an array of shapes");
         for (size_t i = 0; i < n.value().size(); ++i) read_shape(n.at(i));
         const bool lit =
@@ -429,10 +365,10 @@ class SceneBuilder {
         if (!lit) n.fail(expected);
     }
 
-    void read_shape(const Node& s) {
+    void read_shape(const JsonField& s) {
         s.expect_object("expected an object with a \"type\"");
-        const Node type_node = s.require("type");
-        const std::string type = read_string(type_node, "expected a shape type string");
+        const JsonField type_node = s.require("type");
+        const std::string type = type_node.string("expected a shape type string");
         if (type == "rectangle" || type == "cube") {
             s.allow_keys({"type", "material", "emission", "transform"});
         } else if (type == "mesh") {
@@ -497,75 +433,11 @@ class SceneBuilder {
 
 // ---- text ----------------------------------------------------------------------------
 
-std::string without_exception_id(const std::string& what) {
-    const size_t end = what.find("] ");
-    return end == std::string::npos ? what : what.substr(end + 2);
-}
-
-// nlohmann keeps the last of duplicate keys silently; like a misspelt key, a duplicate is
-// a mistake the author should hear about, so the parse tracks the path it is at.
-class DuplicateKeyCheck {
-  public:
-    explicit DuplicateKeyCheck(const std::string& origin) : origin_(origin) {}
-
-    bool operator()(int, json::parse_event_t event, json& parsed) {
-        switch (event) {
-            case json::parse_event_t::object_start:
-            case json::parse_event_t::array_start:
-                frames_.emplace_back().array = event == json::parse_event_t::array_start;
-                break;
-            case json::parse_event_t::key: {
-                Frame& f = frames_.back();
-                f.key = parsed.get<std::string>();
-                if (!f.keys.insert(f.key).second)
-                    fail_at(origin_, pointer(), "duplicate key " + in_quotes(f.key));
-                break;
-            }
-            case json::parse_event_t::object_end:
-            case json::parse_event_t::array_end:
-                frames_.pop_back();
-                [[fallthrough]];
-            case json::parse_event_t::value:
-                if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
-                break;
-        }
-        return true;
-    }
-
-  private:
-    struct Frame {
-        bool array = false;
-        size_t index = 0;
-        std::string key;
-        std::set<std::string> keys;
-    };
-    // The pointer of the innermost open object (where the duplicate was found).
-    std::string pointer() const {
-        std::string out;
-        for (size_t i = 0; i + 1 < frames_.size(); ++i) {
-            out += '/';
-            out += frames_[i].array ? std::to_string(frames_[i].index)
-                                    : pointer_token(frames_[i].key);
-        }
-        return out;
-    }
-
-    const std::string& origin_;
-    std::vector<Frame> frames_;
-};
-
-json parse_json(std::string_view text, const std::string& origin) {
+json parse_scene_json(std::string_view text, const std::string& origin) {
     try {
-        return json::parse(text.begin(), text.end(), DuplicateKeyCheck(origin));
-    } catch (const json::parse_error& e) {
-        // nlohmann's message reads "... parse error at line L, column C: reason".
-        const std::string what = e.what();
-        if (const size_t at = what.find("at line "); at != std::string::npos)
-            throw SceneError(origin + ": invalid JSON " + what.substr(at));
-        throw SceneError(origin + ": invalid JSON at byte " + std::to_string(e.byte) +
-                         ": " + without_exception_id(what));
-    } catch (const json::exception& e) {  // e.g. a number too large for a double
-        throw SceneError(origin + ": invalid JSON: " + without_exception_id(e.what()));
+        return parse_json(text);
+    } catch (const JsonError& e) {
+        fail_scene(origin, e);
     }
 }
 
@@ -606,8 +478,7 @@ void inline_mesh_files(json& doc, const SceneSource& source) {
             !shape.contains("file") || shape.contains("positions") ||
             shape.contains("triangles"))
             continue;
-        const Node file(shape["file"], "/shapes/" + std::to_string(i) + "/file",
-                        source.origin);
+        const JsonField file(shape["file"], "/shapes/" + std::to_string(i) + "/file");
         const ObjMesh mesh = load_mesh_file(file, source.base_dir);
         json positions = json::array(), triangles = json::array();
         for (const auto& p : mesh.positions) positions.push_back({p[0], p[1], p[2]});
@@ -622,8 +493,12 @@ void inline_mesh_files(json& doc, const SceneSource& source) {
 
 Scene parse_scene(std::string_view json_text, const std::string& origin,
                   const std::filesystem::path& base_dir) {
-    const json doc = parse_json(json_text, origin);
-    return SceneBuilder(base_dir).build(Node(doc, "", origin), origin);
+    const json doc = parse_scene_json(json_text, origin);
+    try {
+        return SceneBuilder(base_dir).build(JsonField(doc), origin);
+    } catch (const JsonError& e) {
+        fail_scene(origin, e);
+    }
 }
 
 Scene load_scene(const std::string& name_or_file) {
@@ -635,10 +510,14 @@ Scene load_scene(const std::string& name_or_file) {
 
 std::string self_contained_scene_json(const std::string& name_or_file) {
     const SceneSource source = find_scene(name_or_file);
-    json doc = parse_json(source.text, source.origin);
-    inline_mesh_files(doc, source);
-    // Validate what is sent, so that a broken scene fails here and not on every worker.
-    SceneBuilder(source.base_dir).build(Node(doc, "", source.origin), source.origin);
+    json doc = parse_scene_json(source.text, source.origin);
+    try {
+        inline_mesh_files(doc, source);
+        // Validate what is sent, so that a broken scene fails here and not on every worker.
+        SceneBuilder(source.base_dir).build(JsonField(doc), source.origin);
+    } catch (const JsonError& e) {
+        fail_scene(source.origin, e);
+    }
     return doc.dump();  // compact, keys sorted: the same scene always gives the same text
 }
 

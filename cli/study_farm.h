@@ -1,0 +1,17 @@
+// The study's renders on a farm: the study's StudyBackend over the CLI's gRPC client. The
+// one file where the study meets the client API.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "study_backend.h"
+
+namespace aliquot::cli {
+
+// Fetched images go to `data_dir`/renders/farm-ID/image.exr.
+std::unique_ptr<StudyBackend> make_farm_backend(const std::string& address,
+                                                const std::filesystem::path& data_dir);
+
+}  // namespace aliquot::cli
