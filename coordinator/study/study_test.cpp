@@ -44,7 +44,7 @@ const char* kStudy = R"({
 TEST(Study, ANumberTooLargeForADoubleIsAStudyError) {
     // nlohmann's parser throws out_of_range, not parse_error, for it (found by fuzz/).
     const std::string error = error_of(R"({"name": "t", "reference_spp": 1e309})");
-    EXPECT_NE(error.find("studies/x.json: not valid JSON"), std::string::npos) << error;
+    EXPECT_NE(error.find("studies/x.json: invalid JSON"), std::string::npos) << error;
 }
 
 TEST(Study, ExpandsSweepsTimesSeedsInDependencyOrder) {
