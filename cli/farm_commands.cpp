@@ -8,6 +8,7 @@
 #include "client.h"
 #include "commands.h"
 #include "progress_bar.h"
+#include "render_proto.h"
 #include "render_options.h"
 
 namespace aliquot::cli {
@@ -28,10 +29,10 @@ CLI::App* add_common(CLI::App& app, const char* name, const char* help,
     return cmd;
 }
 
-std::string eta(const v1::RenderInfo& i) {
-    if (i.samples_done() == 0 || i.samples_planned() <= i.samples_done()) return "-";
-    const double left = double(i.samples_planned() - i.samples_done()) /
-                        std::max(i.samples_per_second(), 1e-9);
+std::string eta(const RenderInfo& i) {
+    if (i.samples_done == 0 || i.samples_planned <= i.samples_done) return "-";
+    const double left =
+        double(i.samples_planned - i.samples_done) / std::max(i.samples_per_second, 1e-9);
     return std::to_string(int64_t(left)) + "s";
 }
 
@@ -45,18 +46,18 @@ void register_farm_clients(CLI::App& app) {
         cmd->add_flag("--json", o->json, "print JSON");
         cmd->callback([o] {
             ClientConnection c(o->coordinator);
-            std::vector<v1::RenderInfo> renders;
+            std::vector<RenderInfo> renders;
             if (!o->id.empty()) {
                 v1::GetRenderRequest req;
                 req.set_id(o->id);
                 v1::RenderInfo info;
                 c.check(c.stub().GetRender(c.context().get(), req, &info), "status " + o->id);
-                renders.push_back(info);
+                renders.push_back(from_proto(info));
             } else {
                 v1::ListRendersRequest req;
                 v1::ListRendersReply reply;
                 c.check(c.stub().ListRenders(c.context().get(), req, &reply), "status");
-                renders.assign(reply.renders().begin(), reply.renders().end());
+                for (const v1::RenderInfo& r : reply.renders()) renders.push_back(from_proto(r));
             }
             if (o->json) {
                 nlohmann::json all = nlohmann::json::array();
@@ -74,7 +75,7 @@ void register_farm_clients(CLI::App& app) {
         cmd->callback([o] {
             ClientConnection c(o->coordinator);
             const bool tty = isatty(STDOUT_FILENO);
-            const v1::RenderInfo last = follow(c, o->id, [&](const v1::RenderInfo& i) {
+            const RenderInfo last = follow(c, o->id, [&](const RenderInfo& i) {
                 const std::string line = describe(i) + "  eta " + eta(i);
                 if (tty)
                     std::printf("\r%s\x1b[K", line.c_str());
@@ -83,7 +84,8 @@ void register_farm_clients(CLI::App& app) {
                 std::fflush(stdout);
             });
             if (tty) std::printf("\n");
-            if (last.state() == "failed") throw CommandError("render failed: " + last.error());
+            if (last.state == RenderState::Failed)
+                throw CommandError("render failed: " + last.error);
         });
     }
     {
@@ -109,7 +111,7 @@ void register_farm_clients(CLI::App& app) {
             req.set_id(o->id);
             v1::RenderInfo info;
             c.check(c.stub().Cancel(c.context().get(), req, &info), "cancel " + o->id);
-            std::cout << describe(info) << std::endl;
+            std::cout << describe(from_proto(info)) << std::endl;
         });
     }
     {

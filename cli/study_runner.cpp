@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "client.h"
+#include "render_proto.h"
 #include "commands.h"
 #include "coordinator.h"
 #include "error_metric.h"
@@ -155,7 +156,7 @@ class EmbeddedBackend final : public Backend {
         RenderStatus s;
         if (const auto info = coordinator_.info(id)) {
             s.known = true;
-            s.state = info->state;
+            s.state = to_string(info->state);
             s.error = info->error;
             s.done = info->samples_done;
             s.planned = info->samples_planned;
@@ -177,7 +178,7 @@ class EmbeddedBackend final : public Backend {
     std::vector<std::string> unfinished() override {
         std::vector<std::string> ids;
         for (const RenderInfo& i : coordinator_.list(0))
-            if (i.state == "running" || i.state == "queued") ids.push_back(i.id);
+            if (!is_terminal(i.state)) ids.push_back(i.id);
         return ids;
     }
     void wait() override {
@@ -234,7 +235,7 @@ class FarmBackend final : public Backend {
         if (st.error_code() == grpc::StatusCode::NOT_FOUND) return s;
         connection_.check(st, "status " + id);
         s.known = true;
-        s.state = info.state();
+        s.state = to_string(from_proto(info.state()));
         s.error = info.error();
         s.done = info.samples_done();
         s.planned = info.samples_planned();

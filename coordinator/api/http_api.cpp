@@ -112,7 +112,7 @@ BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t widt
 
 json render_summary(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {
     double progress = 0;
-    if (info.state == "done") {
+    if (info.state == RenderState::Done) {
         progress = 1;
     } else if (buckets && buckets->total > 0) {
         // Dammertz stops where buckets converge: its planned samples are only a cap.
@@ -123,7 +123,7 @@ json render_summary(const RenderInfo& info, const std::optional<BucketProgress>&
     json j = {{"id", info.id},
               {"scene", info.scene_name},
               {"method", info.method},
-              {"state", info.state},
+              {"state", to_string(info.state)},
               {"width", info.width},
               {"height", info.height},
               {"seed", info.seed},

@@ -133,7 +133,7 @@ struct HttpServer::Impl {
 
     // What the broadcaster last told the browsers, to send only what changed.
     struct Seen {
-        std::string state;
+        RenderState state = RenderState::Queued;
         uint64_t samples = 0;
         uint32_t rounds = 0;
         double error = -1, reference = -1;
@@ -152,7 +152,7 @@ struct HttpServer::Impl {
     std::optional<http_api::BucketProgress> progress_of(const RenderInfo& info) {
         // Only running renders: a finished one reports progress 1 and may live only in the
         // store, where its buckets cost a read of every round.
-        if (info.state != "running" && info.state != "queued") return std::nullopt;
+        if (is_terminal(info.state)) return std::nullopt;
         if (info.method != "dammertz") return std::nullopt;
         const auto b = coordinator.buckets(info.id);
         if (!b || b->empty()) return std::nullopt;
