@@ -98,25 +98,4 @@ RenderInfo follow(ClientConnection& c, const std::string& id,
     }
 }
 
-nlohmann::json to_json(const RenderInfo& i) {
-    return {{"id", i.id},
-            {"scene", i.scene_name},
-            {"width", i.width},
-            {"height", i.height},
-            {"seed", i.seed},
-            {"method", i.method},
-            {"strategy", nlohmann::json::parse(i.strategy_json.empty() ? "{}" : i.strategy_json)},
-            {"state", to_string(i.state)},
-            {"error", i.error},
-            {"samples", i.samples_done},
-            {"samples_planned", i.samples_planned},
-            {"rounds", i.rounds_done},
-            {"seconds", i.seconds},
-            {"samples_per_second", i.samples_per_second},
-            {"error_estimate", i.error_estimate},
-            {"error_vs_reference", i.error_vs_reference},
-            {"rays", i.rays},
-            {"outcome", nlohmann::json::parse(i.outcome_json.empty() ? "{}" : i.outcome_json)}};
-}
-
 }  // namespace aliquot::cli

@@ -8,8 +8,6 @@
 #include <functional>
 
 #include <grpcpp/grpcpp.h>
-#include <nlohmann/json.hpp>
-
 #include "aliquot.grpc.pb.h"
 #include "coordinator.h"
 
@@ -45,6 +43,5 @@ void fetch_image(ClientConnection& connection, const std::string& id, const std:
 // api room's from_proto (render_proto.h), the same conversion the server writes with.
 RenderInfo follow(ClientConnection& connection, const std::string& id,
                   const std::function<void(const RenderInfo&)>& update);
-nlohmann::json to_json(const RenderInfo& info);
 
 }  // namespace aliquot::cli

@@ -16,12 +16,12 @@
 #include <thread>
 
 #include "client.h"
-#include "render_proto.h"
 #include "commands.h"
 #include "coordinator.h"
 #include "error_metric.h"
 #include "exr_io.h"
 #include "progress_bar.h"
+#include "render_proto.h"
 #include "scene_loader.h"
 #include "store.h"
 #include "worker_loop.h"

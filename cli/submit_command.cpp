@@ -8,6 +8,7 @@
 #include "client.h"
 #include "commands.h"
 #include "progress_bar.h"
+#include "render_json.h"
 #include "render_proto.h"
 #include "render_options.h"
 #include "scene_loader.h"
@@ -48,7 +49,7 @@ struct SubmitCommand {
         RenderInfo info = from_proto(submitted);
         if (!wait) {
             if (json)
-                std::cout << to_json(info).dump() << std::endl;
+                std::cout << render_detail(info).dump() << std::endl;
             else
                 std::cout << info.id << std::endl;
             return;
@@ -63,7 +64,7 @@ struct SubmitCommand {
         bar.finish();
         if (!out.empty()) fetch_image(c, info.id, out, aovs);
         if (json)
-            std::cout << to_json(info).dump() << std::endl;
+            std::cout << render_detail(info).dump() << std::endl;
         else
             std::cout << describe(info) << std::endl;
         if (info.state == RenderState::Failed)
