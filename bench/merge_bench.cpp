@@ -46,5 +46,6 @@ int main(int argc, char** argv) {
         "\"pixels_merged_per_second\": %.0f, \"pixel_samples_merged_per_second\": %.0f, "
         "\"jobs_per_second\": %.0f, \"state\": \"%s\"}\n",
         side, side, spp, (unsigned long long)jobs, seconds, double(pixels) / seconds,
-        double(pixel_samples) / seconds, double(jobs) / seconds, coordinator.info(id)->state.c_str());
+        double(pixel_samples) / seconds, double(jobs) / seconds,
+        std::string(to_string(coordinator.info(id)->state)).c_str());
 }

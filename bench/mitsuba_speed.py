@@ -144,7 +144,9 @@ def main(argv=None):
 
     def summary(runs):
         best = max(runs, key=lambda r: r["samples_per_second"])
-        return {"samples": best["samples"], "seconds": best["seconds"],
+        # Mitsuba's script says "samples"; aliquot render --json says "samples_done".
+        samples = best.get("samples_done", best.get("samples"))
+        return {"samples": samples, "seconds": best["seconds"],
                 "samples_per_second": best["samples_per_second"],
                 "samples_per_second_all": [r["samples_per_second"] for r in runs]}
 

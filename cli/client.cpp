@@ -4,6 +4,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "render_proto.h"
 
 namespace aliquot::cli {
 
@@ -29,22 +30,21 @@ void ClientConnection::check(const grpc::Status& status, const std::string& what
     }
 }
 
-std::string describe(const v1::RenderInfo& i) {
+std::string describe(const RenderInfo& i) {
     char line[512];
-    const double pct = i.samples_planned() ? 100.0 * double(i.samples_done()) /
-                                                 double(i.samples_planned())
-                                           : 0.0;
+    const double pct =
+        i.samples_planned ? 100.0 * double(i.samples_done) / double(i.samples_planned) : 0.0;
     std::snprintf(line, sizeof line,
                   "%s  %-9s %-10s %-16s %ux%u  round %u  %llu/%llu samples (%.1f%%)  %.0f "
                   "samples/s  %.1fs  err~%s",
-                  i.id().c_str(), i.state().c_str(), i.method().c_str(), i.scene_name().c_str(),
-                  i.width(), i.height(), i.rounds_done(),
-                  (unsigned long long)i.samples_done(), (unsigned long long)i.samples_planned(),
-                  pct, i.samples_per_second(), i.seconds(),
-                  i.error_estimate() >= 0 ? std::to_string(i.error_estimate()).c_str() : "-");
+                  i.id.c_str(), std::string(to_string(i.state)).c_str(), i.method.c_str(),
+                  i.scene_name.c_str(), i.width, i.height, i.rounds_done,
+                  (unsigned long long)i.samples_done, (unsigned long long)i.samples_planned,
+                  pct, i.samples_per_second, i.seconds,
+                  i.error_estimate >= 0 ? std::to_string(i.error_estimate).c_str() : "-");
     std::string s = line;
-    if (i.error_vs_reference() >= 0) s += "  E(ref)=" + std::to_string(i.error_vs_reference());
-    if (!i.error().empty()) s += "  error: " + i.error();
+    if (i.error_vs_reference >= 0) s += "  E(ref)=" + std::to_string(i.error_vs_reference);
+    if (!i.error.empty()) s += "  error: " + i.error;
     return s;
 }
 
@@ -75,45 +75,27 @@ void fetch_image(ClientConnection& c, const std::string& id, const std::string& 
     std::filesystem::rename(tmp, path);
 }
 
-v1::RenderInfo follow(ClientConnection& c, const std::string& id,
-                      const std::function<void(const v1::RenderInfo&)>& update) {
+RenderInfo follow(ClientConnection& c, const std::string& id,
+                  const std::function<void(const RenderInfo&)>& update) {
     v1::GetRenderRequest req;
     req.set_id(id);
-    v1::RenderInfo info;
+    v1::RenderInfo message;
+    RenderInfo info;
     // A watch stream that breaks (coordinator restarting) is resumed until the render ends.
     for (int attempt = 0;; ++attempt) {
         grpc::ClientContext ctx;
         auto reader = c.stub().Watch(&ctx, req);
-        while (reader->Read(&info)) update(info);
+        while (reader->Read(&message)) {
+            info = from_proto(message);
+            update(info);
+        }
         const grpc::Status status = reader->Finish();
-        if (info.state() == "done" || info.state() == "cancelled" || info.state() == "failed")
-            return info;
+        if (is_terminal(info.state)) return info;
         if (status.ok()) continue;
         if (status.error_code() != grpc::StatusCode::UNAVAILABLE || attempt > 120)
             c.check(status, "watch " + id);
         std::this_thread::sleep_for(std::chrono::milliseconds(500));
     }
-}
-
-nlohmann::json to_json(const v1::RenderInfo& i) {
-    return {{"id", i.id()},
-            {"scene", i.scene_name()},
-            {"width", i.width()},
-            {"height", i.height()},
-            {"seed", i.seed()},
-            {"method", i.method()},
-            {"strategy", nlohmann::json::parse(i.strategy_json().empty() ? "{}" : i.strategy_json())},
-            {"state", i.state()},
-            {"error", i.error()},
-            {"samples", i.samples_done()},
-            {"samples_planned", i.samples_planned()},
-            {"rounds", i.rounds_done()},
-            {"seconds", i.seconds()},
-            {"samples_per_second", i.samples_per_second()},
-            {"error_estimate", i.error_estimate()},
-            {"error_vs_reference", i.error_vs_reference()},
-            {"rays", i.rays()},
-            {"outcome", nlohmann::json::parse(i.outcome_json().empty() ? "{}" : i.outcome_json())}};
 }
 
 }  // namespace aliquot::cli

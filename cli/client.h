@@ -8,9 +8,8 @@
 #include <functional>
 
 #include <grpcpp/grpcpp.h>
-#include <nlohmann/json.hpp>
-
 #include "aliquot.grpc.pb.h"
+#include "coordinator.h"
 
 namespace aliquot::cli {
 
@@ -30,7 +29,7 @@ private:
 };
 
 // Human-readable one-line progress of a render, e.g. for status and watch.
-std::string describe(const v1::RenderInfo& info);
+std::string describe(const RenderInfo& info);
 
 }  // namespace aliquot::cli
 
@@ -40,9 +39,9 @@ namespace aliquot::cli {
 void fetch_image(ClientConnection& connection, const std::string& id, const std::string& path,
                  bool aovs);
 // Follows a render until it finishes, calling `update` for every state the coordinator
-// sends; returns the last one.
-v1::RenderInfo follow(ClientConnection& connection, const std::string& id,
-                      const std::function<void(const v1::RenderInfo&)>& update);
-nlohmann::json to_json(const v1::RenderInfo& info);
+// sends; returns the last one. Replies arrive as v1::RenderInfo and are read with the
+// api room's from_proto (render_proto.h), the same conversion the server writes with.
+RenderInfo follow(ClientConnection& connection, const std::string& id,
+                  const std::function<void(const RenderInfo&)>& update);
 
 }  // namespace aliquot::cli

@@ -8,6 +8,8 @@
 #include "client.h"
 #include "commands.h"
 #include "progress_bar.h"
+#include "render_json.h"
+#include "render_proto.h"
 #include "render_options.h"
 
 namespace aliquot::cli {
@@ -28,119 +30,134 @@ CLI::App* add_common(CLI::App& app, const char* name, const char* help,
     return cmd;
 }
 
-std::string eta(const v1::RenderInfo& i) {
-    if (i.samples_done() == 0 || i.samples_planned() <= i.samples_done()) return "-";
-    const double left = double(i.samples_planned() - i.samples_done()) /
-                        std::max(i.samples_per_second(), 1e-9);
+std::string eta(const RenderInfo& i) {
+    if (i.samples_done == 0 || i.samples_planned <= i.samples_done) return "-";
+    const double left =
+        double(i.samples_planned - i.samples_done) / std::max(i.samples_per_second, 1e-9);
     return std::to_string(int64_t(left)) + "s";
+}
+
+void register_status(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    CLI::App* cmd = add_common(app, "status", "one render's state, or all renders", o);
+    cmd->add_option("id", o->id, "render id (omit for all)");
+    cmd->add_flag("--json", o->json, "print JSON");
+    cmd->callback([o] {
+        ClientConnection c(o->coordinator);
+        std::vector<RenderInfo> renders;
+        if (!o->id.empty()) {
+            v1::GetRenderRequest req;
+            req.set_id(o->id);
+            v1::RenderInfo info;
+            c.check(c.stub().GetRender(c.context().get(), req, &info), "status " + o->id);
+            renders.push_back(from_proto(info));
+        } else {
+            v1::ListRendersRequest req;
+            v1::ListRendersReply reply;
+            c.check(c.stub().ListRenders(c.context().get(), req, &reply), "status");
+            for (const v1::RenderInfo& r : reply.renders()) renders.push_back(from_proto(r));
+        }
+        if (o->json) {
+            // The HTTP API's documents (render_json.h), so a script reads either the same way.
+            nlohmann::json all = nlohmann::json::array();
+            for (const auto& r : renders) all.push_back(render_detail(r));
+            std::cout << (o->id.empty() ? all : all[0]).dump() << std::endl;
+        } else {
+            for (const auto& r : renders) std::cout << describe(r) << "\n";
+        }
+    });
+}
+
+void register_watch(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    CLI::App* cmd = add_common(app, "watch", "follow a render live until it ends", o);
+    cmd->add_option("id", o->id, "render id")->required();
+    cmd->callback([o] {
+        ClientConnection c(o->coordinator);
+        const bool tty = isatty(STDOUT_FILENO);
+        const RenderInfo last = follow(c, o->id, [&](const RenderInfo& i) {
+            const std::string line = describe(i) + "  eta " + eta(i);
+            if (tty)
+                std::printf("\r%s\x1b[K", line.c_str());
+            else
+                std::printf("%s\n", line.c_str());
+            std::fflush(stdout);
+        });
+        if (tty) std::printf("\n");
+        if (last.state == RenderState::Failed) throw CommandError("render failed: " + last.error);
+    });
+}
+
+void register_fetch(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    CLI::App* cmd = add_common(app, "fetch", "download a render's current image", o);
+    cmd->add_option("id", o->id, "render id")->required();
+    cmd->add_option("--out", o->out, "output .exr")->required();
+    cmd->add_flag("--aovs", o->aovs, "add channels spp and variance");
+    cmd->callback([o] {
+        check_writable(o->out, "--out");
+        ClientConnection c(o->coordinator);
+        fetch_image(c, o->id, o->out, o->aovs);
+        std::cout << "wrote " << o->out << std::endl;
+    });
+}
+
+void register_cancel(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    CLI::App* cmd = add_common(app, "cancel", "stop a render, keeping what it merged", o);
+    cmd->add_option("id", o->id, "render id")->required();
+    cmd->callback([o] {
+        ClientConnection c(o->coordinator);
+        v1::GetRenderRequest req;
+        req.set_id(o->id);
+        v1::RenderInfo info;
+        c.check(c.stub().Cancel(c.context().get(), req, &info), "cancel " + o->id);
+        std::cout << describe(from_proto(info)) << std::endl;
+    });
+}
+
+nlohmann::json worker_json(const v1::WorkerInfo& w) {
+    return {{"name", w.name()},
+            {"threads", w.threads()},
+            {"state", w.state()},
+            {"leases", std::vector<std::string>(w.leases().begin(), w.leases().end())},
+            {"samples_traced", w.samples_traced()},
+            {"samples_per_second", w.samples_per_second()},
+            {"last_seen_ms", w.last_seen_ms()}};
+}
+
+void register_workers(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    CLI::App* cmd = add_common(app, "workers", "workers the coordinator knows", o);
+    cmd->add_flag("--json", o->json, "print JSON");
+    cmd->callback([o] {
+        ClientConnection c(o->coordinator);
+        v1::ListWorkersRequest req;
+        v1::ListWorkersReply reply;
+        c.check(c.stub().ListWorkers(c.context().get(), req, &reply), "workers");
+        nlohmann::json all = nlohmann::json::array();
+        for (const auto& w : reply.workers()) {
+            if (o->json) {
+                all.push_back(worker_json(w));
+            } else {
+                std::printf("%-24s %-5s %2u threads  %llu samples  %.0f samples/s  %d leases\n",
+                            w.name().c_str(), w.state().c_str(), w.threads(),
+                            (unsigned long long)w.samples_traced(), w.samples_per_second(),
+                            w.leases_size());
+            }
+        }
+        if (o->json) std::cout << all.dump() << std::endl;
+    });
 }
 
 }  // namespace
 
 void register_farm_clients(CLI::App& app) {
-    {
-        auto o = std::make_shared<FarmOptions>();
-        CLI::App* cmd = add_common(app, "status", "one render's state, or all renders", o);
-        cmd->add_option("id", o->id, "render id (omit for all)");
-        cmd->add_flag("--json", o->json, "print JSON");
-        cmd->callback([o] {
-            ClientConnection c(o->coordinator);
-            std::vector<v1::RenderInfo> renders;
-            if (!o->id.empty()) {
-                v1::GetRenderRequest req;
-                req.set_id(o->id);
-                v1::RenderInfo info;
-                c.check(c.stub().GetRender(c.context().get(), req, &info), "status " + o->id);
-                renders.push_back(info);
-            } else {
-                v1::ListRendersRequest req;
-                v1::ListRendersReply reply;
-                c.check(c.stub().ListRenders(c.context().get(), req, &reply), "status");
-                renders.assign(reply.renders().begin(), reply.renders().end());
-            }
-            if (o->json) {
-                nlohmann::json all = nlohmann::json::array();
-                for (const auto& r : renders) all.push_back(to_json(r));
-                std::cout << (o->id.empty() ? all : all[0]).dump() << std::endl;
-            } else {
-                for (const auto& r : renders) std::cout << describe(r) << "\n";
-            }
-        });
-    }
-    {
-        auto o = std::make_shared<FarmOptions>();
-        CLI::App* cmd = add_common(app, "watch", "follow a render live until it ends", o);
-        cmd->add_option("id", o->id, "render id")->required();
-        cmd->callback([o] {
-            ClientConnection c(o->coordinator);
-            const bool tty = isatty(STDOUT_FILENO);
-            const v1::RenderInfo last = follow(c, o->id, [&](const v1::RenderInfo& i) {
-                const std::string line = describe(i) + "  eta " + eta(i);
-                if (tty)
-                    std::printf("\r%s\x1b[K", line.c_str());
-                else
-                    std::printf("%s\n", line.c_str());
-                std::fflush(stdout);
-            });
-            if (tty) std::printf("\n");
-            if (last.state() == "failed") throw CommandError("render failed: " + last.error());
-        });
-    }
-    {
-        auto o = std::make_shared<FarmOptions>();
-        CLI::App* cmd = add_common(app, "fetch", "download a render's current image", o);
-        cmd->add_option("id", o->id, "render id")->required();
-        cmd->add_option("--out", o->out, "output .exr")->required();
-        cmd->add_flag("--aovs", o->aovs, "add channels spp and variance");
-        cmd->callback([o] {
-            check_writable(o->out, "--out");
-            ClientConnection c(o->coordinator);
-            fetch_image(c, o->id, o->out, o->aovs);
-            std::cout << "wrote " << o->out << std::endl;
-        });
-    }
-    {
-        auto o = std::make_shared<FarmOptions>();
-        CLI::App* cmd = add_common(app, "cancel", "stop a render, keeping what it merged", o);
-        cmd->add_option("id", o->id, "render id")->required();
-        cmd->callback([o] {
-            ClientConnection c(o->coordinator);
-            v1::GetRenderRequest req;
-            req.set_id(o->id);
-            v1::RenderInfo info;
-            c.check(c.stub().Cancel(c.context().get(), req, &info), "cancel " + o->id);
-            std::cout << describe(info) << std::endl;
-        });
-    }
-    {
-        auto o = std::make_shared<FarmOptions>();
-        CLI::App* cmd = add_common(app, "workers", "workers the coordinator knows", o);
-        cmd->add_flag("--json", o->json, "print JSON");
-        cmd->callback([o] {
-            ClientConnection c(o->coordinator);
-            v1::ListWorkersRequest req;
-            v1::ListWorkersReply reply;
-            c.check(c.stub().ListWorkers(c.context().get(), req, &reply), "workers");
-            nlohmann::json all = nlohmann::json::array();
-            for (const auto& w : reply.workers()) {
-                if (o->json) {
-                    all.push_back({{"name", w.name()},
-                                   {"threads", w.threads()},
-                                   {"state", w.state()},
-                                   {"leases", std::vector<std::string>(w.leases().begin(), w.leases().end())},
-                                   {"samples_traced", w.samples_traced()},
-                                   {"samples_per_second", w.samples_per_second()},
-                                   {"last_seen_ms", w.last_seen_ms()}});
-                } else {
-                    std::printf("%-24s %-5s %2u threads  %llu samples  %.0f samples/s  %d leases\n",
-                                w.name().c_str(), w.state().c_str(), w.threads(),
-                                (unsigned long long)w.samples_traced(), w.samples_per_second(),
-                                w.leases_size());
-                }
-            }
-            if (o->json) std::cout << all.dump() << std::endl;
-        });
-    }
+    register_status(app);
+    register_watch(app);
+    register_fetch(app);
+    register_cancel(app);
+    register_workers(app);
 }
 
 }  // namespace aliquot::cli

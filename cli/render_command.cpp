@@ -9,6 +9,7 @@
 #include "exr_io.h"
 #include "embedded_render.h"
 #include "progress_bar.h"
+#include "render_json.h"
 #include "render_options.h"
 
 namespace aliquot::cli {
@@ -40,17 +41,11 @@ struct RenderCommand {
         write_exr(out, result.image);
         const RenderInfo& info = result.info;
         if (json) {
-            nlohmann::json summary = {
-                {"scene", options.scene},     {"width", options.width},
-                {"height", options.height},   {"spp", options.spp},
-                {"seed", options.seed},       {"threads", options.threads},
-                {"samples", info.samples_done}, {"rays", info.rays},
-                {"rounds", info.rounds_done}, {"method", info.method},
-                {"error_estimate", info.error_estimate},
-                {"error_vs_reference", info.error_vs_reference},
-                {"outcome", nlohmann::json::parse(info.outcome_json)},
-                {"seconds", info.seconds},   {"samples_per_second", info.samples_per_second},
-                {"output", out}};
+            // The render as the farm's clients print it, plus what only a local run has.
+            nlohmann::json summary = render_detail(info);
+            summary["spp"] = options.spp;
+            summary["threads"] = options.threads;
+            summary["output"] = out;
             std::cout << summary.dump() << std::endl;
         } else {
             std::printf("rendered %s %ux%u with %s: %llu samples in %.2f s (%.0f samples/s); "

@@ -7,6 +7,7 @@
 
 #include "client.h"
 #include "exr_io.h"
+#include "render_proto.h"
 #include "store.h"
 
 namespace aliquot::cli {
@@ -90,7 +91,7 @@ class FarmBackend final : public StudyBackend {
         if (st.error_code() == grpc::StatusCode::NOT_FOUND) return s;
         connection_.check(st, "status " + id);
         s.known = true;
-        s.state = info.state();
+        s.state = from_proto(info.state());
         s.error = info.error();
         s.done = info.samples_done();
         s.planned = info.samples_planned();

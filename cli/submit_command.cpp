@@ -8,6 +8,8 @@
 #include "client.h"
 #include "commands.h"
 #include "progress_bar.h"
+#include "render_json.h"
+#include "render_proto.h"
 #include "render_options.h"
 #include "scene_loader.h"
 
@@ -42,29 +44,31 @@ struct SubmitCommand {
             req.set_reference_exr(ss.str());
         }
         ClientConnection c(coordinator);
-        v1::RenderInfo info;
-        c.check(c.stub().Submit(c.context(60).get(), req, &info), "submit");
+        v1::RenderInfo submitted;
+        c.check(c.stub().Submit(c.context(60).get(), req, &submitted), "submit");
+        RenderInfo info = from_proto(submitted);
         if (!wait) {
             if (json)
-                std::cout << to_json(info).dump() << std::endl;
+                std::cout << render_detail(info).dump() << std::endl;
             else
-                std::cout << info.id() << std::endl;
+                std::cout << info.id << std::endl;
             return;
         }
-        if (!json) std::cerr << "submitted " << info.id() << std::endl;
-        ProgressBar bar(info.id());
-        info = follow(c, info.id(), [&](const v1::RenderInfo& i) {
-            bar.update(i.samples_done(), i.samples_planned(),
-                       "round " + std::to_string(i.rounds_done()) + ", " +
-                           std::to_string(int64_t(i.samples_per_second() / 1e3)) + " k samples/s");
+        if (!json) std::cerr << "submitted " << info.id << std::endl;
+        ProgressBar bar(info.id);
+        info = follow(c, info.id, [&](const RenderInfo& i) {
+            bar.update(i.samples_done, i.samples_planned,
+                       "round " + std::to_string(i.rounds_done) + ", " +
+                           std::to_string(int64_t(i.samples_per_second / 1e3)) + " k samples/s");
         });
         bar.finish();
-        if (!out.empty()) fetch_image(c, info.id(), out, aovs);
+        if (!out.empty()) fetch_image(c, info.id, out, aovs);
         if (json)
-            std::cout << to_json(info).dump() << std::endl;
+            std::cout << render_detail(info).dump() << std::endl;
         else
             std::cout << describe(info) << std::endl;
-        if (info.state() == "failed") throw CommandError("render " + info.id() + " failed: " + info.error());
+        if (info.state == RenderState::Failed)
+            throw CommandError("render " + info.id + " failed: " + info.error);
     }
 };
 

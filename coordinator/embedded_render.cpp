@@ -24,7 +24,7 @@ EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
     while (true) {
         seen = coordinator.wait_for_change(seen, std::chrono::milliseconds(100));
         info = *coordinator.info(id);
-        if (info.state != "running" && info.state != "queued") break;
+        if (is_terminal(info.state)) break;
         if (progress) progress(info);
         // Every merged job is a change; reading the render's state on each would contend for
         // the coordinator's lock with the threads doing the work. A progress bar needs less.
@@ -33,7 +33,7 @@ EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
     workers.stop();
     pool.join();
     if (progress) progress(info);
-    if (info.state == "failed") throw std::runtime_error("render failed: " + info.error);
+    if (info.state == RenderState::Failed) throw std::runtime_error("render failed: " + info.error);
     EmbeddedResult result{info, *coordinator.image(id, aovs)};
     return result;
 }

@@ -92,4 +92,21 @@ SampleJobResult from_proto(const v1::SampleJobResult& in) {
     return result;
 }
 
+v1::CompleteStatus to_proto(CompleteStatus status) {
+    switch (status) {
+        case CompleteStatus::Merged: return v1::COMPLETE_STATUS_MERGED;
+        case CompleteStatus::Ignored: return v1::COMPLETE_STATUS_IGNORED;
+        case CompleteStatus::Rejected: return v1::COMPLETE_STATUS_REJECTED;
+    }
+    return v1::COMPLETE_STATUS_UNSPECIFIED;
+}
+
+CompleteStatus from_proto(v1::CompleteStatus status) {
+    switch (status) {
+        case v1::COMPLETE_STATUS_MERGED: return CompleteStatus::Merged;
+        case v1::COMPLETE_STATUS_REJECTED: return CompleteStatus::Rejected;
+        default: return CompleteStatus::Ignored;
+    }
+}
+
 }  // namespace aliquot

@@ -1,10 +1,12 @@
-// Conversions between sample jobs / results and their protobuf messages. Decoding checks
-// array lengths, so a malformed message is an error, never an out-of-bounds read.
+// Conversions between sample jobs / results / completion statuses and their protobuf
+// messages. Decoding checks array lengths, so a malformed message is an error, never an
+// out-of-bounds read.
 #pragma once
 
 #include <stdexcept>
 
 #include "aliquot.pb.h"
+#include "lease.h"
 #include "sample_job.h"
 
 namespace aliquot {
@@ -18,5 +20,12 @@ void to_proto(const SampleJob& job, v1::SampleJob& out);
 SampleJob from_proto(const v1::SampleJob& in);
 void to_proto(const SampleJobResult& result, v1::SampleJobResult& out);
 SampleJobResult from_proto(const v1::SampleJobResult& in);
+
+// The worker loop and the coordinator speak the C++ CompleteStatus (worker/job/lease.h): the
+// embedded render passes it by direct call, with no protobuf in between. These two are the
+// only place it meets v1::CompleteStatus. An unspecified or unknown status reads as Ignored,
+// which counts nothing and sends nothing again.
+v1::CompleteStatus to_proto(CompleteStatus status);
+CompleteStatus from_proto(v1::CompleteStatus status);
 
 }  // namespace aliquot

@@ -78,10 +78,7 @@ CompleteOutcome GrpcLink::complete(const std::string& worker, uint64_t lease_id,
     to_proto(result, *req.mutable_result());
     v1::CompleteReply reply;
     check(stub_->stub->Complete(context().get(), req, &reply), address_);
-    const CompleteStatus status = reply.status() == "merged"     ? CompleteStatus::Merged
-                                  : reply.status() == "rejected" ? CompleteStatus::Rejected
-                                                                 : CompleteStatus::Ignored;
-    return {status, reply.message()};
+    return {from_proto(reply.status()), reply.message()};
 }
 
 std::optional<std::string> GrpcLink::fetch_scene(const std::string& hash) {

@@ -8,6 +8,7 @@
 
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
+#include "render_proto.h"
 #include "scene_loader.h"
 #include "wire.h"
 
@@ -18,29 +19,6 @@ namespace {
 using grpc::ServerContext;
 using grpc::Status;
 using grpc::StatusCode;
-
-void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
-    out.set_id(i.id);
-    out.set_scene_name(i.scene_name);
-    out.set_width(i.width);
-    out.set_height(i.height);
-    out.set_seed(i.seed);
-    out.set_method(i.method);
-    out.set_strategy_json(i.strategy_json);
-    out.set_state(i.state);
-    out.set_error(i.error);
-    out.set_samples_done(i.samples_done);
-    out.set_samples_planned(i.samples_planned);
-    out.set_rounds_done(i.rounds_done);
-    out.set_seconds(i.seconds);
-    out.set_samples_per_second(i.samples_per_second);
-    out.set_error_estimate(i.error_estimate);
-    out.set_error_vs_reference(i.error_vs_reference);
-    out.set_created_ms(i.created_ms);
-    out.set_finished_ms(i.finished_ms);
-    out.set_outcome_json(i.outcome_json);
-    out.set_rays(i.rays);
-}
 
 // EXR bytes through a private temporary file: OpenEXR's in-memory streams are more code
 // than this path is worth.
@@ -133,7 +111,7 @@ public:
             v1::RenderInfo msg;
             to_proto(*info, msg);
             if (!writer->Write(msg)) return Status::OK;
-            if (info->state != "running" && info->state != "queued") return Status::OK;
+            if (is_terminal(info->state)) return Status::OK;
             // At most a few updates a second, however fast jobs merge.
             std::this_thread::sleep_for(std::chrono::milliseconds(250));
             seen = c_.wait_for_change(seen, std::chrono::seconds(1));
@@ -236,14 +214,12 @@ public:
         } catch (const WireError& e) {
             // Malformed: nothing is merged and the job goes back to be traced again.
             c_.abandon(req->worker(), req->lease_id());
-            reply->set_status("rejected");
+            reply->set_status(v1::COMPLETE_STATUS_REJECTED);
             reply->set_message(e.what());
             return Status::OK;
         }
         const CompleteOutcome outcome = c_.complete(req->worker(), req->lease_id(), result);
-        reply->set_status(outcome.status == CompleteStatus::Merged     ? "merged"
-                          : outcome.status == CompleteStatus::Rejected ? "rejected"
-                                                                       : "ignored");
+        reply->set_status(to_proto(outcome.status));
         reply->set_message(outcome.message);
         return Status::OK;
     }

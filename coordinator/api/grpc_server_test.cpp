@@ -63,7 +63,7 @@ protected:
         to_proto(r, out);
         return out;
     }
-    std::string complete(uint64_t lease_id, const v1::SampleJobResult& result) {
+    v1::CompleteStatus complete(uint64_t lease_id, const v1::SampleJobResult& result) {
         grpc::ClientContext ctx;
         v1::CompleteRequest req;
         req.set_worker("tester");
@@ -88,20 +88,20 @@ TEST_F(WorkerServiceTest, RejectsAResultWithTheWrongPixelCountAndReissuesTheJob)
     const v1::Lease first = lease();
     v1::SampleJobResult bad = trace(first);
     bad.mutable_samples()->RemoveLast();
-    EXPECT_EQ(complete(first.lease_id(), bad), "rejected");
+    EXPECT_EQ(complete(first.lease_id(), bad), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_EQ(samples_merged(), 0u);
     const v1::Lease again = lease();  // the same job, under a new lease
     EXPECT_NE(again.lease_id(), first.lease_id());
     EXPECT_EQ(again.job().rect().width(), first.job().rect().width());
-    EXPECT_EQ(complete(again.lease_id(), trace(again)), "merged");
-    EXPECT_EQ(coordinator_->info(id_)->state, "done");
+    EXPECT_EQ(complete(again.lease_id(), trace(again)), v1::COMPLETE_STATUS_MERGED);
+    EXPECT_EQ(coordinator_->info(id_)->state, RenderState::Done);
 }
 
 TEST_F(WorkerServiceTest, RejectsNegativeSampleCounts) {
     const v1::Lease l = lease();
     v1::SampleJobResult bad = trace(l);
     bad.set_samples(0, uint64_t(-1));  // -1 as a worker with a sign bug would send it
-    EXPECT_EQ(complete(l.lease_id(), bad), "rejected");
+    EXPECT_EQ(complete(l.lease_id(), bad), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_EQ(samples_merged(), 0u);
 }
 
@@ -109,29 +109,29 @@ TEST_F(WorkerServiceTest, RejectsNonFiniteSums) {
     const v1::Lease l = lease();
     v1::SampleJobResult bad = trace(l);
     bad.set_sum_even(0, std::numeric_limits<double>::quiet_NaN());
-    EXPECT_EQ(complete(l.lease_id(), bad), "rejected");
+    EXPECT_EQ(complete(l.lease_id(), bad), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_EQ(samples_merged(), 0u);
 }
 
 TEST_F(WorkerServiceTest, OnlyTheHolderCanGiveALeaseBack) {
     const v1::Lease l = lease();
     EXPECT_FALSE(coordinator_->abandon("intruder", l.lease_id()));
-    EXPECT_EQ(complete(l.lease_id(), trace(l)), "merged");
+    EXPECT_EQ(complete(l.lease_id(), trace(l)), v1::COMPLETE_STATUS_MERGED);
     EXPECT_EQ(samples_merged(), 64u);
 }
 
 TEST_F(WorkerServiceTest, IgnoresAResultForAnUnknownLease) {
     const v1::Lease l = lease();
-    EXPECT_EQ(complete(l.lease_id() + 12345, trace(l)), "ignored");
+    EXPECT_EQ(complete(l.lease_id() + 12345, trace(l)), v1::COMPLETE_STATUS_IGNORED);
     EXPECT_EQ(samples_merged(), 0u);
 }
 
 TEST_F(WorkerServiceTest, IgnoresAResultSentTwice) {
     const v1::Lease l = lease();
     const v1::SampleJobResult r = trace(l);
-    EXPECT_EQ(complete(l.lease_id(), r), "merged");
+    EXPECT_EQ(complete(l.lease_id(), r), v1::COMPLETE_STATUS_MERGED);
     const Image once = *coordinator_->image(id_, true);
-    EXPECT_EQ(complete(l.lease_id(), r), "ignored");
+    EXPECT_EQ(complete(l.lease_id(), r), v1::COMPLETE_STATUS_IGNORED);
     const Image twice = *coordinator_->image(id_, true);
     EXPECT_EQ(once.rgb, twice.rgb);
     EXPECT_EQ(samples_merged(), 64u);
@@ -149,8 +149,8 @@ TEST_F(WorkerServiceTest, IgnoresALateResultForALeaseGivenToAnotherWorker) {
         EXPECT_TRUE(reply.valid());
     }
     const v1::Lease reissued = lease();
-    EXPECT_EQ(complete(l.lease_id(), trace(l)), "ignored");
-    EXPECT_EQ(complete(reissued.lease_id(), trace(reissued)), "merged");
+    EXPECT_EQ(complete(l.lease_id(), trace(l)), v1::COMPLETE_STATUS_IGNORED);
+    EXPECT_EQ(complete(reissued.lease_id(), trace(reissued)), v1::COMPLETE_STATUS_MERGED);
 }
 
 }  // namespace

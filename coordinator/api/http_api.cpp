@@ -17,25 +17,6 @@ using nlohmann::json;
 
 namespace {
 
-// Six significant digits are more than any chart or table shows, and half the bytes.
-double short_number(double v) {
-    if (!std::isfinite(v) || v == 0) return v;
-    char text[32];
-    std::snprintf(text, sizeof text, "%.6g", v);
-    return std::strtod(text, nullptr);
-}
-
-// -1 is how the coordinator says "not measured"; JSON says null.
-json measured(double v) {
-    return (v >= 0 && std::isfinite(v)) ? json(short_number(v)) : json(nullptr);
-}
-
-json parse_or_empty(const std::string& text) {
-    if (text.empty()) return json::object();
-    const json j = json::parse(text, nullptr, false);
-    return j.is_discarded() ? json::object() : j;
-}
-
 const Image::Channel* channel(const Image& image, const std::string& name) {
     for (const Image::Channel& c : image.extra)
         if (c.name == name) return &c;
@@ -95,64 +76,6 @@ uint64_t whole_number(const json& v, const std::string& field, uint64_t top) {
 }
 
 }  // namespace
-
-BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t width,
-                               uint32_t height) {
-    BucketProgress p;
-    p.total = buckets.size();
-    uint64_t area = 0;
-    for (const Bucket& b : buckets)
-        if (b.converged) {
-            ++p.converged;
-            area += b.rect.size();
-        }
-    const uint64_t pixels = uint64_t(width) * height;
-    p.converged_area = pixels ? double(area) / double(pixels) : 0;
-    return p;
-}
-
-json render_summary(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {
-    double progress = 0;
-    if (info.state == "done") {
-        progress = 1;
-    } else if (buckets && buckets->total > 0) {
-        // Dammertz stops where buckets converge: its planned samples are only a cap.
-        progress = buckets->converged_area;
-    } else if (info.samples_planned > 0) {
-        progress = std::min(1.0, double(info.samples_done) / double(info.samples_planned));
-    }
-    json j = {{"id", info.id},
-              {"scene", info.scene_name},
-              {"method", info.method},
-              {"state", info.state},
-              {"width", info.width},
-              {"height", info.height},
-              {"seed", info.seed},
-              {"samples_done", info.samples_done},
-              {"samples_planned", info.samples_planned},
-              {"rounds", info.rounds_done},
-              {"seconds", short_number(info.seconds)},
-              {"samples_per_second", short_number(info.samples_per_second)},
-              {"error_estimate", measured(info.error_estimate)},
-              {"error_vs_reference", measured(info.error_vs_reference)},
-              {"created_ms", info.created_ms},
-              {"progress", progress}};
-    if (!info.error.empty()) j["error"] = info.error;
-    if (info.finished_ms) j["finished_ms"] = info.finished_ms;
-    if (buckets && buckets->total > 0) {
-        j["buckets_converged"] = buckets->converged;
-        j["buckets_total"] = buckets->total;
-    }
-    return j;
-}
-
-json render_detail(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {
-    json j = render_summary(info, buckets);
-    j["strategy"] = parse_or_empty(info.strategy_json);
-    j["outcome"] = parse_or_empty(info.outcome_json);
-    j["rays"] = info.rays;
-    return j;
-}
 
 const char* const kRoundColumns[6] = {"index",   "samples_in_round", "samples_total",
                                       "seconds", "error_estimate",   "error_vs_reference"};

@@ -1,6 +1,7 @@
 // The documents of the coordinator's HTTP API (docs/API.md), apart from any transport:
-// renders, rounds, buckets and workers as JSON, the submit request's parsing, and the
-// compact images the dashboard draws (a tone-mapped PNG preview, quantised per-pixel maps).
+// rounds, buckets and workers as JSON (renders are render_json.h's), the submit request's
+// parsing, and the compact images the dashboard draws (a tone-mapped PNG preview, quantised
+// per-pixel maps).
 #pragma once
 
 #include <cstdint>
@@ -12,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "coordinator.h"
+#include "render_json.h"
 
 namespace aliquot::http_api {
 
@@ -26,20 +28,6 @@ private:
     int status_;
 };
 
-// How much of the image the strategy's buckets have declared converged (Dammertz).
-struct BucketProgress {
-    size_t converged = 0, total = 0;
-    double converged_area = 0;  // fraction of the image's pixels
-};
-BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t width,
-                               uint32_t height);
-
-// The compact form used in lists and live events: no strategy parameters, no pixels.
-nlohmann::json render_summary(const RenderInfo& info,
-                              const std::optional<BucketProgress>& buckets = std::nullopt);
-// The summary plus strategy parameters, outcome and rays traced.
-nlohmann::json render_detail(const RenderInfo& info,
-                             const std::optional<BucketProgress>& buckets = std::nullopt);
 nlohmann::json round_json(const RoundSummary& round);
 // The same as a row [index, samples_in_round, samples_total, seconds, error_estimate,
 // error_vs_reference]: a render may have thousands of rounds.

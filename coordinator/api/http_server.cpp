@@ -133,7 +133,7 @@ struct HttpServer::Impl {
 
     // What the broadcaster last told the browsers, to send only what changed.
     struct Seen {
-        std::string state;
+        RenderState state = RenderState::Queued;
         uint64_t samples = 0;
         uint32_t rounds = 0;
         double error = -1, reference = -1;
@@ -149,14 +149,14 @@ struct HttpServer::Impl {
 
     // ---- renders ----
 
-    std::optional<http_api::BucketProgress> progress_of(const RenderInfo& info) {
+    std::optional<BucketProgress> progress_of(const RenderInfo& info) {
         // Only running renders: a finished one reports progress 1 and may live only in the
         // store, where its buckets cost a read of every round.
-        if (info.state != "running" && info.state != "queued") return std::nullopt;
+        if (is_terminal(info.state)) return std::nullopt;
         if (info.method != "dammertz") return std::nullopt;
         const auto b = coordinator.buckets(info.id);
         if (!b || b->empty()) return std::nullopt;
-        return http_api::bucket_progress(*b, info.width, info.height);
+        return bucket_progress(*b, info.width, info.height);
     }
 
     RenderInfo render_or_404(const std::string& id) {
@@ -169,7 +169,7 @@ struct HttpServer::Impl {
     json list_renders(size_t limit) {
         json out = json::array();
         for (const RenderInfo& info : coordinator.list(limit))
-            out.push_back(http_api::render_summary(info, progress_of(info)));
+            out.push_back(render_summary(info, progress_of(info)));
         return out;
     }
 
@@ -189,14 +189,16 @@ struct HttpServer::Impl {
             present.insert(info.id);
             const auto progress = progress_of(info);
             Seen now{info.state,          info.samples_done,       info.rounds_done,
-                     info.error_estimate, info.error_vs_reference, progress ? progress->converged : 0};
+                     info.error_estimate, info.error_vs_reference,
+                     progress ? progress->converged : 0};
             auto it = seen_renders.find(info.id);
             const uint32_t rounds_before = it == seen_renders.end() ? 0 : it->second.rounds;
             if (it != seen_renders.end() && it->second == now) continue;
-            changed.push_back(http_api::render_summary(info, progress));
+            changed.push_back(render_summary(info, progress));
             if (info.rounds_done > rounds_before && publish) {
                 if (auto all = coordinator.rounds(info.id)) {
-                    const size_t fresh = std::min<size_t>(all->size(), info.rounds_done - rounds_before);
+                    const size_t fresh =
+                        std::min<size_t>(all->size(), info.rounds_done - rounds_before);
                     for (size_t i = all->size() - fresh; i < all->size(); ++i) {
                         json r = http_api::round_json((*all)[i]);
                         r["id"] = info.id;
@@ -372,9 +374,15 @@ struct HttpServer::Impl {
     }
 
     void routes() {
-        server.Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
-            send_json(res, {{"ok", true}});
-        });
+        render_routes();
+        image_routes();
+        other_routes();
+        error_routes();
+        dashboard_route();
+    }
+
+    // Renders: list, submit, read, cancel, rounds.
+    void render_routes() {
         server.Get("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
             const size_t limit = size_t(http_api::number_param(
                 "limit", query(req, "limit", "200"), 1, double(options.max_list)));
@@ -385,19 +393,19 @@ struct HttpServer::Impl {
             const std::string id = coordinator.submit(std::move(spec));
             const RenderInfo info = render_or_404(id);
             res.set_header("Location", "/api/renders/" + id);
-            send_json(res, http_api::render_detail(info, progress_of(info)), 201);
+            send_json(res, render_detail(info, progress_of(info)), 201);
         }));
         server.Get(R"(/api/renders/([^/]+))",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const RenderInfo info = render_or_404(req.matches[1]);
-                       send_json(res, http_api::render_detail(info, progress_of(info)));
+                       send_json(res, render_detail(info, progress_of(info)));
                    }));
         server.Post(R"(/api/renders/([^/]+)/cancel)",
                     guarded([this](const httplib::Request& req, auto& res) {
                         render_or_404(req.matches[1]);
                         const auto info = coordinator.cancel(req.matches[1]);
                         if (!info) throw ApiError(404, "no render '" + req.matches[1].str() + "'");
-                        send_json(res, http_api::render_detail(*info));
+                        send_json(res, render_detail(*info));
                     }));
         server.Get(R"(/api/renders/([^/]+)/rounds)",
                    guarded([this](const httplib::Request& req, auto& res) {
@@ -419,6 +427,10 @@ struct HttpServer::Impl {
                                        {"count", all->size()},
                                        {"next", end < all->size() ? json(end) : json(nullptr)}});
                    }));
+    }
+
+    // What the dashboard draws of one render: preview, heat maps, buckets.
+    void image_routes() {
         server.Get(R"(/api/renders/([^/]+)/preview\.png)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];
@@ -443,9 +455,9 @@ struct HttpServer::Impl {
                        render_or_404(id);
                        const std::optional<Image> image = coordinator.image(id, true);
                        if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
-                       json map = http_api::pixel_map(
-                           *image, kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error,
-                           size);
+                       const auto map_kind =
+                           kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error;
+                       json map = http_api::pixel_map(*image, map_kind, size);
                        map["id"] = id;
                        send_json(res, map);
                    }));
@@ -455,7 +467,7 @@ struct HttpServer::Impl {
                        const RenderInfo info = render_or_404(id);
                        const auto buckets = coordinator.buckets(id);
                        if (!buckets) throw ApiError(404, "no render '" + id + "'");
-                       const auto p = http_api::bucket_progress(*buckets, info.width, info.height);
+                       const auto p = bucket_progress(*buckets, info.width, info.height);
                        send_json(res, {{"id", id},
                                        {"width", info.width},
                                        {"height", info.height},
@@ -463,6 +475,13 @@ struct HttpServer::Impl {
                                        {"converged_area", p.converged_area},
                                        {"buckets", http_api::buckets_json(*buckets)}});
                    }));
+    }
+
+    // Health, workers, scenes, live events, studies.
+    void other_routes() {
+        server.Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
+            send_json(res, {{"ok", true}});
+        });
         server.Get("/api/workers", guarded([this](const httplib::Request&, auto& res) {
             send_json(res, {{"workers", workers_json()}, {"now_ms", unix_millis_now()}});
         }));
@@ -481,7 +500,9 @@ struct HttpServer::Impl {
                    guarded([this](const httplib::Request& req, auto& res) {
                        study_file(req.matches[1], req.matches[2], req.matches[3], res);
                    }));
+    }
 
+    void error_routes() {
         // Whatever else went wrong (no such route, a body too large, a request httplib could
         // not parse) still answers JSON with a message.
         server.set_error_handler(httplib::Server::HandlerWithResponse(
@@ -490,7 +511,8 @@ struct HttpServer::Impl {
             std::string message = "no such endpoint: " + req.method + " " + req.path;
             if (res.status == 413) message = "request body too large";
             else if (res.status == 400) message = "malformed HTTP request";
-            else if (res.status != 404) message = "request refused (HTTP " + std::to_string(res.status) + ")";
+            else if (res.status != 404)
+                message = "request refused (HTTP " + std::to_string(res.status) + ")";
             send_error(res, res.status, message);
             return httplib::Server::HandlerResponse::Handled;
         }));
@@ -498,13 +520,17 @@ struct HttpServer::Impl {
             [](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
                 send_error(res, 500, "internal error");
             });
+    }
 
+    // The built dashboard, or a page saying how to build it.
+    void dashboard_route() {
         namespace fs = std::filesystem;
         std::error_code ec;
         if (!options.web_dir.empty() && fs::exists(options.web_dir / "index.html", ec)) {
             server.set_mount_point("/", options.web_dir.string());
         } else {
-            const std::string where = options.web_dir.empty() ? "(none given)" : options.web_dir.string();
+            const std::string where =
+                options.web_dir.empty() ? "(none given)" : options.web_dir.string();
             server.Get("/", [where](const httplib::Request&, httplib::Response& res) {
                 res.set_content(
                     "<!doctype html><title>Aliquot</title><p>The dashboard is not built "

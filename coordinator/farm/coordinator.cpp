@@ -269,7 +269,7 @@ RenderInfo Coordinator::info_of(const RenderSession& s) const {
     info.seed = s.spec().seed;
     info.method = s.spec().strategy.method;
     info.strategy_json = nlohmann::json(s.spec().strategy).dump();
-    info.state = std::string(to_string(s.state()));
+    info.state = s.state();
     info.error = s.error();
     info.samples_done = s.merged().total_samples();
     info.samples_planned = s.samples_planned();
@@ -300,7 +300,7 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     info.seed = j.value("seed", uint64_t(0));
     info.strategy_json = j.value("strategy", nlohmann::json::object()).dump();
     info.method = j.value("strategy", nlohmann::json::object()).value("method", "");
-    info.state = std::string(to_string(rec->state));
+    info.state = rec->state;
     info.error = rec->error;
     info.samples_done = uint64_t(rec->samples_done);
     info.samples_planned = uint64_t(rec->samples_planned);

@@ -29,8 +29,11 @@ struct CoordinatorOptions {
     uint32_t max_side = 8192;
 };
 
+// A render as clients see it. The state is the C++ enum; its spellings ("running", ...) are
+// store/render_state.h's alone.
 struct RenderInfo {
-    std::string id, scene_name, method, strategy_json, state, error, outcome_json;
+    std::string id, scene_name, method, strategy_json, error, outcome_json;
+    RenderState state = RenderState::Queued;
     uint32_t width = 0, height = 0;
     uint64_t seed = 0, samples_done = 0, samples_planned = 0, rays = 0;
     uint32_t rounds_done = 0;

@@ -9,6 +9,7 @@
 
 #include "image.h"
 #include "render_spec.h"
+#include "render_state.h"
 
 namespace aliquot {
 
@@ -16,7 +17,8 @@ class RunStore;
 
 struct StudyRenderStatus {
     bool known = false;  // false: the backend has no such render (any more)
-    std::string state, error;
+    RenderState state = RenderState::Queued;
+    std::string error;
     uint64_t done = 0, planned = 0;
 };
 

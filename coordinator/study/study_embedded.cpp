@@ -56,7 +56,7 @@ class EmbeddedBackend final : public StudyBackend {
     std::vector<std::string> unfinished() override {
         std::vector<std::string> ids;
         for (const RenderInfo& i : coordinator_.list(0))
-            if (i.state == "running" || i.state == "queued") ids.push_back(i.id);
+            if (!is_terminal(i.state)) ids.push_back(i.id);
         return ids;
     }
     void wait() override {

@@ -103,7 +103,7 @@ class StudyRun {
         }
         if (row->origin != backend_.origin()) return false;
         const StudyRenderStatus s = backend_.status(row->remote_id);
-        if (!s.known || s.state == "failed" || s.state == "cancelled") return false;
+        if (!s.known || s.state == RenderState::Failed || s.state == RenderState::Cancelled) return false;
         in_flight_[r.key] = row->remote_id;
         return true;
     }
@@ -160,12 +160,12 @@ class StudyRun {
         for (auto it = in_flight_.begin(); it != in_flight_.end();) {
             const std::string key = it->first, remote = it->second;
             const StudyRenderStatus s = backend_.status(remote);
-            if (!s.known || s.state == "failed" || s.state == "cancelled")
+            if (!s.known || s.state == RenderState::Failed || s.state == RenderState::Cancelled)
                 throw StudyError("render " + key + " (" + remote + ") " +
-                                 (s.known ? s.state + (s.error.empty() ? "" : ": " + s.error)
+                                 (s.known ? std::string(to_string(s.state)) + (s.error.empty() ? "" : ": " + s.error)
                                           : "vanished") +
                                  "; run the study again to retry it");
-            if (s.state != "done") {
+            if (s.state != RenderState::Done) {
                 note = key + ", " + renders_[index_of_.at(key)].strategy.method;
                 ++it;
                 continue;

@@ -24,7 +24,9 @@ json=$("$aliquot" render --scene cornell-box --resolution 8x8 --spp 2 --out "$tm
 python3 - "$json" <<'PY' && pass "render --json prints the summary" || fail "render --json prints the summary"
 import json, sys
 s = json.loads(sys.argv[1])
-assert s["samples"] == 128 and s["seconds"] > 0 and s["samples_per_second"] > 0, s
+assert s["samples_done"] == 128 and s["seconds"] > 0 and s["samples_per_second"] > 0, s
+assert s["state"] == "done" and s["progress"] == 1 and s["rounds"] >= 1, s
+assert s["scene"] == "cornell-box" and s["width"] == 8 and s["spp"] == 2, s
 assert s["output"].endswith("j.exr"), s
 PY
 

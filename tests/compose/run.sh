@@ -230,7 +230,7 @@ sys.exit(0 if sum(w["state"] != "lost" for w in ws) >= int(sys.argv[1]) else 1)'
 render_has_samples() {
     local s
     s=$("$ALIQUOT" status "$RENDER_ID" --json --coordinator "$ADDR" 2>/dev/null) || return 1
-    (($(json_field samples <<<"$s") > 0))
+    (($(json_field samples_done <<<"$s") > 0))
 }
 
 render_done() {

@@ -143,7 +143,7 @@ def test_worker_killed_mid_round_still_matches():
         farm.start_worker("doomed")
         farm.start_worker("survivor")
         render_id = farm.submit(*LONG)["id"]
-        farm.wait_until(render_id, lambda s: s["samples"] > 0)
+        farm.wait_until(render_id, lambda s: s["samples_done"] > 0)
         farm.workers["doomed"].send_signal(signal.SIGKILL)
         farm.wait_until(render_id, lambda s: s["state"] == "done", timeout=300)
         out = os.path.join(farm.dir, "farm.exr")
@@ -222,7 +222,7 @@ def test_early_and_late_workers_get_work():
         time.sleep(1.0)
         farm.start_coordinator()
         render_id = farm.submit(*LONG)["id"]
-        farm.wait_until(render_id, lambda s: s["samples"] > 0)
+        farm.wait_until(render_id, lambda s: s["samples_done"] > 0)
         farm.start_worker("late")
         farm.wait_until(render_id, lambda s: s["state"] == "done", timeout=300)
         workers = json.loads(run("workers", "--json", "--coordinator", farm.addr).stdout)
@@ -241,7 +241,7 @@ def test_full_hd_render_fits_in_messages():
         args = ["--scene", "cornell-box", "--resolution", "1920x1080", "--spp", "1", "--seed", "5"]
         out = os.path.join(farm.dir, "hd.exr")
         info = farm.submit(*args, out=out)
-        assert info["state"] == "done" and info["samples"] == 1920 * 1080, info
+        assert info["state"] == "done" and info["samples_done"] == 1920 * 1080, info
         assert same(out, embedded(args)), "1920x1080 farm render differs from embedded"
     finally:
         farm.stop()

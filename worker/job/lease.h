@@ -21,6 +21,8 @@ struct LeaseGrant {
     uint32_t lease_ms = 0;
 };
 
+// A plain C++ enum rather than v1::CompleteStatus: the embedded render's threads complete
+// jobs by direct call and never link protobuf. proto/wire.h maps it for gRPC.
 enum class CompleteStatus { Merged, Ignored, Rejected };
 struct CompleteOutcome {
     CompleteStatus status;

@@ -1,0 +1,76 @@
+#include "render_proto.h"
+
+namespace aliquot {
+
+v1::RenderState to_proto(RenderState state) {
+    switch (state) {
+        case RenderState::Queued: return v1::RENDER_STATE_QUEUED;
+        case RenderState::Running: return v1::RENDER_STATE_RUNNING;
+        case RenderState::Done: return v1::RENDER_STATE_DONE;
+        case RenderState::Cancelled: return v1::RENDER_STATE_CANCELLED;
+        case RenderState::Failed: return v1::RENDER_STATE_FAILED;
+    }
+    return v1::RENDER_STATE_UNSPECIFIED;
+}
+
+RenderState from_proto(v1::RenderState state) {
+    switch (state) {
+        case v1::RENDER_STATE_QUEUED: return RenderState::Queued;
+        case v1::RENDER_STATE_RUNNING: return RenderState::Running;
+        case v1::RENDER_STATE_DONE: return RenderState::Done;
+        case v1::RENDER_STATE_CANCELLED: return RenderState::Cancelled;
+        case v1::RENDER_STATE_FAILED: return RenderState::Failed;
+        default: break;
+    }
+    throw WireError("render state " + std::to_string(int(state)) + " is not one this build knows");
+}
+
+void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
+    out.set_id(i.id);
+    out.set_scene_name(i.scene_name);
+    out.set_width(i.width);
+    out.set_height(i.height);
+    out.set_seed(i.seed);
+    out.set_method(i.method);
+    out.set_strategy_json(i.strategy_json);
+    out.set_state(to_proto(i.state));
+    out.set_error(i.error);
+    out.set_samples_done(i.samples_done);
+    out.set_samples_planned(i.samples_planned);
+    out.set_rounds_done(i.rounds_done);
+    out.set_seconds(i.seconds);
+    out.set_samples_per_second(i.samples_per_second);
+    out.set_error_estimate(i.error_estimate);
+    out.set_error_vs_reference(i.error_vs_reference);
+    out.set_created_ms(i.created_ms);
+    out.set_finished_ms(i.finished_ms);
+    out.set_outcome_json(i.outcome_json);
+    out.set_rays(i.rays);
+}
+
+RenderInfo from_proto(const v1::RenderInfo& in) {
+    RenderInfo i;
+    i.id = in.id();
+    i.scene_name = in.scene_name();
+    i.width = in.width();
+    i.height = in.height();
+    i.seed = in.seed();
+    i.method = in.method();
+    i.strategy_json = in.strategy_json();
+    i.state = from_proto(in.state());
+    i.error = in.error();
+    i.samples_done = in.samples_done();
+    i.samples_planned = in.samples_planned();
+    i.rounds_done = in.rounds_done();
+    i.seconds = in.seconds();
+    i.samples_per_second = in.samples_per_second();
+    i.error_estimate = in.error_estimate();
+    i.error_vs_reference = in.error_vs_reference();
+    i.created_ms = in.created_ms();
+    i.finished_ms = in.finished_ms();
+    i.outcome_json = in.outcome_json();
+    i.rays = in.rays();
+    return i;
+}
+
+}  // namespace aliquot
