@@ -36,7 +36,8 @@ int main(int argc, char** argv) {
         }
         const auto start = std::chrono::steady_clock::now();
         coordinator.complete("bench", grant->lease_id, r);
-        seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+                       .count();
         ++jobs;
         pixels += r.pixels.size();
         pixel_samples += r.total_samples();

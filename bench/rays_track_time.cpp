@@ -1,19 +1,20 @@
 // Do rays track time? optimal-time spends samples by rays per sample because rays are
 // deterministic; that is only sound if a job's wall time is proportional to its rays.
-// Traces every 16x16 tile of a scene on one thread and prints, as JSON, the correlation of
-// per-tile rays with per-tile seconds and the spread of seconds per ray across tiles.
+// Traces every 16x16 tile of a scene on one thread and prints, as JSON, the correlation
+// of per-tile rays with per-tile seconds and the spread of seconds per ray across tiles.
 #include <cmath>
 #include <cstdio>
 #include <vector>
 
-#include "trace_job.h"
 #include "scene_loader.h"
+#include "trace_job.h"
 
 using namespace aliquot;
 
 int main(int argc, char** argv) {
     const std::string name = argc > 1 ? argv[1] : "cornell-caustics";
-    const uint32_t side = 128, tile = 16, spp = argc > 2 ? uint32_t(std::atoi(argv[2])) : 32;
+    const uint32_t side = 128, tile = 16,
+                   spp = argc > 2 ? uint32_t(std::atoi(argv[2])) : 32;
     const Scene scene = load_scene(name);
     const PathTracer tracer(scene);
     enable_flush_to_zero();

@@ -13,8 +13,8 @@
 
 #include "commands.h"
 #include "embedded_render.h"
-#include "render_options.h"
 #include "path_tracer.h"
+#include "render_options.h"
 #include "scene_loader.h"
 
 namespace aliquot::cli {
@@ -23,7 +23,8 @@ namespace {
 
 // Incoherent rays as a path tracer makes them: origins spread through the scene's bounds,
 // directions uniform on the sphere. Drawn from the same deterministic generator.
-double raw_embree_rays_per_second(const PathTracer& tracer, const Scene& scene, int threads) {
+double raw_embree_rays_per_second(const PathTracer& tracer, const Scene& scene,
+                                  int threads) {
     Vec3 lo(1e30f), hi(-1e30f);
     for (const TriangleMesh& m : scene.meshes)
         for (const Vec3& p : m.positions) {
@@ -87,16 +88,17 @@ struct BenchCommand {
         const RenderInfo info = render_embedded(spec, options.threads, false).info;
         const double sps = double(info.samples_done) / info.seconds;
         const double rps = double(info.rays) / info.seconds;
-        nlohmann::json out = {{"scene", options.scene},
-                              {"width", options.width},
-                              {"height", options.height},
-                              {"spp", options.spp},
-                              {"threads", options.threads},
-                              {"samples_per_second", sps},
-                              {"rays_per_second", rps},
-                              {"rays_per_sample", double(info.rays) / double(info.samples_done)},
-                              {"embree_raw_rays_per_second", raw},
-                              {"ray_utilization", rps / raw}};
+        nlohmann::json out = {
+            {"scene", options.scene},
+            {"width", options.width},
+            {"height", options.height},
+            {"spp", options.spp},
+            {"threads", options.threads},
+            {"samples_per_second", sps},
+            {"rays_per_second", rps},
+            {"rays_per_sample", double(info.rays) / double(info.samples_done)},
+            {"embree_raw_rays_per_second", raw},
+            {"ray_utilization", rps / raw}};
         if (json)
             std::cout << out.dump() << std::endl;
         else
@@ -109,7 +111,8 @@ struct BenchCommand {
 void register_bench(CLI::App& app) {
     auto command = std::make_shared<BenchCommand>();
     CLI::App* cmd = app.add_subcommand(
-        "bench", "path tracer samples/s and rays/s against raw Embree rays/s, in one run");
+        "bench",
+        "path tracer samples/s and rays/s against raw Embree rays/s, in one run");
     add_render_options(*cmd, command->options);
     cmd->add_flag("--json", command->json, "print one JSON object on one line");
     cmd->callback([command] { command->run(); });

@@ -24,7 +24,8 @@ void ClientConnection::check(const grpc::Status& status, const std::string& what
     switch (status.error_code()) {
         case grpc::StatusCode::UNAVAILABLE:
         case grpc::StatusCode::DEADLINE_EXCEEDED:
-            throw CommandError("cannot reach coordinator at " + address_ + " (" + what + ")");
+            throw CommandError("cannot reach coordinator at " + address_ + " (" + what +
+                               ")");
         default:
             throw CommandError(what + ": " + status.error_message());
     }
@@ -32,18 +33,21 @@ void ClientConnection::check(const grpc::Status& status, const std::string& what
 
 std::string describe(const RenderInfo& i) {
     char line[512];
-    const double pct =
-        i.samples_planned ? 100.0 * double(i.samples_done) / double(i.samples_planned) : 0.0;
-    std::snprintf(line, sizeof line,
-                  "%s  %-9s %-10s %-16s %ux%u  round %u  %llu/%llu samples (%.1f%%)  %.0f "
-                  "samples/s  %.1fs  err~%s",
-                  i.id.c_str(), std::string(to_string(i.state)).c_str(), i.method.c_str(),
-                  i.scene_name.c_str(), i.width, i.height, i.rounds_done,
-                  (unsigned long long)i.samples_done, (unsigned long long)i.samples_planned,
-                  pct, i.samples_per_second, i.seconds,
-                  i.error_estimate >= 0 ? std::to_string(i.error_estimate).c_str() : "-");
+    const double pct = i.samples_planned
+                           ? 100.0 * double(i.samples_done) / double(i.samples_planned)
+                           : 0.0;
+    std::snprintf(
+        line, sizeof line,
+        "%s  %-9s %-10s %-16s %ux%u  round %u  %llu/%llu samples (%.1f%%)  %.0f "
+        "samples/s  %.1fs  err~%s",
+        i.id.c_str(), std::string(to_string(i.state)).c_str(), i.method.c_str(),
+        i.scene_name.c_str(), i.width, i.height, i.rounds_done,
+        (unsigned long long)i.samples_done, (unsigned long long)i.samples_planned, pct,
+        i.samples_per_second, i.seconds,
+        i.error_estimate >= 0 ? std::to_string(i.error_estimate).c_str() : "-");
     std::string s = line;
-    if (i.error_vs_reference >= 0) s += "  E(ref)=" + std::to_string(i.error_vs_reference);
+    if (i.error_vs_reference >= 0)
+        s += "  E(ref)=" + std::to_string(i.error_vs_reference);
     if (!i.error.empty()) s += "  error: " + i.error;
     return s;
 }
@@ -67,7 +71,8 @@ void fetch_image(ClientConnection& c, const std::string& id, const std::string& 
         std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
         if (!out) throw CommandError("--out: cannot write " + path);
         v1::FileChunk chunk;
-        while (reader->Read(&chunk)) out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+        while (reader->Read(&chunk))
+            out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
     }
     const grpc::Status status = reader->Finish();
     if (!status.ok()) std::filesystem::remove(tmp);
@@ -81,7 +86,8 @@ RenderInfo follow(ClientConnection& c, const std::string& id,
     req.set_id(id);
     v1::RenderInfo message;
     RenderInfo info;
-    // A watch stream that breaks (coordinator restarting) is resumed until the render ends.
+    // A watch stream that breaks (coordinator restarting) is resumed until the render
+    // ends.
     for (int attempt = 0;; ++attempt) {
         grpc::ClientContext ctx;
         auto reader = c.stub().Watch(&ctx, req);

@@ -1,5 +1,5 @@
-// ClientConnection: the CLI's channel to a coordinator's client service. Turns gRPC failures
-// into one-line CommandErrors ("cannot reach coordinator at ADDR").
+// ClientConnection: the CLI's channel to a coordinator's client service. Turns gRPC
+// failures into one-line CommandErrors ("cannot reach coordinator at ADDR").
 #pragma once
 
 #include <memory>
@@ -36,8 +36,8 @@ std::string describe(const RenderInfo& info);
 namespace aliquot::cli {
 
 // Streams the render's EXR into `path` (written whole, then renamed into place).
-void fetch_image(ClientConnection& connection, const std::string& id, const std::string& path,
-                 bool aovs);
+void fetch_image(ClientConnection& connection, const std::string& id,
+                 const std::string& path, bool aovs);
 // Follows a render until it finishes, calling `update` for every state the coordinator
 // sends; returns the last one. Replies arrive as v1::RenderInfo and are read with the
 // api room's from_proto (render_proto.h), the same conversion the server writes with.

@@ -30,7 +30,8 @@ void run_compare(const CompareOptions& o) {
     try {
         m = compare_images(test, reference, o.bucket_size);
     } catch (const ImageMismatch& e) {
-        throw CommandError(std::string(e.what()) + " (" + o.test + " vs " + o.reference + ")");
+        throw CommandError(std::string(e.what()) + " (" + o.test + " vs " + o.reference +
+                           ")");
     }
 
     if (o.json) {
@@ -56,7 +57,8 @@ void run_compare(const CompareOptions& o) {
 }  // namespace
 
 void register_compare(CLI::App& app) {
-    // The options outlive this function: CLI11 fills them during parse and runs the callback.
+    // The options outlive this function: CLI11 fills them during parse and runs the
+    // callback.
     auto options = std::make_shared<CompareOptions>();
     CLI::App* cmd = app.add_subcommand(
         "compare", "Error of image A against the reference B (E, RMSE, relMSE, buckets)");

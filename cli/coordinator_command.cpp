@@ -26,7 +26,8 @@ fs::path executable_dir() {
 // share/aliquot/web seen from bin/.
 fs::path default_web_dir() {
     const fs::path bin = executable_dir();
-    for (const fs::path& p : {bin / ".." / ".." / "web" / "dist", bin / ".." / "share" / "aliquot" / "web"})
+    for (const fs::path& p :
+         {bin / ".." / ".." / "web" / "dist", bin / ".." / "share" / "aliquot" / "web"})
         if (fs::exists(p / "index.html")) return fs::weakly_canonical(p);
     return bin / ".." / ".." / "web" / "dist";
 }
@@ -36,7 +37,8 @@ struct CoordinatorCommand {
     std::string data_dir = "aliquot-data";
     std::string http_address;  // empty: no HTTP API or dashboard
     std::string web_dir;       // empty: default_web_dir()
-    std::vector<std::string> study_dirs;  // more places `aliquot study --out` wrote reports
+    std::vector<std::string>
+        study_dirs;  // more places `aliquot study --out` wrote reports
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
@@ -53,7 +55,8 @@ struct CoordinatorCommand {
         CoordinatorOptions options;
         options.data_dir = data_dir;
         options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
-        options.worker_lost_after = std::chrono::milliseconds(int64_t(lost_seconds * 1000));
+        options.worker_lost_after =
+            std::chrono::milliseconds(int64_t(lost_seconds * 1000));
         options.max_side = max_side;
         Coordinator coordinator(options);
         GrpcServer server(coordinator, grpc_address);
@@ -62,7 +65,8 @@ struct CoordinatorCommand {
         std::unique_ptr<HttpServer> http;
         if (!http_address.empty()) {
             HttpOptions http_options;
-            http_options.web_dir = web_dir.empty() ? default_web_dir() : fs::path(web_dir);
+            http_options.web_dir =
+                web_dir.empty() ? default_web_dir() : fs::path(web_dir);
             // Study reports: the data directory's, then the --studies directories or, by
             // default from a build tree, the source tree's docs/studies and out/ (where
             // `aliquot study` writes unless told otherwise).
@@ -76,7 +80,8 @@ struct CoordinatorCommand {
                 for (const fs::path& dir : {repo / "docs" / "studies", repo / "out"})
                     if (fs::is_directory(dir))
                         http_options.study_dirs.emplace_back(
-                            dir.filename() == "out" ? "out" : "docs", fs::weakly_canonical(dir));
+                            dir.filename() == "out" ? "out" : "docs",
+                            fs::weakly_canonical(dir));
             }
             http = std::make_unique<HttpServer>(coordinator, http_address, http_options);
             std::fprintf(stderr, "coordinator: HTTP on %s (port %d), dashboard from %s\n",
@@ -97,19 +102,23 @@ struct CoordinatorCommand {
 void register_coordinator(CLI::App& app) {
     auto c = std::make_shared<CoordinatorCommand>();
     CLI::App* cmd = app.add_subcommand("coordinator", "run a coordinator (gRPC, SQLite)");
-    cmd->add_option("--grpc", c->grpc_address, "listen address host:port")->capture_default_str();
-    cmd->add_option("--http", c->http_address,
-                    "HTTP address host:port for the JSON API and dashboard (default: off)");
-    cmd->add_option("--studies", c->study_dirs,
-                    "a directory of study reports to list besides DATA/studies, instead of the "
-                    "source tree's docs/studies and out/ (repeatable)");
+    cmd->add_option("--grpc", c->grpc_address, "listen address host:port")
+        ->capture_default_str();
+    cmd->add_option(
+        "--http", c->http_address,
+        "HTTP address host:port for the JSON API and dashboard (default: off)");
+    cmd->add_option(
+        "--studies", c->study_dirs,
+        "a directory of study reports to list besides DATA/studies, instead of the "
+        "source tree's docs/studies and out/ (repeatable)");
     cmd->add_option("--web", c->web_dir,
                     "built dashboard directory (default: web/dist of the source tree)");
     cmd->add_option("--data", c->data_dir, "directory for SQLite, checkpoints, images")
         ->capture_default_str();
     cmd->add_option("--lease-seconds", c->lease_seconds, "lease length without renewal")
         ->capture_default_str();
-    cmd->add_option("--lost-seconds", c->lost_seconds, "silence after which a worker is lost")
+    cmd->add_option("--lost-seconds", c->lost_seconds,
+                    "silence after which a worker is lost")
         ->capture_default_str();
     cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
         ->capture_default_str();

@@ -1,4 +1,5 @@
-// aliquot status | watch | fetch | cancel | workers: small clients of a running coordinator.
+// aliquot status | watch | fetch | cancel | workers: small clients of a running
+// coordinator.
 #include <unistd.h>
 
 #include <cstdio>
@@ -9,8 +10,8 @@
 #include "commands.h"
 #include "progress_bar.h"
 #include "render_json.h"
-#include "render_proto.h"
 #include "render_options.h"
+#include "render_proto.h"
 
 namespace aliquot::cli {
 
@@ -26,7 +27,8 @@ struct FarmOptions {
 CLI::App* add_common(CLI::App& app, const char* name, const char* help,
                      const std::shared_ptr<FarmOptions>& o) {
     CLI::App* cmd = app.add_subcommand(name, help);
-    cmd->add_option("--coordinator", o->coordinator, "coordinator address")->capture_default_str();
+    cmd->add_option("--coordinator", o->coordinator, "coordinator address")
+        ->capture_default_str();
     return cmd;
 }
 
@@ -55,10 +57,12 @@ void register_status(CLI::App& app) {
             v1::ListRendersRequest req;
             v1::ListRendersReply reply;
             c.check(c.stub().ListRenders(c.context().get(), req, &reply), "status");
-            for (const v1::RenderInfo& r : reply.renders()) renders.push_back(from_proto(r));
+            for (const v1::RenderInfo& r : reply.renders())
+                renders.push_back(from_proto(r));
         }
         if (o->json) {
-            // The HTTP API's documents (render_json.h), so a script reads either the same way.
+            // The HTTP API's documents (render_json.h), so a script reads either the same
+            // way.
             nlohmann::json all = nlohmann::json::array();
             for (const auto& r : renders) all.push_back(render_detail(r));
             std::cout << (o->id.empty() ? all : all[0]).dump() << std::endl;
@@ -84,7 +88,8 @@ void register_watch(CLI::App& app) {
             std::fflush(stdout);
         });
         if (tty) std::printf("\n");
-        if (last.state == RenderState::Failed) throw CommandError("render failed: " + last.error);
+        if (last.state == RenderState::Failed)
+            throw CommandError("render failed: " + last.error);
     });
 }
 
@@ -140,10 +145,11 @@ void register_workers(CLI::App& app) {
             if (o->json) {
                 all.push_back(worker_json(w));
             } else {
-                std::printf("%-24s %-5s %2u threads  %llu samples  %.0f samples/s  %d leases\n",
-                            w.name().c_str(), w.state().c_str(), w.threads(),
-                            (unsigned long long)w.samples_traced(), w.samples_per_second(),
-                            w.leases_size());
+                std::printf(
+                    "%-24s %-5s %2u threads  %llu samples  %.0f samples/s  %d leases\n",
+                    w.name().c_str(), w.state().c_str(), w.threads(),
+                    (unsigned long long)w.samples_traced(), w.samples_per_second(),
+                    w.leases_size());
             }
         }
         if (o->json) std::cout << all.dump() << std::endl;

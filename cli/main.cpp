@@ -1,4 +1,5 @@
-// aliquot: one binary, one subcommand per verb. Thin on purpose: commands live in their files.
+// aliquot: one binary, one subcommand per verb. Thin on purpose: commands live in their
+// files.
 #include <cstdio>
 #include <exception>
 

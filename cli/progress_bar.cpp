@@ -26,8 +26,9 @@ void ProgressBar::update(uint64_t done, uint64_t total, const std::string& note)
     const double eta = fraction > 0 ? seconds * (1.0 - fraction) / fraction : 0.0;
     std::string bar(size_t(filled), '#');
     bar.resize(size_t(width), '.');
-    std::fprintf(stderr, "\r%s [%s] %5.1f%%  %6.1fs  eta %6.1fs  %s\x1b[K", label_.c_str(),
-                 bar.c_str(), 100.0 * fraction, seconds, eta, note.c_str());
+    std::fprintf(stderr, "\r%s [%s] %5.1f%%  %6.1fs  eta %6.1fs  %s\x1b[K",
+                 label_.c_str(), bar.c_str(), 100.0 * fraction, seconds, eta,
+                 note.c_str());
     std::fflush(stderr);
 }
 

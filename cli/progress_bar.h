@@ -1,5 +1,5 @@
-// ProgressBar: one redrawn line on stderr while a long operation runs; silent when stderr is
-// not a terminal, so logs and pipes stay clean.
+// ProgressBar: one redrawn line on stderr while a long operation runs; silent when stderr
+// is not a terminal, so logs and pipes stay clean.
 #pragma once
 
 #include <chrono>

@@ -1,5 +1,5 @@
-// aliquot reference: a high-spp uniform render that other renders are judged against, cached
-// by scene hash, resolution, spp and seed so a study renders each reference once.
+// aliquot reference: a high-spp uniform render that other renders are judged against,
+// cached by scene hash, resolution, spp and seed so a study renders each reference once.
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -23,8 +23,10 @@ constexpr uint64_t kReferenceSeed = uint64_t(1) << 40;
 
 std::filesystem::path cache_dir() {
     if (const char* dir = std::getenv("ALIQUOT_CACHE")) return dir;
-    if (const char* xdg = std::getenv("XDG_CACHE_HOME")) return std::filesystem::path(xdg) / "aliquot";
-    if (const char* home = std::getenv("HOME")) return std::filesystem::path(home) / ".cache" / "aliquot";
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"))
+        return std::filesystem::path(xdg) / "aliquot";
+    if (const char* home = std::getenv("HOME"))
+        return std::filesystem::path(home) / ".cache" / "aliquot";
     return ".aliquot-cache";
 }
 
@@ -43,8 +45,8 @@ struct ReferenceCommand {
         const std::filesystem::path cached =
             cache_dir() / "references" /
             (scene_hash(spec.scene_json) + "-" + std::to_string(spec.width) + "x" +
-             std::to_string(spec.height) + "-" + std::to_string(options.spp) + "spp-seed" +
-             std::to_string(spec.seed) + ".exr");
+             std::to_string(spec.height) + "-" + std::to_string(options.spp) +
+             "spp-seed" + std::to_string(spec.seed) + ".exr");
         bool hit = !no_cache && std::filesystem::exists(cached);
         double seconds = 0;
         if (!hit) {
@@ -60,11 +62,12 @@ struct ReferenceCommand {
             write_exr(tmp, result.image);
             std::filesystem::rename(tmp, cached);
         }
-        std::filesystem::copy_file(cached, out, std::filesystem::copy_options::overwrite_existing);
+        std::filesystem::copy_file(cached, out,
+                                   std::filesystem::copy_options::overwrite_existing);
         if (json) {
-            std::cout << nlohmann::json{{"output", out},       {"cached", cached.string()},
-                                        {"cache_hit", hit},    {"spp", options.spp},
-                                        {"seed", spec.seed},   {"seconds", seconds}}
+            std::cout << nlohmann::json{{"output", out},     {"cached", cached.string()},
+                                        {"cache_hit", hit},  {"spp", options.spp},
+                                        {"seed", spec.seed}, {"seconds", seconds}}
                              .dump()
                       << std::endl;
         } else {
@@ -79,7 +82,8 @@ struct ReferenceCommand {
 void register_reference(CLI::App& app) {
     auto c = std::make_shared<ReferenceCommand>();
     CLI::App* cmd = app.add_subcommand(
-        "reference", "render (or take from the cache) a high-spp uniform reference image");
+        "reference",
+        "render (or take from the cache) a high-spp uniform reference image");
     add_render_options(*cmd, c->options);
     cmd->add_option("--out", c->out, "output .exr file")->required();
     cmd->add_flag("--json", c->json, "print one JSON summary object");

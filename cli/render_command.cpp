@@ -6,8 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
-#include "exr_io.h"
 #include "embedded_render.h"
+#include "exr_io.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
@@ -48,11 +48,12 @@ struct RenderCommand {
             summary["output"] = out;
             std::cout << summary.dump() << std::endl;
         } else {
-            std::printf("rendered %s %ux%u with %s: %llu samples in %.2f s (%.0f samples/s); "
-                        "wrote %s\n",
-                        options.scene.c_str(), options.width, options.height,
-                        info.method.c_str(), (unsigned long long)info.samples_done, info.seconds,
-                        info.samples_per_second, out.c_str());
+            std::printf(
+                "rendered %s %ux%u with %s: %llu samples in %.2f s (%.0f samples/s); "
+                "wrote %s\n",
+                options.scene.c_str(), options.width, options.height, info.method.c_str(),
+                (unsigned long long)info.samples_done, info.seconds,
+                info.samples_per_second, out.c_str());
             if (info.outcome_json != "{}" && !info.outcome_json.empty())
                 std::printf("outcome: %s\n", info.outcome_json.c_str());
         }
@@ -63,7 +64,8 @@ struct RenderCommand {
 
 void register_render(CLI::App& app) {
     auto command = std::make_shared<RenderCommand>();
-    CLI::App* cmd = app.add_subcommand("render", "render a scene in-process and write an EXR");
+    CLI::App* cmd =
+        app.add_subcommand("render", "render a scene in-process and write an EXR");
     add_render_options(*cmd, command->options);
     cmd->add_option("--out", command->out, "output .exr file")->required();
     cmd->add_flag("--json", command->json, "print one JSON summary object");

@@ -15,31 +15,41 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
     StrategyParams& s = o.strategy;
     cmd.add_option("--scene", o.scene, "built-in scene name or a .json scene file")
         ->capture_default_str();
-    cmd.add_option("--resolution", o.resolution, "image size as WxH")->capture_default_str();
-    cmd.add_option("--spp", o.spp, "samples per pixel (uniform; others: budget = spp x pixels)");
+    cmd.add_option("--resolution", o.resolution, "image size as WxH")
+        ->capture_default_str();
+    cmd.add_option("--spp", o.spp,
+                   "samples per pixel (uniform; others: budget = spp x pixels)");
     cmd.add_option("--seed", o.seed, "render seed")->capture_default_str();
     cmd.add_option("--threads", o.threads, "tracing threads (0: all cores)");
-    cmd.add_option("--reference", o.reference, "reference EXR: error measured every round");
-    cmd.add_option("--method", s.method, "uniform | dammertz | adaptive | optimal | optimal-time")
+    cmd.add_option("--reference", o.reference,
+                   "reference EXR: error measured every round");
+    cmd.add_option("--method", s.method,
+                   "uniform | dammertz | adaptive | optimal | optimal-time")
         ->capture_default_str();
     cmd.add_option("--budget", s.budget, "total samples to spend");
     cmd.add_option("--max-variance", s.max_variance, "dammertz V; adaptive max variance")
         ->capture_default_str();
     cmd.add_option("--samples-per-iteration", s.samples_per_iteration, "dammertz S")
         ->capture_default_str();
-    cmd.add_option("--split-factor", s.split_factor, "dammertz split factor")->capture_default_str();
-    cmd.add_option("--min-bucket-size", s.min_bucket_size, "dammertz smallest bucket side")
+    cmd.add_option("--split-factor", s.split_factor, "dammertz split factor")
+        ->capture_default_str();
+    cmd.add_option("--min-bucket-size", s.min_bucket_size,
+                   "dammertz smallest bucket side")
         ->capture_default_str();
     cmd.add_option("--error-norm", s.error_norm, "dammertz error: seed | paper")
         ->capture_default_str();
     cmd.add_option("--initial-spp", s.initial_spp, "adaptive initial uniform pass")
         ->capture_default_str();
-    cmd.add_option("--alpha", s.alpha, "adaptive distribution exponent")->capture_default_str();
-    cmd.add_option("--bucket-size", s.bucket_size, "adaptive bucket side")->capture_default_str();
+    cmd.add_option("--alpha", s.alpha, "adaptive distribution exponent")
+        ->capture_default_str();
+    cmd.add_option("--bucket-size", s.bucket_size, "adaptive bucket side")
+        ->capture_default_str();
     cmd.add_option("--min-spp", s.min_spp, "optimal: samples every pixel gets first")
         ->capture_default_str();
-    cmd.add_option("--max-spp", s.max_spp, "cap on any pixel's samples (0: method default)");
-    cmd.add_option("--max-samples", s.max_samples, "cap on total samples (0: method default)");
+    cmd.add_option("--max-spp", s.max_spp,
+                   "cap on any pixel's samples (0: method default)");
+    cmd.add_option("--max-samples", s.max_samples,
+                   "cap on total samples (0: method default)");
 }
 
 void check_render_options(RenderOptions& o) {
@@ -52,10 +62,12 @@ void check_render_options(RenderOptions& o) {
     }
     if (o.spp != kSppNotGiven && (o.spp < 1 || o.spp > (int64_t(1) << 31)))
         throw CommandError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
-    if (o.spp == kSppNotGiven) o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;
+    if (o.spp == kSppNotGiven)
+        o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;
     o.strategy.spp = uint64_t(o.spp);
     if (o.threads < 0) throw CommandError("--threads: must be 0 or more");
-    if (o.threads == 0) o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+    if (o.threads == 0)
+        o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
     try {
         validate(o.strategy, o.width, o.height);
     } catch (const std::invalid_argument& e) {
@@ -84,8 +96,10 @@ void check_writable(const std::filesystem::path& path, const std::string& option
     if (!fs::is_directory(dir))
         throw CommandError(option + ": cannot write " + path.string() + ": directory " +
                            dir.string() + " does not exist");
-    if (access(dir.c_str(), W_OK) != 0 || (fs::exists(path) && access(path.c_str(), W_OK) != 0))
-        throw CommandError(option + ": cannot write " + path.string() + ": permission denied");
+    if (access(dir.c_str(), W_OK) != 0 ||
+        (fs::exists(path) && access(path.c_str(), W_OK) != 0))
+        throw CommandError(option + ": cannot write " + path.string() +
+                           ": permission denied");
 }
 
 }  // namespace aliquot::cli

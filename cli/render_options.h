@@ -1,5 +1,6 @@
-// Options shared by every command that starts a render (render, submit, bench, reference):
-// parsed and checked once, with one clear message naming the option that is wrong.
+// Options shared by every command that starts a render (render, submit, bench,
+// reference): parsed and checked once, with one clear message naming the option that is
+// wrong.
 #pragma once
 
 #include <cstdint>
@@ -18,7 +19,7 @@ struct RenderOptions {
     uint32_t width = 256, height = 256;
     int64_t spp = -1;  // kSppNotGiven: uniform then defaults to 64
     uint64_t seed = 0;
-    int threads = 0;     // 0: all hardware threads
+    int threads = 0;        // 0: all hardware threads
     std::string reference;  // optional reference EXR
     StrategyParams strategy;
 };

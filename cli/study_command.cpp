@@ -65,8 +65,9 @@ struct StudyCommand {
         if (threads < 0) throw CommandError("--threads: must be 0 or more");
         StudyRunOptions options;
         options.study_file = file;
-        options.out = out.empty() ? fs::path("out") / ("study-" + def.name + "-" + sc.name)
-                                  : fs::path(out);
+        options.out = out.empty()
+                          ? fs::path("out") / ("study-" + def.name + "-" + sc.name)
+                          : fs::path(out);
         options.threads = threads;
         if (!coordinator.empty())
             options.backend = [this](const fs::path& data) {
@@ -92,7 +93,7 @@ struct StudyCommand {
         if (!no_report) write_report(def, sc, options.out);
     }
 
-  private:
+private:
     std::string read_file() const {
         std::ifstream in(file);
         if (!in) throw CommandError(file + ": cannot open the study file");
@@ -101,7 +102,8 @@ struct StudyCommand {
         return text.str();
     }
 
-    void write_report(const StudyDefinition& def, const StudyScale& sc, const fs::path& dir) {
+    void write_report(const StudyDefinition& def, const StudyScale& sc,
+                      const fs::path& dir) {
         const fs::path script = find_report_script(file);
         const std::string python = find_python(script);
         const int rc = run_process({python, script.string(), "--db",

@@ -29,12 +29,9 @@ void mirror_render(RunStore& store, const CollectedRender& c, const RenderSpec& 
         RenderRecord rec;
         rec.id = c.local_id;
         rec.scene_hash = hash;
-        rec.spec_json = json{{"scene_name", spec.scene_name},
-                             {"width", spec.width},
-                             {"height", spec.height},
-                             {"seed", spec.seed},
-                             {"strategy", spec.strategy},
-                             {"farm", origin},
+        rec.spec_json = json{{"scene_name", spec.scene_name}, {"width", spec.width},
+                             {"height", spec.height},         {"seed", spec.seed},
+                             {"strategy", spec.strategy},     {"farm", origin},
                              {"farm_id", info.id()}}
                             .dump();
         rec.created_at = info.created_ms() ? info.created_ms() : now;
@@ -58,7 +55,7 @@ void mirror_render(RunStore& store, const CollectedRender& c, const RenderSpec& 
 }
 
 class FarmBackend final : public StudyBackend {
-  public:
+public:
     FarmBackend(const std::string& address, const fs::path& data_dir)
         : connection_(address), data_dir_(data_dir) {}
 
@@ -78,7 +75,8 @@ class FarmBackend final : public StudyBackend {
         req.set_reference_exr(bytes.str());
         v1::RenderInfo info;
         connection_.check(
-            connection_.stub().Submit(connection_.context(60).get(), req, &info), "submit");
+            connection_.stub().Submit(connection_.context(60).get(), req, &info),
+            "submit");
         return info.id();
     }
     StudyRenderStatus status(const std::string& id) override {
@@ -131,7 +129,7 @@ class FarmBackend final : public StudyBackend {
     }
     void wait() override { std::this_thread::sleep_for(std::chrono::milliseconds(500)); }
 
-  private:
+private:
     ClientConnection connection_;
     fs::path data_dir_;
 };

@@ -9,8 +9,8 @@
 #include "commands.h"
 #include "progress_bar.h"
 #include "render_json.h"
-#include "render_proto.h"
 #include "render_options.h"
+#include "render_proto.h"
 #include "scene_loader.h"
 
 namespace aliquot::cli {
@@ -59,7 +59,8 @@ struct SubmitCommand {
         info = follow(c, info.id, [&](const RenderInfo& i) {
             bar.update(i.samples_done, i.samples_planned,
                        "round " + std::to_string(i.rounds_done) + ", " +
-                           std::to_string(int64_t(i.samples_per_second / 1e3)) + " k samples/s");
+                           std::to_string(int64_t(i.samples_per_second / 1e3)) +
+                           " k samples/s");
         });
         bar.finish();
         if (!out.empty()) fetch_image(c, info.id, out, aovs);
@@ -78,8 +79,10 @@ void register_submit(CLI::App& app) {
     auto c = std::make_shared<SubmitCommand>();
     CLI::App* cmd = app.add_subcommand("submit", "submit a render to a coordinator");
     add_render_options(*cmd, c->options);
-    cmd->add_option("--coordinator", c->coordinator, "coordinator address")->capture_default_str();
-    cmd->add_flag("--wait", c->wait, "follow the render with a progress bar until it ends");
+    cmd->add_option("--coordinator", c->coordinator, "coordinator address")
+        ->capture_default_str();
+    cmd->add_flag("--wait", c->wait,
+                  "follow the render with a progress bar until it ends");
     cmd->add_option("--out", c->out, "write the final EXR here (implies --wait)");
     cmd->add_flag("--aovs", c->aovs, "add channels spp and variance to the EXR");
     cmd->add_flag("--json", c->json, "print JSON");

@@ -22,7 +22,8 @@ struct WorkerCommand {
 
     void run() {
         if (threads < 0) throw CommandError("--threads: must be 0 or more");
-        if (threads == 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+        if (threads == 0)
+            threads = int(std::max(1u, std::thread::hardware_concurrency()));
         if (name.empty()) {
             char host[256] = {0};
             gethostname(host, sizeof host - 1);
@@ -44,8 +45,8 @@ struct WorkerCommand {
         });
         loop.run();
         waiter.join();
-        std::fprintf(stderr, "worker %s: traced %llu samples in %llu jobs\n", name.c_str(),
-                     (unsigned long long)loop.samples_traced(),
+        std::fprintf(stderr, "worker %s: traced %llu samples in %llu jobs\n",
+                     name.c_str(), (unsigned long long)loop.samples_traced(),
                      (unsigned long long)loop.jobs_done());
     }
 };

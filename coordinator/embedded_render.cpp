@@ -26,14 +26,16 @@ EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
         info = *coordinator.info(id);
         if (is_terminal(info.state)) break;
         if (progress) progress(info);
-        // Every merged job is a change; reading the render's state on each would contend for
-        // the coordinator's lock with the threads doing the work. A progress bar needs less.
+        // Every merged job is a change; reading the render's state on each would contend
+        // for the coordinator's lock with the threads doing the work. A progress bar
+        // needs less.
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     workers.stop();
     pool.join();
     if (progress) progress(info);
-    if (info.state == RenderState::Failed) throw std::runtime_error("render failed: " + info.error);
+    if (info.state == RenderState::Failed)
+        throw std::runtime_error("render failed: " + info.error);
     EmbeddedResult result{info, *coordinator.image(id, aovs)};
     return result;
 }

@@ -19,8 +19,8 @@ namespace {
 using aliquot::RenderSession;
 
 // Adaptive's initial pass and Dammertz's first iteration are the same round (2 samples
-// per pixel over 8x8), cut into one job, so one input (fuzz/corpus/job_result) answers the
-// first job of both.
+// per pixel over 8x8), cut into one job, so one input (fuzz/corpus/job_result) answers
+// the first job of both.
 std::vector<aliquot::RenderSpec> specs() {
     aliquot::RenderSpec base;
     base.scene_name = "furnace";

@@ -1,6 +1,6 @@
 // Fuzzes the body of POST /api/renders and the spec check Coordinator::submit runs on it
-// first. Their contract: a RenderSpec or an ApiError (the server answers its status), then
-// a valid spec or std::invalid_argument (answered 400).
+// first. Their contract: a RenderSpec or an ApiError (the server answers its status),
+// then a valid spec or std::invalid_argument (answered 400).
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -10,7 +10,8 @@ using nlohmann::json;
 
 namespace {
 
-std::string what_of(const std::optional<std::string>& pointer, const std::string& reason) {
+std::string what_of(const std::optional<std::string>& pointer,
+                    const std::string& reason) {
     if (!pointer) return reason;
     return (pointer->empty() ? "/" : *pointer) + ": " + reason;
 }
@@ -28,7 +29,7 @@ std::string without_exception_id(const std::string& what) {
 
 // Follows the parse to know the pointer of the object being read when a key repeats.
 class DuplicateKeyCheck {
-  public:
+public:
     bool operator()(int, json::parse_event_t event, json& parsed) {
         switch (event) {
             case json::parse_event_t::object_start:
@@ -53,7 +54,7 @@ class DuplicateKeyCheck {
         return true;
     }
 
-  private:
+private:
     struct Frame {
         bool array = false;
         size_t index = 0;
@@ -109,7 +110,9 @@ std::string json_pointer_token(std::string_view key) {
     return out;
 }
 
-void JsonField::fail(const std::string& reason) const { throw JsonError(pointer_, reason); }
+void JsonField::fail(const std::string& reason) const {
+    throw JsonError(pointer_, reason);
+}
 
 std::optional<JsonField> JsonField::find(std::string_view key) const {
     if (!value_->is_object()) return std::nullopt;
@@ -178,8 +181,9 @@ uint64_t JsonField::whole(uint64_t min, uint64_t max) const {
     }
     if (!ok || value < min || value > max)
         fail("expected a whole number " +
-             (max == UINT64_MAX ? "of at least " + std::to_string(min)
-                                : "from " + std::to_string(min) + " to " + std::to_string(max)));
+             (max == UINT64_MAX
+                  ? "of at least " + std::to_string(min)
+                  : "from " + std::to_string(min) + " to " + std::to_string(max)));
     return value;
 }
 

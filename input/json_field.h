@@ -1,5 +1,5 @@
-// Reading JSON that users hand us (scenes, studies, strategy parameters): a JsonField is a
-// value together with its JSON pointer, so every check can say where it failed.
+// Reading JSON that users hand us (scenes, studies, strategy parameters): a JsonField is
+// a value together with its JSON pointer, so every check can say where it failed.
 #pragma once
 
 #include <cstdint>
@@ -18,25 +18,26 @@ namespace aliquot {
 // the reason alone for text that is not JSON at all (no value to point at). Callers
 // prefix it with the document's name.
 class JsonError : public std::runtime_error {
-  public:
+public:
     JsonError(std::optional<std::string> pointer, std::string reason);
     // RFC 6901; "" is the root (printed as "/"). Empty for a syntax error.
     const std::optional<std::string>& pointer() const { return pointer_; }
     const std::string& reason() const { return reason_; }
 
-  private:
+private:
     std::optional<std::string> pointer_;
     std::string reason_;
 };
 
-// Parses JSON text, refusing duplicate keys: nlohmann keeps the last one silently, and like
-// a misspelt key a duplicate is a mistake the author should hear about. Throws JsonError.
+// Parses JSON text, refusing duplicate keys: nlohmann keeps the last one silently, and
+// like a misspelt key a duplicate is a mistake the author should hear about. Throws
+// JsonError.
 nlohmann::json parse_json(std::string_view text);
 
 // A value inside a parsed document and its pointer. It refers to the document, which
 // must outlive it.
 class JsonField {
-  public:
+public:
     explicit JsonField(const nlohmann::json& value, std::string pointer = "")
         : value_(&value), pointer_(std::move(pointer)) {}
 
@@ -65,7 +66,7 @@ class JsonField {
     // -1 or 2.5 do not (nlohmann would convert them to an unsigned silently).
     uint64_t whole(uint64_t min = 0, uint64_t max = UINT64_MAX) const;
 
-  private:
+private:
     const nlohmann::json* value_;
     std::string pointer_;
 };

@@ -23,19 +23,23 @@ TEST(JsonField, ErrorsCarryThePointerOfTheOffendingValue) {
     const json doc = parse_json(R"({"renders": [{"resolution": 7}]})");
     const JsonField res = JsonField(doc).require("renders").at(0).require("resolution");
     EXPECT_EQ(res.pointer(), "/renders/0/resolution");
-    EXPECT_EQ(error_of([&] { res.string("expected WxH"); }), "/renders/0/resolution: expected WxH");
+    EXPECT_EQ(error_of([&] { res.string("expected WxH"); }),
+              "/renders/0/resolution: expected WxH");
 }
 
 TEST(JsonField, MissingKeyIsReportedAtTheObject) {
     const json doc = parse_json(R"({"camera": {}})");
     EXPECT_EQ(error_of([&] { JsonField(doc).require("camera").require("fov"); }),
               "/camera: missing key \"fov\"");
-    EXPECT_EQ(error_of([&] { JsonField(doc).require("shapes"); }), "/: missing key \"shapes\"");
+    EXPECT_EQ(error_of([&] { JsonField(doc).require("shapes"); }),
+              "/: missing key \"shapes\"");
 }
 
 TEST(JsonField, UnknownKeysNameTheKeysExpected) {
     const json doc = parse_json(R"({"a": 1, "colour": 2})");
-    EXPECT_EQ(error_of([&] { JsonField(doc).allow_keys({"a", "b"}); }),
+    EXPECT_EQ(error_of([&] {
+                  JsonField(doc).allow_keys({"a", "b"});
+              }),
               "/colour: unknown key (expected a, b)");
 }
 
@@ -49,23 +53,27 @@ TEST(JsonField, WholeNumbersRefuseNegativesFractionsAndOutOfRange) {
     const JsonField list(doc);
     EXPECT_EQ(list.at(0).whole(), 16u);
     EXPECT_EQ(list.at(1).whole(), 16u);
-    EXPECT_EQ(error_of([&] { list.at(2).whole(); }), "/2: expected a whole number of at least 0");
+    EXPECT_EQ(error_of([&] { list.at(2).whole(); }),
+              "/2: expected a whole number of at least 0");
     EXPECT_NE(error_of([&] { list.at(3).whole(); }), "");
     EXPECT_NE(error_of([&] { list.at(4).whole(); }), "");
-    EXPECT_EQ(error_of([&] { list.at(5).whole(1, 8); }), "/5: expected a whole number from 1 to 8");
+    EXPECT_EQ(error_of([&] { list.at(5).whole(1, 8); }),
+              "/5: expected a whole number from 1 to 8");
 }
 
 TEST(JsonField, NumbersAndStringsFailWithTheCallersExpectation) {
     const json doc = json::parse(R"({"n": "x", "s": 1})");
     EXPECT_EQ(error_of([&] { JsonField(doc).require("n").number("expected fov"); }),
               "/n: expected fov");
-    EXPECT_EQ(error_of([&] { JsonField(doc).require("s").string(); }), "/s: expected a string");
+    EXPECT_EQ(error_of([&] { JsonField(doc).require("s").string(); }),
+              "/s: expected a string");
 }
 
 TEST(ParseJson, RefusesDuplicateKeysAtTheirObject) {
     EXPECT_EQ(error_of([] { parse_json(R"({"shapes": [{}, {"type": 1, "type": 2}]})"); }),
               "/shapes/1: duplicate key \"type\"");
-    EXPECT_EQ(error_of([] { parse_json(R"({"a": 1, "a": 1})"); }), "/: duplicate key \"a\"");
+    EXPECT_EQ(error_of([] { parse_json(R"({"a": 1, "a": 1})"); }),
+              "/: duplicate key \"a\"");
 }
 
 TEST(ParseJson, SyntaxErrorsSayWhereInTheText) {

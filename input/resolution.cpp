@@ -15,8 +15,10 @@ bool read_side(std::string_view text, uint32_t& side) {
     uint64_t value = 0;
     const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
     if (end != text.data() + text.size()) return false;
-    if (ec == std::errc::result_out_of_range) value = UINT64_MAX;
-    else if (ec != std::errc()) return false;
+    if (ec == std::errc::result_out_of_range)
+        value = UINT64_MAX;
+    else if (ec != std::errc())
+        return false;
     if (value < 1 || value > kMaxResolutionSide) return false;
     side = uint32_t(value);
     return true;

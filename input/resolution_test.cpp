@@ -25,7 +25,8 @@ TEST(Resolution, ReadsWidthThenHeight) {
 }
 
 TEST(Resolution, RefusesEverySideOutsideOneToTheLimit) {
-    for (const char* bad : {"0x3", "3x0", "8193x2", "2x8193", "99999999999999999999999x2"})
+    for (const char* bad :
+         {"0x3", "3x0", "8193x2", "2x8193", "99999999999999999999999x2"})
         EXPECT_NE(error_of(bad), "") << bad;
 }
 

@@ -24,8 +24,8 @@ PixelRect from_proto(const v1::PixelRect& r) {
 
 void expect_size(const char* field, size_t got, size_t want) {
     if (got != want)
-        throw WireError(std::string(field) + " has " + std::to_string(got) + " values, expected " +
-                        std::to_string(want));
+        throw WireError(std::string(field) + " has " + std::to_string(got) +
+                        " values, expected " + std::to_string(want));
 }
 
 }  // namespace
@@ -94,18 +94,24 @@ SampleJobResult from_proto(const v1::SampleJobResult& in) {
 
 v1::CompleteStatus to_proto(CompleteStatus status) {
     switch (status) {
-        case CompleteStatus::Merged: return v1::COMPLETE_STATUS_MERGED;
-        case CompleteStatus::Ignored: return v1::COMPLETE_STATUS_IGNORED;
-        case CompleteStatus::Rejected: return v1::COMPLETE_STATUS_REJECTED;
+        case CompleteStatus::Merged:
+            return v1::COMPLETE_STATUS_MERGED;
+        case CompleteStatus::Ignored:
+            return v1::COMPLETE_STATUS_IGNORED;
+        case CompleteStatus::Rejected:
+            return v1::COMPLETE_STATUS_REJECTED;
     }
     return v1::COMPLETE_STATUS_UNSPECIFIED;
 }
 
 CompleteStatus from_proto(v1::CompleteStatus status) {
     switch (status) {
-        case v1::COMPLETE_STATUS_MERGED: return CompleteStatus::Merged;
-        case v1::COMPLETE_STATUS_REJECTED: return CompleteStatus::Rejected;
-        default: return CompleteStatus::Ignored;
+        case v1::COMPLETE_STATUS_MERGED:
+            return CompleteStatus::Merged;
+        case v1::COMPLETE_STATUS_REJECTED:
+            return CompleteStatus::Rejected;
+        default:
+            return CompleteStatus::Ignored;
     }
 }
 

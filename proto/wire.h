@@ -21,10 +21,10 @@ SampleJob from_proto(const v1::SampleJob& in);
 void to_proto(const SampleJobResult& result, v1::SampleJobResult& out);
 SampleJobResult from_proto(const v1::SampleJobResult& in);
 
-// The worker loop and the coordinator speak the C++ CompleteStatus (worker/job/lease.h): the
-// embedded render passes it by direct call, with no protobuf in between. These two are the
-// only place it meets v1::CompleteStatus. An unspecified or unknown status reads as Ignored,
-// which counts nothing and sends nothing again.
+// The worker loop and the coordinator speak the C++ CompleteStatus (worker/job/lease.h):
+// the embedded render passes it by direct call, with no protobuf in between. These two
+// are the only place it meets v1::CompleteStatus. An unspecified or unknown status reads
+// as Ignored, which counts nothing and sends nothing again.
 v1::CompleteStatus to_proto(CompleteStatus status);
 CompleteStatus from_proto(v1::CompleteStatus status);
 

@@ -26,13 +26,15 @@ struct GrpcLink::Stub {
 
 GrpcLink::GrpcLink(const std::string& address) : stub_(new Stub), address_(address) {
     grpc::ChannelArguments args;
-    // Keepalive matched with the coordinator's server settings (coordinator/api/grpc_server.cpp).
+    // Keepalive matched with the coordinator's server settings
+    // (coordinator/api/grpc_server.cpp).
     args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
     args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
     args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
     args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
-    stub_->channel = grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+    stub_->channel =
+        grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
     stub_->stub = v1::WorkerService::NewStub(stub_->channel);
 }
 
@@ -65,8 +67,8 @@ std::optional<LeaseGrant> GrpcLink::lease(const std::string& worker,
     check(stub_->stub->Lease(context(wait).get(), req, &reply), address_);
     if (!reply.has_lease()) return std::nullopt;
     const v1::Lease& l = reply.lease();
-    return LeaseGrant{l.lease_id(),       l.render_id(),
-                      l.scene_hash(),     {l.width(), l.height(), l.seed()},
+    return LeaseGrant{l.lease_id(),        l.render_id(),
+                      l.scene_hash(),      {l.width(), l.height(), l.seed()},
                       from_proto(l.job()), l.lease_ms()};
 }
 

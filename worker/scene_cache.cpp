@@ -6,7 +6,8 @@
 
 namespace aliquot {
 
-std::shared_ptr<const LoadedScene> SceneCache::get(const std::string& hash, const Fetch& fetch) {
+std::shared_ptr<const LoadedScene> SceneCache::get(const std::string& hash,
+                                                   const Fetch& fetch) {
     {
         std::lock_guard lock(mutex_);
         if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;

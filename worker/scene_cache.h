@@ -1,5 +1,5 @@
-// SceneCache: scenes a worker has loaded, by content hash, each with its Embree scene built
-// once and shared by all the worker's threads.
+// SceneCache: scenes a worker has loaded, by content hash, each with its Embree scene
+// built once and shared by all the worker's threads.
 #pragma once
 
 #include <functional>

@@ -12,7 +12,8 @@ WorkerLoop::WorkerLoop(WorkerLink& link, WorkerOptions options)
     : link_(link), options_(std::move(options)) {}
 
 void WorkerLoop::log(const std::string& line) const {
-    if (!options_.quiet) std::fprintf(stderr, "worker %s: %s\n", options_.name.c_str(), line.c_str());
+    if (!options_.quiet)
+        std::fprintf(stderr, "worker %s: %s\n", options_.name.c_str(), line.c_str());
 }
 
 void WorkerLoop::sleep_unless_stopping(std::chrono::milliseconds duration) {
@@ -41,7 +42,8 @@ void WorkerLoop::run() {
             log("registered with " + std::to_string(options_.threads) + " threads");
             break;
         } catch (const LinkUnavailable& e) {
-            if (!announced) log(std::string("coordinator unavailable, retrying: ") + e.what());
+            if (!announced)
+                log(std::string("coordinator unavailable, retrying: ") + e.what());
             announced = true;
             backoff(delay);
         }
@@ -77,12 +79,14 @@ void WorkerLoop::thread_main() {
             held_.insert(grant->lease_id);
         }
         try {
-            auto scene = scenes_.get(grant->scene_hash,
-                                     [&](const std::string& h) { return link_.fetch_scene(h); });
-            const SampleJobResult result =
-                trace_sample_job(*scene->tracer, grant->geometry, grant->job, 1, &stopping_);
+            auto scene = scenes_.get(grant->scene_hash, [&](const std::string& h) {
+                return link_.fetch_scene(h);
+            });
+            const SampleJobResult result = trace_sample_job(
+                *scene->tracer, grant->geometry, grant->job, 1, &stopping_);
             release(grant->lease_id);  // from here on the result answers for the lease
-            const CompleteOutcome outcome = link_.complete(options_.name, grant->lease_id, result);
+            const CompleteOutcome outcome =
+                link_.complete(options_.name, grant->lease_id, result);
             if (outcome.status == CompleteStatus::Merged) {
                 samples_traced_ += result.total_samples();
                 ++jobs_done_;
@@ -111,7 +115,8 @@ void WorkerLoop::thread_main() {
 
 void WorkerLoop::keeper_main() {
     while (!stopping_) {
-        sleep_unless_stopping(std::chrono::milliseconds(std::max<uint32_t>(lease_ms_ / 3, 100)));
+        sleep_unless_stopping(
+            std::chrono::milliseconds(std::max<uint32_t>(lease_ms_ / 3, 100)));
         std::set<uint64_t> held;
         {
             std::lock_guard lock(held_mutex_);

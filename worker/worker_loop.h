@@ -18,7 +18,7 @@ struct WorkerOptions {
     std::string name;
     int threads = 1;
     std::chrono::milliseconds lease_wait{2000};  // long-poll length
-    bool quiet = false;                           // no log lines (embedded render)
+    bool quiet = false;                          // no log lines (embedded render)
 };
 
 class WorkerLoop {

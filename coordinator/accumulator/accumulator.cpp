@@ -26,8 +26,8 @@ Accumulator::Accumulator(uint32_t width, uint32_t height)
 void Accumulator::merge(const SampleJobResult& result) {
     const PixelRect& r = result.rect;
     if (uint64_t(r.x) + r.width > width_ || uint64_t(r.y) + r.height > height_)
-        throw MergeError("result rectangle lies outside the " + std::to_string(width_) + "x" +
-                         std::to_string(height_) + " image");
+        throw MergeError("result rectangle lies outside the " + std::to_string(width_) +
+                         "x" + std::to_string(height_) + " image");
     if (result.pixels.size() != r.size())
         throw MergeError("result has " + std::to_string(result.pixels.size()) +
                          " pixels for a rectangle of " + std::to_string(r.size()));
@@ -62,8 +62,9 @@ void Accumulator::check_finite_after(const SampleJobResult& result) const {
                 ok = ok && stays_finite(dst.even[c], src.even[c]) &&
                      stays_finite(dst.odd[c], src.odd[c]);
             if (!ok)
-                throw MergeError("merging would make pixel (" + std::to_string(r.x + col) +
-                                 ", " + std::to_string(r.y + row) +
+                throw MergeError("merging would make pixel (" +
+                                 std::to_string(r.x + col) + ", " +
+                                 std::to_string(r.y + row) +
                                  ")'s sums non-finite or larger than 1e100");
         }
     }
@@ -109,8 +110,9 @@ Image Accumulator::image(bool aovs) const {
         for (size_t i = 0; i < pixels_.size(); ++i) {
             spp.values[i] = float(pixels_[i].samples);
             variance.values[i] =
-                pixels_[i].samples ? float(luminance_variance(i) / double(pixels_[i].samples))
-                                   : 0.0f;
+                pixels_[i].samples
+                    ? float(luminance_variance(i) / double(pixels_[i].samples))
+                    : 0.0f;
         }
         img.extra.push_back(std::move(spp));
         img.extra.push_back(std::move(variance));

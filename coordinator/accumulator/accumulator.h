@@ -25,8 +25,8 @@ public:
     uint32_t height() const { return height_; }
     size_t pixel_count() const { return pixels_.size(); }
 
-    // Adds a job's sums. Throws MergeError, touching nothing, when the result does not fit
-    // the image (rectangle outside it, wrong pixel count) or would make a merged sum
+    // Adds a job's sums. Throws MergeError, touching nothing, when the result does not
+    // fit the image (rectangle outside it, wrong pixel count) or would make a merged sum
     // non-finite or absurdly large: the buffers stay finite whatever a worker sends.
     void merge(const SampleJobResult& result);
 
@@ -44,8 +44,8 @@ public:
     uint64_t total_rays() const { return total_rays_; }
     uint64_t total_nonfinite() const { return total_nonfinite_; }
 
-    // The image; with `aovs`, channels "spp" (samples per pixel) and "variance" (estimated
-    // variance of the pixel's mean luminance, sample variance / spp).
+    // The image; with `aovs`, channels "spp" (samples per pixel) and "variance"
+    // (estimated variance of the pixel's mean luminance, sample variance / spp).
     Image image(bool aovs = false) const;
 
 private:

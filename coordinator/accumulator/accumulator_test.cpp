@@ -67,8 +67,8 @@ TEST(Accumulator, RefusesResultsOutsideTheImageWithoutTouchingIt) {
     EXPECT_EQ(acc.total_samples(), 0u);
 }
 
-// Issue 12, reproduction 3: each incoming value was finite, the merged one was not, and the
-// image held inf while the render still ended done.
+// Issue 12, reproduction 3: each incoming value was finite, the merged one was not, and
+// the image held inf while the render still ended done.
 TEST(Accumulator, RefusesAResultThatWouldMakeAMergedSumNonFinite) {
     Accumulator acc(2, 1);
     EXPECT_THROW(acc.merge(one_pixel(0, 0, 1.7e308, 0.0, 2, 0)), MergeError);

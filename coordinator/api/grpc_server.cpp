@@ -59,7 +59,8 @@ class ClientServiceImpl final : public v1::ClientService::Service {
 public:
     explicit ClientServiceImpl(Coordinator& c) : c_(c) {}
 
-    Status Submit(ServerContext*, const v1::SubmitRequest* req, v1::RenderInfo* reply) override {
+    Status Submit(ServerContext*, const v1::SubmitRequest* req,
+                  v1::RenderInfo* reply) override {
         try {
             RenderSpec spec;
             spec.scene_name = req->scene_name();
@@ -182,13 +183,16 @@ public:
 
     Status Register(ServerContext*, const v1::RegisterRequest* req,
                     v1::RegisterReply* reply) override {
-        if (req->name().empty()) return {StatusCode::INVALID_ARGUMENT, "worker name is empty"};
+        if (req->name().empty())
+            return {StatusCode::INVALID_ARGUMENT, "worker name is empty"};
         reply->set_lease_ms(c_.register_worker(req->name(), req->threads()));
         return Status::OK;
     }
 
-    Status Lease(ServerContext*, const v1::LeaseRequest* req, v1::LeaseReply* reply) override {
-        const auto wait = std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
+    Status Lease(ServerContext*, const v1::LeaseRequest* req,
+                 v1::LeaseReply* reply) override {
+        const auto wait =
+            std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
         const std::optional<LeaseGrant> grant = c_.lease(req->worker(), wait);
         if (!grant) {
             reply->set_retry_after_ms(0);  // long-poll already waited; ask again at once
@@ -218,7 +222,8 @@ public:
             reply->set_message(e.what());
             return Status::OK;
         }
-        const CompleteOutcome outcome = c_.complete(req->worker(), req->lease_id(), result);
+        const CompleteOutcome outcome =
+            c_.complete(req->worker(), req->lease_id(), result);
         reply->set_status(to_proto(outcome.status));
         reply->set_message(outcome.message);
         return Status::OK;
@@ -232,7 +237,8 @@ public:
         return Status::OK;
     }
 
-    Status Renew(ServerContext*, const v1::RenewRequest* req, v1::RenewReply* reply) override {
+    Status Renew(ServerContext*, const v1::RenewRequest* req,
+                 v1::RenewReply* reply) override {
         reply->set_valid(c_.renew(req->worker(), req->lease_id()));
         return Status::OK;
     }
@@ -265,7 +271,8 @@ GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address)
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-    builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10000);
+    builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS,
+                               10000);
     builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
     server_ = builder.BuildAndStart();
     if (!server_ || port_ == 0) throw std::runtime_error("cannot listen on " + address);

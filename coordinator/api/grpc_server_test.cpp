@@ -25,8 +25,9 @@ protected:
         options.data_dir = dir_;
         coordinator_ = std::make_unique<Coordinator>(options);
         server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0");
-        stub_ = v1::WorkerService::NewStub(grpc::CreateChannel(
-            "127.0.0.1:" + std::to_string(server_->port()), grpc::InsecureChannelCredentials()));
+        stub_ = v1::WorkerService::NewStub(
+            grpc::CreateChannel("127.0.0.1:" + std::to_string(server_->port()),
+                                grpc::InsecureChannelCredentials()));
 
         RenderSpec spec;
         spec.scene_name = "cornell-box";
@@ -57,8 +58,8 @@ protected:
         return reply.lease();
     }
     v1::SampleJobResult trace(const v1::Lease& l) {
-        const SampleJobResult r =
-            trace_sample_job(*tracer_, {l.width(), l.height(), l.seed()}, from_proto(l.job()));
+        const SampleJobResult r = trace_sample_job(
+            *tracer_, {l.width(), l.height(), l.seed()}, from_proto(l.job()));
         v1::SampleJobResult out;
         to_proto(r, out);
         return out;

@@ -65,20 +65,22 @@ void require(bool ok, const std::string& message) {
 
 uint64_t whole_number(const json& v, const std::string& field, uint64_t top) {
     if (v.is_number_unsigned() && v.get<uint64_t>() <= top) return v.get<uint64_t>();
-    if (v.is_number_integer() && v.get<int64_t>() >= 0 && uint64_t(v.get<int64_t>()) <= top)
+    if (v.is_number_integer() && v.get<int64_t>() >= 0 &&
+        uint64_t(v.get<int64_t>()) <= top)
         return uint64_t(v.get<int64_t>());
     if (v.is_number_float()) {
         const double d = v.get<double>();
         if (d >= 0 && d <= double(top) && d == std::floor(d)) return uint64_t(d);
     }
-    throw ApiError(400, "'" + field + "' must be a whole number from 0 to " +
-                            std::to_string(top));
+    throw ApiError(
+        400, "'" + field + "' must be a whole number from 0 to " + std::to_string(top));
 }
 
 }  // namespace
 
-const char* const kRoundColumns[6] = {"index",   "samples_in_round", "samples_total",
-                                      "seconds", "error_estimate",   "error_vs_reference"};
+const char* const kRoundColumns[6] = {"index",          "samples_in_round",
+                                      "samples_total",  "seconds",
+                                      "error_estimate", "error_vs_reference"};
 
 json round_json(const RoundSummary& r) {
     const json row = round_row(r);
@@ -88,8 +90,9 @@ json round_json(const RoundSummary& r) {
 }
 
 json round_row(const RoundSummary& r) {
-    return json::array({r.index, r.samples_in_round, r.samples_total, short_number(r.seconds),
-                        measured(r.error_estimate), measured(r.error_vs_reference)});
+    return json::array({r.index, r.samples_in_round, r.samples_total,
+                        short_number(r.seconds), measured(r.error_estimate),
+                        measured(r.error_vs_reference)});
 }
 
 json worker_json(const WorkerStatus& w) {
@@ -105,9 +108,10 @@ json worker_json(const WorkerStatus& w) {
 json buckets_json(const std::vector<Bucket>& buckets) {
     json rows = json::array();
     for (const Bucket& b : buckets)
-        rows.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height,
-                        std::isfinite(b.error) ? json(short_number(b.error)) : json(nullptr),
-                        b.converged ? 1 : 0});
+        rows.push_back(
+            {b.rect.x, b.rect.y, b.rect.width, b.rect.height,
+             std::isfinite(b.error) ? json(short_number(b.error)) : json(nullptr),
+             b.converged ? 1 : 0});
     return rows;
 }
 
@@ -147,9 +151,10 @@ RenderSpec parse_render_request(const std::string& body) {
                 throw ApiError(400, std::string("strategy: ") + e.what());
             }
         } else {
-            throw ApiError(400, "unknown field '" + key +
-                                    "'; expected scene, resolution (or width and height), "
-                                    "seed, strategy");
+            throw ApiError(400,
+                           "unknown field '" + key +
+                               "'; expected scene, resolution (or width and height), "
+                               "seed, strategy");
         }
     }
     require(!(have_resolution && (have_width || have_height)),
@@ -159,14 +164,16 @@ RenderSpec parse_render_request(const std::string& body) {
         if (!have_width) spec.width = spec.height = 256;
     }
     // As on the command line: a uniform render with no budget gets 64 samples per pixel.
-    if (spec.strategy.method == "uniform" && spec.strategy.spp == 0 && spec.strategy.budget == 0)
+    if (spec.strategy.method == "uniform" && spec.strategy.spp == 0 &&
+        spec.strategy.budget == 0)
         spec.strategy.spp = 64;
 
     const std::vector<std::string> names = builtin_scene_names();
     if (std::find(names.begin(), names.end(), spec.scene_name) == names.end()) {
         std::string list;
         for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
-        throw ApiError(400, "unknown scene '" + spec.scene_name + "'; built-in scenes: " + list);
+        throw ApiError(
+            400, "unknown scene '" + spec.scene_name + "'; built-in scenes: " + list);
     }
     spec.scene_json = self_contained_scene_json(spec.scene_name);
     return spec;
@@ -177,28 +184,30 @@ std::string preview_png(const Image& image, double exposure, uint32_t max_side) 
     const uint32_t f = shrink_factor(image.width, image.height, max_side);
     std::vector<Plane> planes;
     for (int c = 0; c < 3; ++c)
-        planes.push_back(downsample(image.width, image.height, f,
-                                    [&](size_t i) { return double(image.rgb[i * 3 + c]); }));
+        planes.push_back(downsample(image.width, image.height, f, [&](size_t i) {
+            return double(image.rgb[i * 3 + c]);
+        }));
     const Plane& r = planes[0];
     std::vector<uint8_t> bytes(r.values.size() * 3);
     for (size_t i = 0; i < r.values.size(); ++i)
-        for (int c = 0; c < 3; ++c) bytes[i * 3 + c] = srgb_byte(planes[c].values[i] * scale);
+        for (int c = 0; c < 3; ++c)
+            bytes[i * 3 + c] = srgb_byte(planes[c].values[i] * scale);
     return encode_png(bytes, r.width, r.height, 3);
 }
 
 json pixel_map(const Image& image, MapKind kind, uint32_t max_side) {
     const Image::Channel* spp = channel(image, "spp");
     const Image::Channel* variance = channel(image, "variance");
-    if (!spp || !variance) throw ApiError(404, "the image has no per-pixel sample counts");
+    if (!spp || !variance)
+        throw ApiError(404, "the image has no per-pixel sample counts");
     const uint32_t f = shrink_factor(image.width, image.height, max_side);
-    const Plane p =
-        kind == MapKind::Spp
-            ? downsample(image.width, image.height, f,
-                         [&](size_t i) { return double(spp->values[i]); })
-            : downsample(image.width, image.height, f, [&](size_t i) {
-                  const double v = variance->values[i];
-                  return std::isfinite(v) && v > 0 ? std::sqrt(v) : 0.0;
-              });
+    const Plane p = kind == MapKind::Spp
+                        ? downsample(image.width, image.height, f,
+                                     [&](size_t i) { return double(spp->values[i]); })
+                        : downsample(image.width, image.height, f, [&](size_t i) {
+                              const double v = variance->values[i];
+                              return std::isfinite(v) && v > 0 ? std::sqrt(v) : 0.0;
+                          });
 
     double hi = 0, sum = 0, max = 0;
     for (double v : p.values) {
@@ -210,14 +219,16 @@ json pixel_map(const Image& image, MapKind kind, uint32_t max_side) {
     } else {
         // Fireflies would squash a linear scale; clip at the 99th percentile.
         std::vector<double> sorted = p.values;
-        const size_t k = std::min(sorted.size() - 1, size_t(double(sorted.size()) * 0.99));
+        const size_t k =
+            std::min(sorted.size() - 1, size_t(double(sorted.size()) * 0.99));
         std::nth_element(sorted.begin(), sorted.begin() + ptrdiff_t(k), sorted.end());
         hi = sorted[k];
     }
     if (!(hi > 0)) hi = 1;
     std::string bytes(p.values.size(), '\0');
     for (size_t i = 0; i < p.values.size(); ++i)
-        bytes[i] = char(uint8_t(std::lround(std::clamp(p.values[i] / hi, 0.0, 1.0) * 255.0)));
+        bytes[i] =
+            char(uint8_t(std::lround(std::clamp(p.values[i] / hi, 0.0, 1.0) * 255.0)));
     return {{"kind", kind == MapKind::Spp ? "spp" : "error"},
             {"width", p.width},
             {"height", p.height},
@@ -230,7 +241,8 @@ json pixel_map(const Image& image, MapKind kind, uint32_t max_side) {
             {"data", base64(bytes)}};
 }
 
-double number_param(const std::string& name, const std::string& text, double lo, double hi) {
+double number_param(const std::string& name, const std::string& text, double lo,
+                    double hi) {
     char* end = nullptr;
     const double v = std::strtod(text.c_str(), &end);
     if (text.empty() || *end != '\0' || !std::isfinite(v) || v < lo || v > hi)
@@ -246,8 +258,8 @@ std::string base64(const std::string& in) {
     out.reserve((in.size() + 2) / 3 * 4);
     size_t i = 0;
     for (; i + 2 < in.size(); i += 3) {
-        const uint32_t v = uint32_t(uint8_t(in[i])) << 16 | uint32_t(uint8_t(in[i + 1])) << 8 |
-                           uint8_t(in[i + 2]);
+        const uint32_t v = uint32_t(uint8_t(in[i])) << 16 |
+                           uint32_t(uint8_t(in[i + 1])) << 8 | uint8_t(in[i + 2]);
         out += table[v >> 18];
         out += table[(v >> 12) & 63];
         out += table[(v >> 6) & 63];

@@ -1,7 +1,7 @@
 // The documents of the coordinator's HTTP API (docs/API.md), apart from any transport:
 // rounds, buckets and workers as JSON (renders are render_json.h's), the submit request's
-// parsing, and the compact images the dashboard draws (a tone-mapped PNG preview, quantised
-// per-pixel maps).
+// parsing, and the compact images the dashboard draws (a tone-mapped PNG preview,
+// quantised per-pixel maps).
 #pragma once
 
 #include <cstdint>
@@ -38,23 +38,25 @@ nlohmann::json worker_json(const WorkerStatus& worker);
 nlohmann::json buckets_json(const std::vector<Bucket>& buckets);
 
 // Parses the body of POST /api/renders into a spec (built-in scenes only: an HTTP client
-// must not make the coordinator read its own files). Throws ApiError(400) naming the field.
-// Ranges (resolution, budget, method parameters) are the coordinator's to check on submit.
+// must not make the coordinator read its own files). Throws ApiError(400) naming the
+// field. Ranges (resolution, budget, method parameters) are the coordinator's to check on
+// submit.
 RenderSpec parse_render_request(const std::string& body);
 
-// An 8-bit sRGB PNG of the image scaled by 2^exposure, box-filtered down so that its longer
-// side is at most `max_side`.
+// An 8-bit sRGB PNG of the image scaled by 2^exposure, box-filtered down so that its
+// longer side is at most `max_side`.
 std::string preview_png(const Image& image, double exposure, uint32_t max_side);
 
 enum class MapKind { Spp, Error };
 // A per-pixel map, box-filtered to at most `max_side` on the longer side and quantised to
 // bytes: value = lo + (hi - lo) * byte / 255, as base64 in "data". `image` must carry the
-// "spp" and "variance" channels (Accumulator::image(true)); the error is the standard error
-// of each pixel's mean luminance, sqrt(variance).
+// "spp" and "variance" channels (Accumulator::image(true)); the error is the standard
+// error of each pixel's mean luminance, sqrt(variance).
 nlohmann::json pixel_map(const Image& image, MapKind kind, uint32_t max_side);
 
 // Query-parameter parsing that answers 400 rather than throwing anything else.
-double number_param(const std::string& name, const std::string& text, double lo, double hi);
+double number_param(const std::string& name, const std::string& text, double lo,
+                    double hi);
 
 std::string base64(const std::string& bytes);
 

@@ -20,14 +20,15 @@
 
 namespace aliquot {
 
-using nlohmann::json;
 using http_api::ApiError;
+using nlohmann::json;
 
 namespace {
 
-// Live updates: the broadcaster publishes numbered messages, each event stream sends those
-// it has not sent yet. A stream that falls further behind than the ring holds is told to
-// resynchronise (fetch everything again) instead of being queued for without bound.
+// Live updates: the broadcaster publishes numbered messages, each event stream sends
+// those it has not sent yet. A stream that falls further behind than the ring holds is
+// told to resynchronise (fetch everything again) instead of being queued for without
+// bound.
 class EventHub {
 public:
     void publish(std::string message) {
@@ -44,8 +45,8 @@ public:
     }
     // Waits up to `timeout` for messages numbered `from` or later and appends them to
     // `out`, advancing `from`. Returns false once the hub has stopped.
-    bool wait(uint64_t& from, std::chrono::milliseconds timeout, std::vector<std::string>& out,
-              bool& missed) {
+    bool wait(uint64_t& from, std::chrono::milliseconds timeout,
+              std::vector<std::string>& out, bool& missed) {
         std::unique_lock lock(mutex_);
         cv_.wait_for(lock, timeout, [&] { return stopping_ || next_ > from; });
         if (stopping_) return false;
@@ -150,8 +151,8 @@ struct HttpServer::Impl {
     // ---- renders ----
 
     std::optional<BucketProgress> progress_of(const RenderInfo& info) {
-        // Only running renders: a finished one reports progress 1 and may live only in the
-        // store, where its buckets cost a read of every round.
+        // Only running renders: a finished one reports progress 1 and may live only in
+        // the store, where its buckets cost a read of every round.
         if (is_terminal(info.state)) return std::nullopt;
         if (info.method != "dammertz") return std::nullopt;
         const auto b = coordinator.buckets(info.id);
@@ -160,7 +161,8 @@ struct HttpServer::Impl {
     }
 
     RenderInfo render_or_404(const std::string& id) {
-        if (id.size() > 64) throw ApiError(404, "no render '" + id.substr(0, 64) + "...'");
+        if (id.size() > 64)
+            throw ApiError(404, "no render '" + id.substr(0, 64) + "...'");
         std::optional<RenderInfo> info = coordinator.info(id);
         if (!info) throw ApiError(404, "no render '" + id + "'");
         return *info;
@@ -175,7 +177,8 @@ struct HttpServer::Impl {
 
     json workers_json() {
         json out = json::array();
-        for (const WorkerStatus& w : coordinator.workers()) out.push_back(http_api::worker_json(w));
+        for (const WorkerStatus& w : coordinator.workers())
+            out.push_back(http_api::worker_json(w));
         return out;
     }
 
@@ -188,11 +191,15 @@ struct HttpServer::Impl {
         for (const RenderInfo& info : renders) {
             present.insert(info.id);
             const auto progress = progress_of(info);
-            Seen now{info.state,          info.samples_done,       info.rounds_done,
-                     info.error_estimate, info.error_vs_reference,
+            Seen now{info.state,
+                     info.samples_done,
+                     info.rounds_done,
+                     info.error_estimate,
+                     info.error_vs_reference,
                      progress ? progress->converged : 0};
             auto it = seen_renders.find(info.id);
-            const uint32_t rounds_before = it == seen_renders.end() ? 0 : it->second.rounds;
+            const uint32_t rounds_before =
+                it == seen_renders.end() ? 0 : it->second.rounds;
             if (it != seen_renders.end() && it->second == now) continue;
             changed.push_back(render_summary(info, progress));
             if (info.rounds_done > rounds_before && publish) {
@@ -222,10 +229,11 @@ struct HttpServer::Impl {
             samples += w.samples_traced;
         }
         const auto now = std::chrono::steady_clock::now();
-        // Membership, state or leases at once; sample counters and rates every 2 s at most.
+        // Membership, state or leases at once; sample counters and rates every 2 s at
+        // most.
         const bool workers_changed =
-            key != seen_workers ||
-            (samples != seen_worker_samples && now - workers_sent > std::chrono::seconds(2));
+            key != seen_workers || (samples != seen_worker_samples &&
+                                    now - workers_sent > std::chrono::seconds(2));
         seen_workers = key;
         if (!publish) {
             seen_worker_samples = samples;
@@ -233,21 +241,27 @@ struct HttpServer::Impl {
         }
         if (!changed.empty())
             hub.publish(json{{"type", "render"}, {"renders", changed}}.dump());
-        if (!rounds.empty()) hub.publish(json{{"type", "round"}, {"rounds", rounds}}.dump());
+        if (!rounds.empty())
+            hub.publish(json{{"type", "round"}, {"rounds", rounds}}.dump());
         if (workers_changed) {
             seen_worker_samples = samples;
             workers_sent = now;
             json list = json::array();
-            for (const WorkerStatus& w : workers) list.push_back(http_api::worker_json(w));
-            hub.publish(json{{"type", "workers"}, {"workers", list}, {"now_ms", unix_millis_now()}}.dump());
+            for (const WorkerStatus& w : workers)
+                list.push_back(http_api::worker_json(w));
+            hub.publish(json{
+                {"type", "workers"}, {"workers", list}, {"now_ms", unix_millis_now()}}
+                            .dump());
         }
     }
 
     void broadcast() {
         uint64_t version = 0;
         while (!hub.stopping()) {
-            // Short waits, so that shutting down never waits long for a quiet coordinator.
-            const uint64_t now = coordinator.wait_for_change(version, std::chrono::milliseconds(200));
+            // Short waits, so that shutting down never waits long for a quiet
+            // coordinator.
+            const uint64_t now =
+                coordinator.wait_for_change(version, std::chrono::milliseconds(200));
             if (hub.stopping()) break;
             if (now == version) continue;
             version = now;
@@ -271,7 +285,8 @@ struct HttpServer::Impl {
                 if (!*greeted) {
                     *greeted = true;
                     out = "retry: 2000\n\ndata: " +
-                          json{{"type", "hello"}, {"now_ms", unix_millis_now()}}.dump() + "\n\n";
+                          json{{"type", "hello"}, {"now_ms", unix_millis_now()}}.dump() +
+                          "\n\n";
                     return sink.write(out.data(), out.size());
                 }
                 std::vector<std::string> messages;
@@ -282,7 +297,8 @@ struct HttpServer::Impl {
                 }
                 if (missed) out += "data: {\"type\":\"resync\"}\n\n";
                 for (const std::string& m : messages) out += "data: " + m + "\n\n";
-                // A comment keeps proxies from closing an idle stream and finds dead peers.
+                // A comment keeps proxies from closing an idle stream and finds dead
+                // peers.
                 if (out.empty()) out = ": idle\n\n";
                 return sink.write(out.data(), out.size());
             });
@@ -303,9 +319,11 @@ struct HttpServer::Impl {
             for (const fs::path& s : studies) {
                 std::vector<std::string> names;
                 for (auto it = fs::recursive_directory_iterator(s, ec);
-                     it != fs::recursive_directory_iterator() && names.size() < 200; ++it) {
+                     it != fs::recursive_directory_iterator() && names.size() < 200;
+                     ++it) {
                     if (it.depth() > 2) it.disable_recursion_pending();
-                    if (!it->is_regular_file() || content_type_of(it->path()).empty()) continue;
+                    if (!it->is_regular_file() || content_type_of(it->path()).empty())
+                        continue;
                     names.push_back(fs::relative(it->path(), s).generic_string());
                 }
                 std::sort(names.begin(), names.end());
@@ -314,7 +332,8 @@ struct HttpServer::Impl {
                     if (n == "report.md" || (report.empty() && n.ends_with(".md") &&
                                              n.find('/') == std::string::npos))
                         report = n;
-                // A study is a directory with a report; other output (renders, logs) is not.
+                // A study is a directory with a report; other output (renders, logs) is
+                // not.
                 if (report.empty()) continue;
                 const std::string title = first_heading(s / report);
                 out.push_back({{"source", label},
@@ -327,12 +346,14 @@ struct HttpServer::Impl {
         return out;
     }
 
-    void study_file(const std::string& label, const std::string& name, const std::string& rel,
-                    httplib::Response& res) {
+    void study_file(const std::string& label, const std::string& name,
+                    const std::string& rel, httplib::Response& res) {
         namespace fs = std::filesystem;
-        const auto source = std::find_if(options.study_dirs.begin(), options.study_dirs.end(),
-                                         [&](const auto& d) { return d.first == label; });
-        if (source == options.study_dirs.end()) throw ApiError(404, "no study source '" + label + "'");
+        const auto source =
+            std::find_if(options.study_dirs.begin(), options.study_dirs.end(),
+                         [&](const auto& d) { return d.first == label; });
+        if (source == options.study_dirs.end())
+            throw ApiError(404, "no study source '" + label + "'");
         if (name.find("..") != std::string::npos || rel.find("..") != std::string::npos)
             throw ApiError(400, "study paths may not contain '..'");
         std::error_code ec;
@@ -366,8 +387,8 @@ struct HttpServer::Impl {
             } catch (const json::exception& e) {
                 send_error(res, 400, std::string("malformed request: ") + e.what());
             } catch (const std::exception& e) {
-                std::fprintf(stderr, "http: %s %s: %s\n", req.method.c_str(), req.path.c_str(),
-                             e.what());
+                std::fprintf(stderr, "http: %s %s: %s\n", req.method.c_str(),
+                             req.path.c_str(), e.what());
                 send_error(res, 500, std::string("internal error: ") + e.what());
             }
         };
@@ -383,18 +404,21 @@ struct HttpServer::Impl {
 
     // Renders: list, submit, read, cancel, rounds.
     void render_routes() {
-        server.Get("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
-            const size_t limit = size_t(http_api::number_param(
-                "limit", query(req, "limit", "200"), 1, double(options.max_list)));
-            send_json(res, {{"renders", list_renders(limit)}, {"now_ms", unix_millis_now()}});
-        }));
-        server.Post("/api/renders", guarded([this](const httplib::Request& req, auto& res) {
-            RenderSpec spec = http_api::parse_render_request(req.body);
-            const std::string id = coordinator.submit(std::move(spec));
-            const RenderInfo info = render_or_404(id);
-            res.set_header("Location", "/api/renders/" + id);
-            send_json(res, render_detail(info, progress_of(info)), 201);
-        }));
+        server.Get(
+            "/api/renders", guarded([this](const httplib::Request& req, auto& res) {
+                const size_t limit = size_t(http_api::number_param(
+                    "limit", query(req, "limit", "200"), 1, double(options.max_list)));
+                send_json(res, {{"renders", list_renders(limit)},
+                                {"now_ms", unix_millis_now()}});
+            }));
+        server.Post("/api/renders",
+                    guarded([this](const httplib::Request& req, auto& res) {
+                        RenderSpec spec = http_api::parse_render_request(req.body);
+                        const std::string id = coordinator.submit(std::move(spec));
+                        const RenderInfo info = render_or_404(id);
+                        res.set_header("Location", "/api/renders/" + id);
+                        send_json(res, render_detail(info, progress_of(info)), 201);
+                    }));
         server.Get(R"(/api/renders/([^/]+))",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const RenderInfo info = render_or_404(req.matches[1]);
@@ -404,29 +428,32 @@ struct HttpServer::Impl {
                     guarded([this](const httplib::Request& req, auto& res) {
                         render_or_404(req.matches[1]);
                         const auto info = coordinator.cancel(req.matches[1]);
-                        if (!info) throw ApiError(404, "no render '" + req.matches[1].str() + "'");
+                        if (!info)
+                            throw ApiError(404,
+                                           "no render '" + req.matches[1].str() + "'");
                         send_json(res, render_detail(*info));
                     }));
-        server.Get(R"(/api/renders/([^/]+)/rounds)",
-                   guarded([this](const httplib::Request& req, auto& res) {
-                       const std::string id = req.matches[1];
-                       const auto since = size_t(http_api::number_param(
-                           "since", query(req, "since", "0"), 0, 1e12));
-                       const auto limit = size_t(http_api::number_param(
-                           "limit", query(req, "limit", "1000"), 1, 1000));
-                       const auto all = coordinator.rounds(id);
-                       if (!all) throw ApiError(404, "no render '" + id + "'");
-                       json rows = json::array();
-                       const size_t end = std::min(all->size(), since + limit);
-                       for (size_t i = since; i < end; ++i)
-                           rows.push_back(http_api::round_row((*all)[i]));
-                       send_json(res, {{"id", id},
-                                       {"columns", http_api::kRoundColumns},
-                                       {"since", since},
-                                       {"rows", rows},
-                                       {"count", all->size()},
-                                       {"next", end < all->size() ? json(end) : json(nullptr)}});
-                   }));
+        server.Get(
+            R"(/api/renders/([^/]+)/rounds)",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const std::string id = req.matches[1];
+                const auto since = size_t(
+                    http_api::number_param("since", query(req, "since", "0"), 0, 1e12));
+                const auto limit = size_t(http_api::number_param(
+                    "limit", query(req, "limit", "1000"), 1, 1000));
+                const auto all = coordinator.rounds(id);
+                if (!all) throw ApiError(404, "no render '" + id + "'");
+                json rows = json::array();
+                const size_t end = std::min(all->size(), since + limit);
+                for (size_t i = since; i < end; ++i)
+                    rows.push_back(http_api::round_row((*all)[i]));
+                send_json(res, {{"id", id},
+                                {"columns", http_api::kRoundColumns},
+                                {"since", since},
+                                {"rows", rows},
+                                {"count", all->size()},
+                                {"next", end < all->size() ? json(end) : json(nullptr)}});
+            }));
     }
 
     // What the dashboard draws of one render: preview, heat maps, buckets.
@@ -440,23 +467,27 @@ struct HttpServer::Impl {
                            "size", query(req, "size", "1024"), 16, 8192));
                        render_or_404(id);
                        const std::optional<Image> image = coordinator.image(id, false);
-                       if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
+                       if (!image)
+                           throw ApiError(404, "render '" + id + "' has no image yet");
                        res.set_header("Cache-Control", "no-store");
-                       res.set_content(http_api::preview_png(*image, exposure, size), "image/png");
+                       res.set_content(http_api::preview_png(*image, exposure, size),
+                                       "image/png");
                    }));
         server.Get(R"(/api/renders/([^/]+)/maps)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];
                        const std::string kind = query(req, "kind", "spp");
                        if (kind != "spp" && kind != "error")
-                           throw ApiError(400, "'kind' must be spp or error, got \"" + kind + "\"");
+                           throw ApiError(
+                               400, "'kind' must be spp or error, got \"" + kind + "\"");
                        const auto size = uint32_t(http_api::number_param(
                            "size", query(req, "size", "256"), 8, 256));
                        render_or_404(id);
                        const std::optional<Image> image = coordinator.image(id, true);
-                       if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
-                       const auto map_kind =
-                           kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error;
+                       if (!image)
+                           throw ApiError(404, "render '" + id + "' has no image yet");
+                       const auto map_kind = kind == "spp" ? http_api::MapKind::Spp
+                                                           : http_api::MapKind::Error;
                        json map = http_api::pixel_map(*image, map_kind, size);
                        map["id"] = id;
                        send_json(res, map);
@@ -483,19 +514,19 @@ struct HttpServer::Impl {
             send_json(res, {{"ok", true}});
         });
         server.Get("/api/workers", guarded([this](const httplib::Request&, auto& res) {
-            send_json(res, {{"workers", workers_json()}, {"now_ms", unix_millis_now()}});
-        }));
+                       send_json(res, {{"workers", workers_json()},
+                                       {"now_ms", unix_millis_now()}});
+                   }));
         server.Get("/api/scenes", guarded([](const httplib::Request&, auto& res) {
-            send_json(res, {{"scenes", builtin_scene_names()},
-                            {"methods", strategy_methods()},
-                            {"defaults", StrategyParams{}}});
-        }));
-        server.Get("/api/events", [this](const httplib::Request& req, httplib::Response& res) {
-            events(req, res);
-        });
+                       send_json(res, {{"scenes", builtin_scene_names()},
+                                       {"methods", strategy_methods()},
+                                       {"defaults", StrategyParams{}}});
+                   }));
+        server.Get("/api/events", [this](const httplib::Request& req,
+                                         httplib::Response& res) { events(req, res); });
         server.Get("/api/studies", guarded([this](const httplib::Request&, auto& res) {
-            send_json(res, {{"studies", list_studies()}});
-        }));
+                       send_json(res, {{"studies", list_studies()}});
+                   }));
         server.Get(R"(/api/studies/([^/]+)/([^/]+)/(.+))",
                    guarded([this](const httplib::Request& req, auto& res) {
                        study_file(req.matches[1], req.matches[2], req.matches[3], res);
@@ -503,19 +534,21 @@ struct HttpServer::Impl {
     }
 
     void error_routes() {
-        // Whatever else went wrong (no such route, a body too large, a request httplib could
-        // not parse) still answers JSON with a message.
+        // Whatever else went wrong (no such route, a body too large, a request httplib
+        // could not parse) still answers JSON with a message.
         server.set_error_handler(httplib::Server::HandlerWithResponse(
             [](const httplib::Request& req, httplib::Response& res) {
-            if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-            std::string message = "no such endpoint: " + req.method + " " + req.path;
-            if (res.status == 413) message = "request body too large";
-            else if (res.status == 400) message = "malformed HTTP request";
-            else if (res.status != 404)
-                message = "request refused (HTTP " + std::to_string(res.status) + ")";
-            send_error(res, res.status, message);
-            return httplib::Server::HandlerResponse::Handled;
-        }));
+                if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+                std::string message = "no such endpoint: " + req.method + " " + req.path;
+                if (res.status == 413)
+                    message = "request body too large";
+                else if (res.status == 400)
+                    message = "malformed HTTP request";
+                else if (res.status != 404)
+                    message = "request refused (HTTP " + std::to_string(res.status) + ")";
+                send_error(res, res.status, message);
+                return httplib::Server::HandlerResponse::Handled;
+            }));
         server.set_exception_handler(
             [](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
                 send_error(res, 500, "internal error");
@@ -534,9 +567,12 @@ struct HttpServer::Impl {
             server.Get("/", [where](const httplib::Request&, httplib::Response& res) {
                 res.set_content(
                     "<!doctype html><title>Aliquot</title><p>The dashboard is not built "
-                    "(looked in " + where + "): run <code>web/build.sh</code>, or pass "
-                    "<code>--web DIR</code>. The JSON API is at <a href=\"/api/renders\">"
-                    "/api/renders</a>.",
+                    "(looked in " +
+                        where +
+                        "): run <code>web/build.sh</code>, or pass "
+                        "<code>--web DIR</code>. The JSON API is at <a "
+                        "href=\"/api/renders\">"
+                        "/api/renders</a>.",
                     "text/html");
             });
         }
@@ -545,7 +581,8 @@ struct HttpServer::Impl {
     void start(const std::string& address) {
         const size_t colon = address.rfind(':');
         if (colon == std::string::npos)
-            throw std::runtime_error("http: address must be host:port, got \"" + address + "\"");
+            throw std::runtime_error("http: address must be host:port, got \"" + address +
+                                     "\"");
         std::string host = address.substr(0, colon);
         if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
             host = host.substr(1, host.size() - 2);
@@ -588,7 +625,8 @@ struct HttpServer::Impl {
     }
 };
 
-HttpServer::HttpServer(Coordinator& coordinator, const std::string& address, HttpOptions options)
+HttpServer::HttpServer(Coordinator& coordinator, const std::string& address,
+                       HttpOptions options)
     : impl_(std::make_unique<Impl>(coordinator, std::move(options))) {
     impl_->start(address);
 }

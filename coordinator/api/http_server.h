@@ -15,8 +15,8 @@
 namespace aliquot {
 
 struct HttpOptions {
-    // The built dashboard (web/dist); when it has no index.html, / explains how to build it
-    // and the API works alone.
+    // The built dashboard (web/dist); when it has no index.html, / explains how to build
+    // it and the API works alone.
     std::filesystem::path web_dir;
     // Where `aliquot study` reports live, each with the label the API names it by
     // ("data", "docs"): every subdirectory with a top-level .md report is one study.
@@ -30,9 +30,10 @@ struct HttpOptions {
 
 class HttpServer {
 public:
-    // Listens on `address` (host:port; port 0 picks a free one); throws std::runtime_error
-    // if it cannot.
-    HttpServer(Coordinator& coordinator, const std::string& address, HttpOptions options = {});
+    // Listens on `address` (host:port; port 0 picks a free one); throws
+    // std::runtime_error if it cannot.
+    HttpServer(Coordinator& coordinator, const std::string& address,
+               HttpOptions options = {});
     ~HttpServer();
     HttpServer(const HttpServer&) = delete;
     HttpServer& operator=(const HttpServer&) = delete;

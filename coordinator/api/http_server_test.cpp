@@ -28,7 +28,8 @@ constexpr size_t kMaxResponse = 100 * 1024;
 size_t fake_jobs(Coordinator& c, const std::string& worker, size_t max_jobs = 1000000) {
     size_t jobs = 0;
     while (jobs < max_jobs) {
-        const std::optional<LeaseGrant> grant = c.lease(worker, std::chrono::milliseconds(0));
+        const std::optional<LeaseGrant> grant =
+            c.lease(worker, std::chrono::milliseconds(0));
         if (!grant) break;
         SampleJobResult result;
         result.rect = grant->job.rect;
@@ -59,14 +60,17 @@ size_t fake_jobs(Coordinator& c, const std::string& worker, size_t max_jobs = 10
 class HttpServerTest : public ::testing::Test {
 protected:
     void SetUp() override {
-        dir_ = fs::temp_directory_path() / ("aliquot-http-test-" + std::to_string(::getpid()));
+        dir_ = fs::temp_directory_path() /
+               ("aliquot-http-test-" + std::to_string(::getpid()));
         fs::remove_all(dir_);
         fs::create_directories(dir_ / "web");
-        std::ofstream(dir_ / "web" / "index.html") << "<!doctype html><title>dash</title>";
+        std::ofstream(dir_ / "web" / "index.html")
+            << "<!doctype html><title>dash</title>";
         fs::create_directories(dir_ / "studies" / "equal-budget" / "charts");
         std::ofstream(dir_ / "studies" / "equal-budget" / "report.md")
             << "# Equal budget\n\n![](charts/error.png)\n";
-        std::ofstream(dir_ / "studies" / "equal-budget" / "charts" / "error.png") << "png";
+        std::ofstream(dir_ / "studies" / "equal-budget" / "charts" / "error.png")
+            << "png";
         std::ofstream(dir_ / "secret.txt") << "not served";
         fs::create_directories(dir_ / "studies" / "no-report");  // output, not a study
         std::ofstream(dir_ / "studies" / "no-report" / "image.png") << "png";
@@ -150,7 +154,10 @@ TEST_F(HttpServerTest, SubmittedRenderIsListedAndReadBack) {
 }
 
 TEST_F(HttpServerTest, WidthAndHeightMayReplaceResolution) {
-    const std::string id = submit({{"width", 20}, {"height", 10}, {"strategy", {{"method", "optimal"}, {"budget", 4000}}}});
+    const std::string id =
+        submit({{"width", 20},
+                {"height", 10},
+                {"strategy", {{"method", "optimal"}, {"budget", 4000}}}});
     const json r = get_json("/api/renders/" + id);
     EXPECT_EQ(r["width"], 20);
     EXPECT_EQ(r["method"], "optimal");
@@ -193,7 +200,8 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
         {"POST", "/api/renders", R"({"strategy":{"spp":1e300}})", 400},
         {"POST", "/api/renders", R"({"strategy":{"budget":18446744073709551615}})", 400},
         {"POST", "/api/renders", R"({"strategy":{"spp":4,"budget":100}})", 400},
-        {"POST", "/api/renders", R"({"strategy":{"method":"dammertz","max_variance":0}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"method":"dammertz","max_variance":0}})",
+         400},
         {"POST", "/api/renders", R"({"strategy":{"alpha":"x"}})", 400},
         {"POST", "/api/renders", R"({"strategy":"uniform"})", 400},
         {"POST", "/api/renders", std::string(2 << 20, ' '), 413},
@@ -209,14 +217,16 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
         {"GET", "/api/studies/elsewhere/equal-budget/report.md", "", 404},
     };
     for (const Case& c : cases) {
-        auto res = c.method == "GET" ? client_->Get(c.path.c_str())
-                                     : client_->Post(c.path.c_str(), c.body, "application/json");
+        auto res = c.method == "GET"
+                       ? client_->Get(c.path.c_str())
+                       : client_->Post(c.path.c_str(), c.body, "application/json");
         ASSERT_TRUE(res) << c.method << " " << c.path;
         EXPECT_EQ(res->status, c.status) << c.method << " " << c.path.substr(0, 80) << " "
                                          << c.body.substr(0, 80) << ": " << res->body;
         const json body = json::parse(res->body, nullptr, false);
         ASSERT_TRUE(body.is_object()) << c.path.substr(0, 80) << ": " << res->body;
-        EXPECT_TRUE(body["error"].is_string() && !body["error"].get<std::string>().empty())
+        EXPECT_TRUE(body["error"].is_string() &&
+                    !body["error"].get<std::string>().empty())
             << res->body;
     }
     // Nothing bad was created.
@@ -246,7 +256,8 @@ TEST_F(HttpServerTest, RoundsPreviewMapsAndBucketsFollowTheRender) {
     EXPECT_GT(rows[1][2], rows[0][2]);
     EXPECT_GT(rows[1][3].get<double>(), 0.0);  // seconds
     EXPECT_GT(rows[1][4].get<double>(), 0.0);  // error estimate
-    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds?since=1")["rows"], json(rows.begin() + 1, rows.end()));
+    EXPECT_EQ(get_json("/api/renders/" + id + "/rounds?since=1")["rows"],
+              json(rows.begin() + 1, rows.end()));
     const json page = get_json("/api/renders/" + id + "/rounds?limit=1");
     EXPECT_EQ(page["rows"].size(), 1u);
     EXPECT_EQ(page["next"], 1);
@@ -377,10 +388,13 @@ TEST_F(HttpServerTest, FiftyRendersAndTenWorkersStayUnder100KB) {
     };
     std::vector<std::string> ids;
     for (int i = 0; i < 50; ++i)
-        ids.push_back(submit({{"resolution", "64x64"}, {"seed", i}, {"strategy", strategies[i % 5]}}));
-    for (int w = 0; w < 10; ++w) coordinator_->register_worker("worker-" + std::to_string(w), 8);
+        ids.push_back(submit(
+            {{"resolution", "64x64"}, {"seed", i}, {"strategy", strategies[i % 5]}}));
+    for (int w = 0; w < 10; ++w)
+        coordinator_->register_worker("worker-" + std::to_string(w), 8);
     // Some renders finished, some part-way, some with a lease outstanding.
-    for (int w = 0; w < 10; ++w) fake_jobs(*coordinator_, "worker-" + std::to_string(w), 60);
+    for (int w = 0; w < 10; ++w)
+        fake_jobs(*coordinator_, "worker-" + std::to_string(w), 60);
     for (int w = 0; w < 10; ++w)
         coordinator_->lease("worker-" + std::to_string(w), std::chrono::milliseconds(0));
 
@@ -401,8 +415,9 @@ TEST_F(HttpServerTest, FiftyRendersAndTenWorkersStayUnder100KB) {
         EXPECT_LT(size_of("/api/renders/" + id + "/maps?kind=error"), kMaxResponse);
         EXPECT_LT(size_of("/api/renders/" + id + "/preview.png"), kMaxResponse);
     }
-    std::printf("50 renders, 10 workers: /api/renders %zu bytes, /api/workers %zu bytes\n",
-                list, size_of("/api/workers"));
+    std::printf(
+        "50 renders, 10 workers: /api/renders %zu bytes, /api/workers %zu bytes\n", list,
+        size_of("/api/workers"));
 }
 
 TEST_F(HttpServerTest, StudiesAreListedAndServedFromTheirDirectoryOnly) {

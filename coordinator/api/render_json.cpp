@@ -53,7 +53,8 @@ BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t widt
     return p;
 }
 
-json render_summary(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {
+json render_summary(const RenderInfo& info,
+                    const std::optional<BucketProgress>& buckets) {
     json j = {{"id", info.id},
               {"scene", info.scene_name},
               {"method", info.method},

@@ -23,8 +23,8 @@ BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t widt
 // The compact form used in lists and live events: no strategy parameters, no pixels.
 // `buckets` (the HTTP API has them, a gRPC client does not) makes a Dammertz render's
 // progress the converged area rather than samples over its cap.
-nlohmann::json render_summary(const RenderInfo& info,
-                              const std::optional<BucketProgress>& buckets = std::nullopt);
+nlohmann::json render_summary(
+    const RenderInfo& info, const std::optional<BucketProgress>& buckets = std::nullopt);
 // The summary plus strategy parameters, outcome and rays traced.
 nlohmann::json render_detail(const RenderInfo& info,
                              const std::optional<BucketProgress>& buckets = std::nullopt);

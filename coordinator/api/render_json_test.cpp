@@ -1,5 +1,5 @@
-// One JSON for a render: the HTTP API writes it from the coordinator's RenderInfo and the CLI
-// from the same RenderInfo read back off gRPC; the two must be the same document.
+// One JSON for a render: the HTTP API writes it from the coordinator's RenderInfo and the
+// CLI from the same RenderInfo read back off gRPC; the two must be the same document.
 #include "render_json.h"
 
 #include <gtest/gtest.h>

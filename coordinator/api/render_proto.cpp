@@ -4,25 +4,37 @@ namespace aliquot {
 
 v1::RenderState to_proto(RenderState state) {
     switch (state) {
-        case RenderState::Queued: return v1::RENDER_STATE_QUEUED;
-        case RenderState::Running: return v1::RENDER_STATE_RUNNING;
-        case RenderState::Done: return v1::RENDER_STATE_DONE;
-        case RenderState::Cancelled: return v1::RENDER_STATE_CANCELLED;
-        case RenderState::Failed: return v1::RENDER_STATE_FAILED;
+        case RenderState::Queued:
+            return v1::RENDER_STATE_QUEUED;
+        case RenderState::Running:
+            return v1::RENDER_STATE_RUNNING;
+        case RenderState::Done:
+            return v1::RENDER_STATE_DONE;
+        case RenderState::Cancelled:
+            return v1::RENDER_STATE_CANCELLED;
+        case RenderState::Failed:
+            return v1::RENDER_STATE_FAILED;
     }
     return v1::RENDER_STATE_UNSPECIFIED;
 }
 
 RenderState from_proto(v1::RenderState state) {
     switch (state) {
-        case v1::RENDER_STATE_QUEUED: return RenderState::Queued;
-        case v1::RENDER_STATE_RUNNING: return RenderState::Running;
-        case v1::RENDER_STATE_DONE: return RenderState::Done;
-        case v1::RENDER_STATE_CANCELLED: return RenderState::Cancelled;
-        case v1::RENDER_STATE_FAILED: return RenderState::Failed;
-        default: break;
+        case v1::RENDER_STATE_QUEUED:
+            return RenderState::Queued;
+        case v1::RENDER_STATE_RUNNING:
+            return RenderState::Running;
+        case v1::RENDER_STATE_DONE:
+            return RenderState::Done;
+        case v1::RENDER_STATE_CANCELLED:
+            return RenderState::Cancelled;
+        case v1::RENDER_STATE_FAILED:
+            return RenderState::Failed;
+        default:
+            break;
     }
-    throw WireError("render state " + std::to_string(int(state)) + " is not one this build knows");
+    throw WireError("render state " + std::to_string(int(state)) +
+                    " is not one this build knows");
 }
 
 void to_proto(const RenderInfo& i, v1::RenderInfo& out) {

@@ -1,5 +1,6 @@
-// A render's state on the wire: the farm's RenderInfo to and from v1::RenderInfo. The gRPC
-// server encodes with it and the CLI decodes with it, so both ends share one conversion.
+// A render's state on the wire: the farm's RenderInfo to and from v1::RenderInfo. The
+// gRPC server encodes with it and the CLI decodes with it, so both ends share one
+// conversion.
 #pragma once
 
 #include "aliquot.pb.h"
@@ -9,10 +10,10 @@
 namespace aliquot {
 
 // The C++ side keeps its own RenderState (store/render_state.h) rather than using
-// v1::RenderState: the store and the farm stay free of protobuf, and a switch over an enum
-// class with no "unspecified" value is checked for completeness by the compiler. This is the
-// one mapping between the two; it lives here, not in proto/wire, because RenderInfo belongs to
-// the farm, which the worker's side of the wire must not see.
+// v1::RenderState: the store and the farm stay free of protobuf, and a switch over an
+// enum class with no "unspecified" value is checked for completeness by the compiler.
+// This is the one mapping between the two; it lives here, not in proto/wire, because
+// RenderInfo belongs to the farm, which the worker's side of the wire must not see.
 v1::RenderState to_proto(RenderState state);
 // Throws WireError for RENDER_STATE_UNSPECIFIED or a value this build does not know.
 RenderState from_proto(v1::RenderState state);

@@ -1,6 +1,6 @@
-// Checkpoint: a render's merged buffers and strategy state at a round boundary, on disk, so
-// a restarted coordinator continues exactly where the last checkpointed round left it (and,
-// rounds being deterministic, re-runs the rounds after it to the same bytes).
+// Checkpoint: a render's merged buffers and strategy state at a round boundary, on disk,
+// so a restarted coordinator continues exactly where the last checkpointed round left it
+// (and, rounds being deterministic, re-runs the rounds after it to the same bytes).
 #pragma once
 
 #include <filesystem>
@@ -26,10 +26,11 @@ void save_checkpoint(const std::filesystem::path& path, const Checkpoint& checkp
 // nullopt when there is no checkpoint; throws std::runtime_error for a damaged one.
 std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path);
 
-// Whether a round's checkpoint is due: checkpoints may take at most 1/kCheckpointShare of a
-// render's time. A checkpoint holds the whole buffers (72 bytes a pixel) and Dammertz runs
-// thousands of short rounds: one per round wrote gigabytes a render. `since_last` is the
-// time since the last checkpoint ended, `last_cost` how long writing it took (0: none yet).
+// Whether a round's checkpoint is due: checkpoints may take at most 1/kCheckpointShare of
+// a render's time. A checkpoint holds the whole buffers (72 bytes a pixel) and Dammertz
+// runs thousands of short rounds: one per round wrote gigabytes a render. `since_last` is
+// the time since the last checkpoint ended, `last_cost` how long writing it took (0: none
+// yet).
 inline constexpr double kCheckpointShare = 20;
 bool checkpoint_due(double since_last_seconds, double last_cost_seconds);
 

@@ -15,19 +15,22 @@ namespace aliquot {
 namespace {
 
 nlohmann::json spec_json(const RenderSpec& spec) {
-    return {{"scene_name", spec.scene_name}, {"width", spec.width},
-            {"height", spec.height},         {"seed", spec.seed},
-            {"strategy", spec.strategy},     {"has_reference", spec.reference.has_value()}};
+    return {
+        {"scene_name", spec.scene_name}, {"width", spec.width},
+        {"height", spec.height},         {"seed", spec.seed},
+        {"strategy", spec.strategy},     {"has_reference", spec.reference.has_value()}};
 }
 
-void log_error(const std::string& what) { std::fprintf(stderr, "coordinator: %s\n", what.c_str()); }
+void log_error(const std::string& what) {
+    std::fprintf(stderr, "coordinator: %s\n", what.c_str());
+}
 
 }  // namespace
 
 Coordinator::Coordinator(CoordinatorOptions options)
     : options_(std::move(options)),
-      // Lease ids start from the clock so that a restarted coordinator never re-uses the id
-      // of a lease a worker may still be holding from before the restart.
+      // Lease ids start from the clock so that a restarted coordinator never re-uses the
+      // id of a lease a worker may still be holding from before the restart.
       next_lease_id_(uint64_t(unix_millis_now()) << 16) {
     if (!options_.data_dir.empty()) {
         std::filesystem::create_directories(options_.data_dir / "renders");
@@ -69,9 +72,9 @@ void Coordinator::stop() {
 }
 
 uint64_t Coordinator::first_free_render_number() const {
-    // Numbers come from the store and from the render directories on disk: a database lost
-    // or moved aside (as its integrity error advises) must not hand out r-000001 again and
-    // overwrite that render's image and checkpoint.
+    // Numbers come from the store and from the render directories on disk: a database
+    // lost or moved aside (as its integrity error advises) must not hand out r-000001
+    // again and overwrite that render's image and checkpoint.
     uint64_t next = 1;
     auto consider = [&next](const std::string& id) {
         unsigned long long n = 0;
@@ -100,7 +103,8 @@ void Coordinator::changed() {
 void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     RenderSession* s = session.get();
     s->on_round = [this](RenderSession& r, const RoundSummary& round) {
-        round_history_[r.id()].push_back(round);  // for rounds(): see the end of this file
+        round_history_[r.id()].push_back(
+            round);  // for rounds(): see the end of this file
         if (!store_) return;
         try {
             RoundRecord rec;
@@ -110,15 +114,19 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
             rec.samples_total = int64_t(round.samples_total);
             rec.seconds = round.seconds;
             rec.error_estimate = round.error_estimate;
-            if (round.error_vs_reference >= 0) rec.error_vs_reference = round.error_vs_reference;
-            // Buckets are stored when their layout changes, not every round: Dammertz runs
-            // thousands of rounds over hundreds of buckets, and the database would grow by
-            // megabytes a render. A round without buckets_json keeps the previous layout.
-            nlohmann::json buckets = nlohmann::json::array(), shape = nlohmann::json::array();
+            if (round.error_vs_reference >= 0)
+                rec.error_vs_reference = round.error_vs_reference;
+            // Buckets are stored when their layout changes, not every round: Dammertz
+            // runs thousands of rounds over hundreds of buckets, and the database would
+            // grow by megabytes a render. A round without buckets_json keeps the previous
+            // layout.
+            nlohmann::json buckets = nlohmann::json::array(),
+                           shape = nlohmann::json::array();
             for (const Bucket& b : r.strategy().buckets()) {
-                buckets.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.error,
-                                   b.converged});
-                shape.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.converged});
+                buckets.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height,
+                                   b.error, b.converged});
+                shape.push_back(
+                    {b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.converged});
             }
             std::string& last_shape = bucket_shapes_[r.id()];
             if (!buckets.empty() && shape.dump() != last_shape) {
@@ -126,24 +134,28 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
                 last_shape = shape.dump();
             }
             rec.created_at = unix_millis_now();
-            // The round is recorded before the checkpoint that includes it: a crash between
-            // the two re-runs the round, and recording it again is a no-op.
-            backlog_.submit("record round " + std::to_string(round.index) + " of " + r.id(),
-                            [this, rec] { store_->add_round(rec); });
+            // The round is recorded before the checkpoint that includes it: a crash
+            // between the two re-runs the round, and recording it again is a no-op.
+            backlog_.submit(
+                "record round " + std::to_string(round.index) + " of " + r.id(),
+                [this, rec] { store_->add_round(rec); });
             CheckpointTiming& timing = checkpoint_timing_[r.id()];
             const auto start = std::chrono::steady_clock::now();
-            if (checkpoint_due(std::chrono::duration<double>(start - timing.ended).count(),
-                               timing.cost_seconds)) {
+            if (checkpoint_due(
+                    std::chrono::duration<double>(start - timing.ended).count(),
+                    timing.cost_seconds)) {
                 Checkpoint cp{r.merged(), r.strategy().save_state(), r.rounds_done(),
                               round.seconds};
                 save_checkpoint(render_dir(r.id()) / "checkpoint.bin", cp);
-                backlog_.submit("record the progress of " + r.id(),
-                                [this, id = r.id(), samples = int64_t(round.samples_total),
-                                 state = cp.strategy_state.dump()] {
-                                    store_->update_render_progress(id, samples, state);
-                                });
+                backlog_.submit(
+                    "record the progress of " + r.id(),
+                    [this, id = r.id(), samples = int64_t(round.samples_total),
+                     state = cp.strategy_state.dump()] {
+                        store_->update_render_progress(id, samples, state);
+                    });
                 timing.ended = std::chrono::steady_clock::now();
-                timing.cost_seconds = std::chrono::duration<double>(timing.ended - start).count();
+                timing.cost_seconds =
+                    std::chrono::duration<double>(timing.ended - start).count();
             }
         } catch (const std::exception& e) {
             // The render goes on; the next round's checkpoint tries again.
@@ -154,14 +166,16 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     s->on_finished = [this](RenderSession& r) {
         checkpoint_timing_.erase(r.id());
         if (!store_) return;
-        // The session stays in memory until this is written, so a retry finds its buffers.
+        // The session stays in memory until this is written, so a retry finds its
+        // buffers.
         backlog_.submit("record the end of " + r.id(), [this, id = r.id()] {
             const RenderSession& done = *sessions_.at(id);
             write_exr(render_dir(id) / "image.exr", done.merged().image(true));
             store_->finish_render(id, done.state(), done.strategy().outcome().dump(),
                                   unix_millis_now());
             if (!done.error().empty())
-                store_->update_render_state(id, done.state(), done.error(), unix_millis_now());
+                store_->update_render_state(id, done.state(), done.error(),
+                                            unix_millis_now());
         });
     };
     order_.push_back(s->id());
@@ -181,14 +195,16 @@ std::string Coordinator::claim_render_id() {
                       (unsigned long long)next_render_number_++);
         // create_directory is the claim: an existing directory is some earlier render's,
         // never to be overwritten, so its number is skipped.
-        if (!store_ || std::filesystem::create_directory(render_dir(id_text))) return id_text;
+        if (!store_ || std::filesystem::create_directory(render_dir(id_text)))
+            return id_text;
     }
 }
 
 std::string Coordinator::submit(RenderSpec spec) {
     validate(spec, options_.max_side);
     // Parse now so a broken scene is the submitter's error, not every worker's.
-    parse_scene(spec.scene_json, spec.scene_name.empty() ? "scene" : spec.scene_name, ".");
+    parse_scene(spec.scene_json, spec.scene_name.empty() ? "scene" : spec.scene_name,
+                ".");
     const std::string hash = scene_hash(spec.scene_json);
     std::lock_guard lock(mutex_);
     const std::string id = claim_render_id();
@@ -204,11 +220,12 @@ std::string Coordinator::submit(RenderSpec spec) {
         rec.created_at = created;
         rec.samples_planned = int64_t(session->samples_planned());
         if (spec.reference) {
-            // Content-addressed: a study judges hundreds of renders against one reference,
-            // which is then written once, not once per render.
+            // Content-addressed: a study judges hundreds of renders against one
+            // reference, which is then written once, not once per render.
             const Image& ref = *spec.reference;
-            const std::string key = content_hash(std::string(
-                reinterpret_cast<const char*>(ref.rgb.data()), ref.rgb.size() * sizeof(float)));
+            const std::string key =
+                content_hash(std::string(reinterpret_cast<const char*>(ref.rgb.data()),
+                                         ref.rgb.size() * sizeof(float)));
             const auto path = options_.data_dir / "references" /
                               (key + "-" + std::to_string(ref.width) + "x" +
                                std::to_string(ref.height) + ".exr");
@@ -239,12 +256,13 @@ void Coordinator::resume_unfinished() {
             const std::optional<SceneRecord> scene = store_->get_scene(rec.scene_hash);
             if (!scene) throw std::runtime_error("its scene is missing from the store");
             spec.scene_json = scene->json;
-            if (!rec.reference_path.empty()) spec.reference = read_exr(rec.reference_path);
+            if (!rec.reference_path.empty())
+                spec.reference = read_exr(rec.reference_path);
             scenes_[rec.scene_hash] = spec.scene_json;
             auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
-                session->restore(std::move(cp->merged), cp->strategy_state, cp->rounds_done,
-                                 cp->seconds);
+                session->restore(std::move(cp->merged), cp->strategy_state,
+                                 cp->rounds_done, cp->seconds);
             attach(std::move(session));
         } catch (const std::exception& e) {
             log_error("cannot resume " + rec.id + ": " + e.what());
@@ -276,7 +294,8 @@ RenderInfo Coordinator::info_of(const RenderSession& s) const {
     info.rays = s.merged().total_rays();
     info.rounds_done = s.rounds_done();
     info.seconds = s.seconds();
-    info.samples_per_second = info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
+    info.samples_per_second =
+        info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
     info.error_estimate = s.error_estimate();
     info.error_vs_reference = s.error_vs_reference();
     info.created_ms = s.created_ms();
@@ -312,7 +331,8 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
         info.error_estimate = last->error_estimate;
         info.error_vs_reference = last->error_vs_reference.value_or(-1);
     }
-    info.samples_per_second = info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
+    info.samples_per_second =
+        info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
     info.created_ms = rec->created_at;
     info.finished_ms = rec->finished_at.value_or(0);
     info.outcome_json = rec->outcome_json;
@@ -326,7 +346,8 @@ std::vector<RenderInfo> Coordinator::list(size_t limit) {
         if (store_) {
             for (const RenderRecord& r : store_->list_renders(limit)) ids.push_back(r.id);
         } else {
-            for (auto it = order_.rbegin(); it != order_.rend() && ids.size() < limit; ++it)
+            for (auto it = order_.rbegin(); it != order_.rend() && ids.size() < limit;
+                 ++it)
                 ids.push_back(*it);
         }
     }
@@ -406,17 +427,15 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& worker,
             RenderSession& s = *sessions_[id];
             if (s.state() != RenderState::Running || !s.has_pending()) continue;
             const uint64_t lease_id = next_lease_id_++;
-            std::optional<SampleJob> job =
-                s.issue(lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
+            std::optional<SampleJob> job = s.issue(
+                lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
             if (!job) continue;
             lease_render_[lease_id] = id;
             changed();
-            return LeaseGrant{lease_id,
-                              id,
-                              s.scene_hash(),
-                              {s.spec().width, s.spec().height, s.spec().seed},
-                              std::move(*job),
-                              uint32_t(options_.lease_time.count())};
+            return LeaseGrant{
+                lease_id,        id,
+                s.scene_hash(),  {s.spec().width, s.spec().height, s.spec().seed},
+                std::move(*job), uint32_t(options_.lease_time.count())};
         }
         if (work_ready_.wait_until(lock, deadline) == std::cv_status::timeout) break;
     }
@@ -438,7 +457,8 @@ CompleteOutcome Coordinator::complete(const std::string& worker, uint64_t lease_
         w.samples += samples;
         if (result.wall_seconds > 0) {
             // Per-thread rate of this job, times the worker's threads, smoothed.
-            const double rate = double(samples) / result.wall_seconds * std::max(w.threads, 1u);
+            const double rate =
+                double(samples) / result.wall_seconds * std::max(w.threads, 1u);
             w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
         }
         w.unrecorded += samples;  // written by tick(), not once per merged job
@@ -460,8 +480,8 @@ bool Coordinator::renew(const std::string& worker, uint64_t lease_id) {
     touch_worker(worker);
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end()) return false;
-    return sessions_.at(it->second)->renew(lease_id, worker,
-                                          RenderSession::Clock::now() + options_.lease_time);
+    return sessions_.at(it->second)
+        ->renew(lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
 }
 
 bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
@@ -469,7 +489,8 @@ bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
     touch_worker(worker);
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end()) return false;
-    // Only the holder may give a lease back; anyone else's word leaves it with its holder.
+    // Only the holder may give a lease back; anyone else's word leaves it with its
+    // holder.
     if (!sessions_.at(it->second)->abandon(lease_id, worker)) return false;
     lease_render_.erase(it);
     changed();
@@ -513,7 +534,8 @@ void Coordinator::tick() {
     for (auto& [name, w] : workers_) {
         if (store_ && w.unrecorded > 0) {
             try {
-                store_->record_worker_samples(name, int64_t(w.unrecorded), w.last_seen_ms);
+                store_->record_worker_samples(name, int64_t(w.unrecorded),
+                                              w.last_seen_ms);
             } catch (const std::exception& e) {
                 log_error(e.what());
             }
@@ -532,8 +554,8 @@ void Coordinator::tick() {
         }
     }
     if (any) changed();
-    // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the next
-    // one tries again.
+    // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the
+    // next one tries again.
     if (store_ && ++ticks_ % 50 == 0) {
         try {
             store_->checkpoint();
@@ -569,7 +591,8 @@ std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& 
         // the store once.
         if (history.size() < live->second->rounds_done() && store_) {
             std::vector<RoundSummary> all;
-            for (const RoundRecord& rec : store_->rounds(id)) all.push_back(summary_of(rec));
+            for (const RoundRecord& rec : store_->rounds(id))
+                all.push_back(summary_of(rec));
             if (all.size() > history.size()) history = std::move(all);
         }
         return history;
@@ -588,8 +611,9 @@ std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
     std::vector<Bucket> out;
     const std::vector<RoundRecord> recs = store_->rounds(id);
     // The latest layout is in the last round that stored one (see on_round).
-    auto last = std::find_if(recs.rbegin(), recs.rend(),
-                             [](const RoundRecord& r) { return !r.buckets_json.empty(); });
+    auto last = std::find_if(recs.rbegin(), recs.rend(), [](const RoundRecord& r) {
+        return !r.buckets_json.empty();
+    });
     if (last == recs.rend()) return out;
     // Rows as on_round writes them: [x, y, width, height, error, converged].
     const nlohmann::json rows = nlohmann::json::parse(last->buckets_json, nullptr, false);

@@ -29,8 +29,8 @@ struct CoordinatorOptions {
     uint32_t max_side = 8192;
 };
 
-// A render as clients see it. The state is the C++ enum; its spellings ("running", ...) are
-// store/render_state.h's alone.
+// A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
+// are store/render_state.h's alone.
 struct RenderInfo {
     std::string id, scene_name, method, strategy_json, error, outcome_json;
     RenderState state = RenderState::Queued;
@@ -80,7 +80,8 @@ public:
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
 
-    // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls it.
+    // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls
+    // it.
     void tick();
     // Wakes every waiting call and refuses new leases: the first step of shutting down.
     void stop();
@@ -114,16 +115,18 @@ private:
     uint64_t next_lease_id_;
     uint64_t next_render_number_ = 1;
     std::map<std::string, std::unique_ptr<RenderSession>> sessions_;  // by id
-    std::vector<std::string> order_;                                   // submission order
-    std::unordered_map<uint64_t, std::string> lease_render_;          // lease -> render id
-    std::map<std::string, std::string> scenes_;                        // hash -> json
+    std::vector<std::string> order_;                                  // submission order
+    std::unordered_map<uint64_t, std::string> lease_render_;  // lease -> render id
+    std::map<std::string, std::string> scenes_;               // hash -> json
     std::map<std::string, WorkerEntry> workers_;
-    std::map<std::string, std::string> bucket_shapes_;  // render -> last stored bucket layout
+    std::map<std::string, std::string>
+        bucket_shapes_;  // render -> last stored bucket layout
     struct CheckpointTiming {
         std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
         double cost_seconds = 0;                        // how long writing it took
     };
-    std::map<std::string, CheckpointTiming> checkpoint_timing_;  // render -> its checkpoints
+    std::map<std::string, CheckpointTiming>
+        checkpoint_timing_;  // render -> its checkpoints
     int ticks_ = 0;
     bool stopping_ = false;
     std::thread ticker_;

@@ -61,8 +61,8 @@ TEST_F(CoordinatorTest, AWorkerThatNeverRegisteredCanBeLostWithoutAnError) {
     EXPECT_EQ(workers[0].state, "lost");
 }
 
-// Issue 12, reproduction 4: with aliquot.db moved aside, the next render was r-000001 again
-// and overwrote that render's files.
+// Issue 12, reproduction 4: with aliquot.db moved aside, the next render was r-000001
+// again and overwrote that render's files.
 TEST_F(CoordinatorTest, RenderIdsAreNotReusedWhenTheDatabaseIsLost) {
     std::string first;
     {
@@ -71,7 +71,8 @@ TEST_F(CoordinatorTest, RenderIdsAreNotReusedWhenTheDatabaseIsLost) {
     }
     const fs::path marker = dir / "renders" / first / "keep.txt";
     std::ofstream(marker) << "an earlier render's file";
-    for (const char* f : {"aliquot.db", "aliquot.db-wal", "aliquot.db-shm"}) fs::remove(dir / f);
+    for (const char* f : {"aliquot.db", "aliquot.db-wal", "aliquot.db-shm"})
+        fs::remove(dir / f);
 
     Coordinator c(options);
     const std::string second = c.submit(small_spec());

@@ -29,7 +29,8 @@ TEST(RecordBacklog, AWriteThatFailsIsKeptAndRetriedInOrderWithBackoff) {
     EXPECT_EQ(backlog.waiting(), 2u);
     EXPECT_NE(backlog.warning().find("database or disk is full"), std::string::npos);
 
-    backlog.retry(t0 + milliseconds(100));  // before the backoff has passed: nothing tried
+    backlog.retry(t0 +
+                  milliseconds(100));  // before the backoff has passed: nothing tried
     EXPECT_TRUE(written.empty());
     backlog.retry(t0 + milliseconds(600));
     EXPECT_EQ(written, (std::vector<int>{0, 1}));
@@ -41,9 +42,11 @@ TEST(RecordBacklog, TheBackoffDoublesWhileTheDiskStaysFull) {
     RecordBacklog backlog;
     int tries = 0;
     const Clock::time_point t0 = Clock::now();
-    backlog.submit("x", [&] { ++tries, throw std::runtime_error("full"); }, t0);
+    backlog.submit(
+        "x", [&] { ++tries, throw std::runtime_error("full"); }, t0);
     for (int ms = 0; ms <= 3500; ms += 100) backlog.retry(t0 + milliseconds(ms));
-    // Tried at 0, then 0.5 s later, 1 s after that, then 2 s after that: 4 tries by 3.5 s.
+    // Tried at 0, then 0.5 s later, 1 s after that, then 2 s after that: 4 tries by 3.5
+    // s.
     EXPECT_EQ(tries, 4);
     EXPECT_EQ(backlog.waiting(), 1u);
 }

@@ -38,7 +38,8 @@ void RenderSession::start() {
 double RenderSession::seconds() const {
     if (final_seconds_) return *final_seconds_;
     if (!started_) return seconds_before_;
-    return seconds_before_ + std::chrono::duration<double>(Clock::now() - *started_).count();
+    return seconds_before_ +
+           std::chrono::duration<double>(Clock::now() - *started_).count();
 }
 
 void RenderSession::plan_next_round() {
@@ -59,13 +60,14 @@ void RenderSession::plan_next_round() {
         round_samples_ = round->total();
         for (SampleJob& job : jobs) {
             pending_.push_back(jobs_.size());
-            jobs_.push_back({std::move(job)});
+            jobs_.push_back(JobSlot{std::move(job), {}, {}});
         }
         return;
     }
 }
 
-std::optional<SampleJob> RenderSession::issue(uint64_t lease_id, const std::string& worker,
+std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
+                                              const std::string& worker,
                                               Clock::time_point deadline) {
     if (state_ != RenderState::Running || pending_.empty()) return std::nullopt;
     const size_t j = pending_.front();
@@ -82,8 +84,8 @@ std::string RenderSession::check_result(const JobSlot& slot,
     const SampleJob& job = slot.job;
     if (!(result.rect == job.rect)) return "result rectangle differs from the job's";
     if (result.pixels.size() != job.rect.size())
-        return "result has " + std::to_string(result.pixels.size()) + " pixels, job has " +
-               std::to_string(job.rect.size());
+        return "result has " + std::to_string(result.pixels.size()) +
+               " pixels, job has " + std::to_string(job.rect.size());
     for (size_t i = 0; i < result.pixels.size(); ++i) {
         const PixelSums& p = result.pixels[i];
         if (p.samples != job.counts[i])
@@ -99,7 +101,8 @@ std::string RenderSession::check_result(const JobSlot& slot,
     return {};
 }
 
-CompleteOutcome RenderSession::complete(uint64_t lease_id, const SampleJobResult& result) {
+CompleteOutcome RenderSession::complete(uint64_t lease_id,
+                                        const SampleJobResult& result) {
     if (state_ != RenderState::Running)
         return {CompleteStatus::Ignored, "render is " + std::string(to_string(state_))};
     const auto it = lease_to_job_.find(lease_id);
@@ -123,7 +126,8 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const SampleJobResult
     summary.seconds = seconds();
     summary.error_estimate = estimate_mean_abs_error(merged_);
     if (spec_.reference)
-        summary.error_vs_reference = compare_images(merged_.image(), *spec_.reference).mean_abs;
+        summary.error_vs_reference =
+            compare_images(merged_.image(), *spec_.reference).mean_abs;
     last_round_ = summary;
     if (on_round) on_round(*this, summary);
     plan_next_round();

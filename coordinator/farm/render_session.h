@@ -20,16 +20,14 @@
 
 namespace aliquot {
 
-
 struct RoundSummary {
     uint32_t index = 0;
     uint64_t samples_in_round = 0;
     uint64_t samples_total = 0;
-    double seconds = 0;                // wall time since the render started
-    double error_estimate = -1;        // see error_estimate.h
-    double error_vs_reference = -1;    // the seed's E against the reference, if any
+    double seconds = 0;              // wall time since the render started
+    double error_estimate = -1;      // see error_estimate.h
+    double error_vs_reference = -1;  // the seed's E against the reference, if any
 };
-
 
 class RenderSession {
 public:
@@ -82,7 +80,8 @@ public:
 
 private:
     struct JobSlot {
-        // Pending, leased or merged is where its index is: pending_, lease_to_job_, neither.
+        // Pending, leased or merged is where its index is: pending_, lease_to_job_,
+        // neither.
         SampleJob job;
         std::string worker;
         Clock::time_point deadline;

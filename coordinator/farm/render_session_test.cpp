@@ -30,7 +30,8 @@ protected:
         spec.strategy.spp = 8;
     }
     RenderSpec spec;
-    RenderSession::Clock::time_point far = RenderSession::Clock::now() + std::chrono::hours(1);
+    RenderSession::Clock::time_point far =
+        RenderSession::Clock::now() + std::chrono::hours(1);
 };
 
 TEST_F(RenderSessionTest, RunsRoundsUntilTheStrategyIsDone) {
@@ -103,12 +104,14 @@ TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne)
         };
         s.start();
         uint64_t lease = 1;
-        while (auto job = s.issue(lease, "w", far)) s.complete(lease++, fake_result(*job));
+        while (auto job = s.issue(lease, "w", far))
+            s.complete(lease++, fake_result(*job));
         if (interrupt_after_round < 0) return s.merged().image(true).rgb;
         RenderSession resumed("r", spec, 0);
         resumed.restore(saved->first, saved->second, saved_rounds, 0);
         resumed.start();
-        while (auto job = resumed.issue(lease, "w", far)) resumed.complete(lease++, fake_result(*job));
+        while (auto job = resumed.issue(lease, "w", far))
+            resumed.complete(lease++, fake_result(*job));
         EXPECT_EQ(resumed.state(), RenderState::Done);
         return resumed.merged().image(true).rgb;
     };

@@ -10,8 +10,10 @@ namespace aliquot {
 
 std::string content_hash(const std::string& text) {
     // Two independent 64-bit chains of SplitMix64's mixer over 8-byte words: a 128-bit
-    // content address. Not cryptographic; scenes and images come from the farm's own users.
-    uint64_t a = 0x243f6a8885a308d3ULL ^ text.size(), b = 0x13198a2e03707344ULL + text.size();
+    // content address. Not cryptographic; scenes and images come from the farm's own
+    // users.
+    uint64_t a = 0x243f6a8885a308d3ULL ^ text.size(),
+             b = 0x13198a2e03707344ULL + text.size();
     size_t i = 0;
     for (; i + 8 <= text.size(); i += 8) {
         uint64_t w;
@@ -30,18 +32,18 @@ std::string content_hash(const std::string& text) {
 }
 
 void validate(const RenderSpec& spec, uint32_t max_side) {
-    if (spec.width == 0 || spec.height == 0 || spec.width > max_side || spec.height > max_side)
-        throw std::invalid_argument("resolution: each side must be in 1.." +
-                                    std::to_string(max_side) + ", got " +
-                                    std::to_string(spec.width) + "x" +
-                                    std::to_string(spec.height));
+    if (spec.width == 0 || spec.height == 0 || spec.width > max_side ||
+        spec.height > max_side)
+        throw std::invalid_argument(
+            "resolution: each side must be in 1.." + std::to_string(max_side) + ", got " +
+            std::to_string(spec.width) + "x" + std::to_string(spec.height));
     validate(spec.strategy, spec.width, spec.height);
     if (spec.reference &&
         (spec.reference->width != spec.width || spec.reference->height != spec.height))
         throw std::invalid_argument(
-            "reference: resolution differs: " + std::to_string(spec.reference->width) + "x" +
-            std::to_string(spec.reference->height) + " vs " + std::to_string(spec.width) + "x" +
-            std::to_string(spec.height));
+            "reference: resolution differs: " + std::to_string(spec.reference->width) +
+            "x" + std::to_string(spec.reference->height) + " vs " +
+            std::to_string(spec.width) + "x" + std::to_string(spec.height));
 }
 
 }  // namespace aliquot

@@ -1,5 +1,5 @@
-// RenderSpec: everything that defines a render's output bytes (scene, size, seed, method),
-// plus an optional reference image that errors are measured against.
+// RenderSpec: everything that defines a render's output bytes (scene, size, seed,
+// method), plus an optional reference image that errors are measured against.
 #pragma once
 
 #include <cstdint>
@@ -12,8 +12,8 @@
 namespace aliquot {
 
 struct RenderSpec {
-    std::string scene_name;   // for people: built-in name or file
-    std::string scene_json;   // self-contained (meshes inlined)
+    std::string scene_name;  // for people: built-in name or file
+    std::string scene_json;  // self-contained (meshes inlined)
     uint32_t width = 0, height = 0;
     uint64_t seed = 0;
     StrategyParams strategy;
@@ -22,8 +22,11 @@ struct RenderSpec {
 
 // A 128-bit content address (32 hex digits) of any bytes; not cryptographic.
 std::string content_hash(const std::string& bytes);
-// The content address of a scene's self-contained JSON: scenes are stored and cached by it.
-inline std::string scene_hash(const std::string& scene_json) { return content_hash(scene_json); }
+// The content address of a scene's self-contained JSON: scenes are stored and cached by
+// it.
+inline std::string scene_hash(const std::string& scene_json) {
+    return content_hash(scene_json);
+}
 
 // Throws std::invalid_argument naming what is wrong: resolution 0 or above `max_side`,
 // strategy parameters, a reference of another resolution.

@@ -40,7 +40,8 @@ size_t tile_count(uint32_t w, uint32_t h, uint32_t tile) {
 
 }  // namespace
 
-std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged, uint32_t tile) {
+std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
+                                 uint32_t tile) {
     const uint32_t w = merged.width(), h = merged.height();
     if (tile == 0) {
         // Mean over the pixels that get samples, so a round that refines a small area is
@@ -49,7 +50,8 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged, 
         for (uint32_t s : round.spp) active += s > 0;
         tile = job_tile_side(active ? double(round.total()) / double(active) : 1.0);
         // Enough jobs to keep several workers' threads busy even on a small image.
-        while (tile > kMinAutoTile && tile_count(w, h, tile) < kMinJobsPerRound) tile /= 2;
+        while (tile > kMinAutoTile && tile_count(w, h, tile) < kMinJobsPerRound)
+            tile /= 2;
     }
     std::vector<PixelRect> tiles;
     for (uint32_t y0 = 0; y0 < h; y0 += tile)
@@ -61,9 +63,10 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged, 
         if (auto job = job_for(rect, round, merged)) jobs.push_back(std::move(*job));
     if (tile < 2 * kMinAutoTile) return jobs;
 
-    // A round ends when its last job does: whoever finishes early waits. Jobs are issued in
-    // order, so the last quarter is cut into quadrants and the wait shrinks to a quadrant's
-    // work, without making every job small (each costs a lease and a result message).
+    // A round ends when its last job does: whoever finishes early waits. Jobs are issued
+    // in order, so the last quarter is cut into quadrants and the wait shrinks to a
+    // quadrant's work, without making every job small (each costs a lease and a result
+    // message).
     const size_t whole = jobs.size() - jobs.size() / 4;
     std::vector<SampleJob> tail(std::make_move_iterator(jobs.begin() + whole),
                                 std::make_move_iterator(jobs.end()));
@@ -71,10 +74,10 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged, 
     for (const SampleJob& big : tail) {
         const PixelRect& r = big.rect;
         const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
-        for (const PixelRect& q : {PixelRect{r.x, r.y, hw, hh},
-                                   PixelRect{r.x + hw, r.y, r.width - hw, hh},
-                                   PixelRect{r.x, r.y + hh, hw, r.height - hh},
-                                   PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}}) {
+        for (const PixelRect& q :
+             {PixelRect{r.x, r.y, hw, hh}, PixelRect{r.x + hw, r.y, r.width - hw, hh},
+              PixelRect{r.x, r.y + hh, hw, r.height - hh},
+              PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}}) {
             if (q.width == 0 || q.height == 0) continue;
             if (auto job = job_for(q, round, merged)) jobs.push_back(std::move(*job));
         }

@@ -1,5 +1,5 @@
-// Cutting a round into sample jobs: square tiles, each pixel's samples continuing from the
-// number it already has, so sample indices never repeat across rounds.
+// Cutting a round into sample jobs: square tiles, each pixel's samples continuing from
+// the number it already has, so sample indices never repeat across rounds.
 #pragma once
 
 #include <vector>
@@ -9,10 +9,11 @@
 
 namespace aliquot {
 
-// Tiles of `tile` x `tile` pixels (smaller at the edges); tiles with no samples are skipped.
-// With tile 0 the side follows the round's mean spp (see job_tile_side), halved while the
-// image has fewer than kMinJobsPerRound tiles. Jobs are in issue order; the last quarter of
-// the tiles is cut into quadrants so that the round's end waits on small jobs.
+// Tiles of `tile` x `tile` pixels (smaller at the edges); tiles with no samples are
+// skipped. With tile 0 the side follows the round's mean spp (see job_tile_side), halved
+// while the image has fewer than kMinJobsPerRound tiles. Jobs are in issue order; the
+// last quarter of the tiles is cut into quadrants so that the round's end waits on small
+// jobs.
 inline constexpr uint32_t kMinAutoTile = 16;
 inline constexpr size_t kMinJobsPerRound = 16;
 
@@ -21,7 +22,8 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
 
 // Tile side for a round of `mean_spp` samples per pixel: jobs of roughly 8k-32k samples,
 // so a job's fixed cost (a lease and a result message) stays small beside its tracing,
-// and at most 128x128 pixels, so a result message stays near 1 MiB, far below gRPC's 4 MiB.
+// and at most 128x128 pixels, so a result message stays near 1 MiB, far below gRPC's 4
+// MiB.
 uint32_t job_tile_side(double mean_spp);
 
 }  // namespace aliquot

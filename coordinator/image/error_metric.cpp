@@ -1,4 +1,5 @@
-// Error metrics between a test image and a reference (the seed's E, RMSE, relMSE, buckets).
+// Error metrics between a test image and a reference (the seed's E, RMSE, relMSE,
+// buckets).
 #include "error_metric.h"
 
 #include <algorithm>
@@ -13,8 +14,8 @@ std::string resolution(const Image& image) {
     return std::to_string(image.width) + "x" + std::to_string(image.height);
 }
 
-// Nearest-rank percentile: the smallest value with at least p% of the values at or below it,
-// so it is always one of the bucket errors, never an interpolation between two.
+// Nearest-rank percentile: the smallest value with at least p% of the values at or below
+// it, so it is always one of the bucket errors, never an interpolation between two.
 double nearest_rank(std::vector<double> values, double p) {
     std::sort(values.begin(), values.end());
     size_t rank = size_t(std::ceil(p / 100.0 * double(values.size())));
@@ -63,7 +64,8 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
     for (uint32_t by = 0; by < buckets_y; ++by) {
         for (uint32_t bx = 0; bx < buckets_x; ++bx) {
             // Edge buckets are smaller; each is averaged over its own pixels (and RGB).
-            const double pixels = double(std::min(b, w - bx * b)) * std::min(b, h - by * b);
+            const double pixels =
+                double(std::min(b, w - bx * b)) * std::min(b, h - by * b);
             const double e = bucket_abs[size_t(by) * buckets_x + bx] / (3.0 * pixels);
             any_nan = any_nan || std::isnan(e);
             bucket_errors.push_back(e);
@@ -74,7 +76,8 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
     m.rmse = std::sqrt(sq_sum / samples);
     m.relative_mse = rel_sum / samples;
     if (any_nan) {
-        // A NaN would break the sort's ordering; report it rather than a misleading number.
+        // A NaN would break the sort's ordering; report it rather than a misleading
+        // number.
         m.max_bucket = m.p99_bucket = std::nan("");
     } else {
         m.max_bucket = *std::max_element(bucket_errors.begin(), bucket_errors.end());

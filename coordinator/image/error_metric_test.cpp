@@ -35,7 +35,8 @@ TEST(ErrorMetric, MatchesHandComputedValues) {
     // Pixel errors averaged over RGB: (1+2+3)/3 = 2 and 1/3.
     EXPECT_DOUBLE_EQ(m.mean_abs, (2.0 + 1.0 / 3.0) / 2.0);
     EXPECT_DOUBLE_EQ(m.rmse, std::sqrt((1.0 + 4.0 + 9.0 + 1.0) / 6.0));
-    EXPECT_DOUBLE_EQ(m.relative_mse, (1.0 / 0.01 + 4.0 / 0.01 + 9.0 / 0.01 + 1.0 / 1.01) / 6.0);
+    EXPECT_DOUBLE_EQ(m.relative_mse,
+                     (1.0 / 0.01 + 4.0 / 0.01 + 9.0 / 0.01 + 1.0 / 1.01) / 6.0);
     // One bucket holds the whole image.
     EXPECT_DOUBLE_EQ(m.max_bucket, m.mean_abs);
     EXPECT_DOUBLE_EQ(m.p99_bucket, m.mean_abs);
@@ -88,7 +89,8 @@ TEST(ErrorMetric, WholeImageMetricsDoNotDependOnBucketSize) {
         test.rgb[i] = 0.1f * float(i % 13);
         ref.rgb[i] = 0.07f * float(i % 11);
     }
-    const ErrorMetrics a = compare_images(test, ref, 1), b = compare_images(test, ref, 16);
+    const ErrorMetrics a = compare_images(test, ref, 1),
+                       b = compare_images(test, ref, 16);
     EXPECT_EQ(a.mean_abs, b.mean_abs);
     EXPECT_EQ(a.rmse, b.rmse);
     EXPECT_EQ(a.relative_mse, b.relative_mse);

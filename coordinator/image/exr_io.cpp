@@ -23,23 +23,25 @@ constexpr const char* kRgb[3] = {"R", "G", "B"};
 
 [[noreturn]] void fail(const char* verb, const std::filesystem::path& path,
                        const std::string& why) {
-    throw ImageFileError("cannot " + std::string(verb) + " " + path.string() + ": " + why);
+    throw ImageFileError("cannot " + std::string(verb) + " " + path.string() + ": " +
+                         why);
 }
 
 void check_writable(const std::filesystem::path& path, const Image& image) {
     // EXR cannot represent an empty data window.
     if (image.width == 0 || image.height == 0) fail("write", path, "image is empty");
     if (image.rgb.size() != image.pixel_count() * 3)
-        fail("write", path, "rgb holds " + std::to_string(image.rgb.size()) +
-                                " floats, expected " + std::to_string(image.pixel_count() * 3));
+        fail("write", path,
+             "rgb holds " + std::to_string(image.rgb.size()) + " floats, expected " +
+                 std::to_string(image.pixel_count() * 3));
     std::set<std::string> names(std::begin(kRgb), std::end(kRgb));
     for (const Image::Channel& c : image.extra) {
         if (c.name.empty() || !names.insert(c.name).second)
             fail("write", path, "channel name '" + c.name + "' is empty or repeated");
         if (c.values.size() != image.pixel_count())
-            fail("write", path, "channel '" + c.name + "' holds " +
-                                    std::to_string(c.values.size()) + " values, expected " +
-                                    std::to_string(image.pixel_count()));
+            fail("write", path,
+                 "channel '" + c.name + "' holds " + std::to_string(c.values.size()) +
+                     " values, expected " + std::to_string(image.pixel_count()));
     }
 }
 
@@ -66,7 +68,8 @@ void write_exr(const std::filesystem::path& path, const Image& image) {
     for (const Image::Channel& ch : image.extra) {
         header.channels().insert(ch.name, Imf::Channel(Imf::FLOAT));
         char* base = reinterpret_cast<char*>(const_cast<float*>(ch.values.data()));
-        frame.insert(ch.name, Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * w));
+        frame.insert(ch.name,
+                     Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * w));
     }
 
     // Opening the stream ourselves gives errno, hence a plain "No such file or directory"
@@ -81,7 +84,8 @@ void write_exr(const std::filesystem::path& path, const Image& image) {
     } catch (const std::exception& e) {
         os.close();
         std::error_code ignored;
-        std::filesystem::remove(path, ignored);  // a half-written file would look valid by name
+        std::filesystem::remove(path,
+                                ignored);  // a half-written file would look valid by name
         fail("write", path, e.what());
     }
     // The line offset table is written by ~OutputFile, so a full disk shows up only here.
@@ -95,11 +99,13 @@ void write_exr(const std::filesystem::path& path, const Image& image) {
 
 Image read_exr(const std::filesystem::path& path) {
     std::error_code ec;
-    if (std::filesystem::is_directory(path, ec)) fail("read", path, std::strerror(EISDIR));
+    if (std::filesystem::is_directory(path, ec))
+        fail("read", path, std::strerror(EISDIR));
     std::ifstream is(path, std::ios::binary);
     if (!is) fail("read", path, std::strerror(errno));
     char magic[4] = {};
-    if (!is.read(magic, 4) || !Imf::isImfMagic(magic)) fail("read", path, "not an OpenEXR file");
+    if (!is.read(magic, 4) || !Imf::isImfMagic(magic))
+        fail("read", path, "not an OpenEXR file");
     is.seekg(0);
 
     try {
@@ -114,16 +120,20 @@ Image read_exr(const std::filesystem::path& path) {
                 fail("read", path, std::string("no channel ") + name);
         for (auto it = channels.begin(); it != channels.end(); ++it)
             if (it.channel().xSampling != 1 || it.channel().ySampling != 1)
-                fail("read", path, std::string("subsampled channel ") + it.name() +
-                                       " is not supported");
+                fail(
+                    "read", path,
+                    std::string("subsampled channel ") + it.name() + " is not supported");
 
         Image image{uint32_t(w), uint32_t(h)};
         Imf::FrameBuffer frame;
-        // Slice::Make offsets the base pointer by the data window origin, which need not be 0.
+        // Slice::Make offsets the base pointer by the data window origin, which need not
+        // be 0.
         for (int c = 0; c < 3; ++c)
-            frame.insert(kRgb[c], Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, dw,
-                                                   3 * sizeof(float), 3 * sizeof(float) * w));
-        // ChannelList iterates by name, so extras come back sorted, whatever order was written.
+            frame.insert(kRgb[c],
+                         Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, dw,
+                                          3 * sizeof(float), 3 * sizeof(float) * w));
+        // ChannelList iterates by name, so extras come back sorted, whatever order was
+        // written.
         for (auto it = channels.begin(); it != channels.end(); ++it) {
             const std::string name = it.name();
             if (name == "R" || name == "G" || name == "B") continue;

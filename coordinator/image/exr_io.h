@@ -1,4 +1,5 @@
-// OpenEXR reading and writing. Output is deterministic: the same Image gives the same bytes.
+// OpenEXR reading and writing. Output is deterministic: the same Image gives the same
+// bytes.
 #pragma once
 
 #include <filesystem>

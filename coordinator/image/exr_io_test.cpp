@@ -1,11 +1,11 @@
 // OpenEXR I/O: round trips, deterministic bytes, and errors that name the file.
 #include "exr_io.h"
 
+#include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
-#include <Imath/half.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -18,7 +18,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A fresh directory per test, so tests can run in parallel (ctest -j) without sharing files.
+// A fresh directory per test, so tests can run in parallel (ctest -j) without sharing
+// files.
 class ExrIo : public testing::Test {
 protected:
     void SetUp() override {
@@ -34,7 +35,8 @@ protected:
 
 Image patterned(uint32_t w, uint32_t h) {
     Image image(w, h);
-    for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = 0.25f * float(i % 97) - 3.0f;
+    for (size_t i = 0; i < image.rgb.size(); ++i)
+        image.rgb[i] = 0.25f * float(i % 97) - 3.0f;
     image.extra.push_back({"spp", {}});
     image.extra.push_back({"variance", {}});
     for (size_t i = 0; i < image.pixel_count(); ++i) {
@@ -139,8 +141,9 @@ TEST_F(ExrIo, ReadingTruncatedFileFailsWithItsPath) {
         read_exr(dir / "cut.exr");
         FAIL() << "expected ImageFileError";
     } catch (const ImageFileError& e) {
-        EXPECT_EQ(std::string(e.what()).rfind("cannot read " + (dir / "cut.exr").string(), 0),
-                  0u)
+        EXPECT_EQ(
+            std::string(e.what()).rfind("cannot read " + (dir / "cut.exr").string(), 0),
+            0u)
             << e.what();
     }
 }
@@ -165,8 +168,8 @@ std::vector<float> write_foreign(const fs::path& path, const Imath::Box2i& windo
 }
 
 TEST_F(ExrIo, ReadsDataWindowThatDoesNotStartAtZero) {
-    const std::vector<float> data =
-        write_foreign(dir / "a.exr", Imath::Box2i({10, 20}, {14, 22}), {"R", "G", "B", "Z"});
+    const std::vector<float> data = write_foreign(
+        dir / "a.exr", Imath::Box2i({10, 20}, {14, 22}), {"R", "G", "B", "Z"});
     const Image image = read_exr(dir / "a.exr");
     ASSERT_EQ(image.width, 5u);
     ASSERT_EQ(image.height, 3u);

@@ -21,8 +21,8 @@ void put_chunk(std::string& out, const char type[4], const std::string& data) {
     const size_t start = out.size();
     out.append(type, 4);
     out += data;
-    const uint32_t crc = uint32_t(
-        crc32(0, reinterpret_cast<const Bytef*>(out.data() + start), uInt(out.size() - start)));
+    const uint32_t crc = uint32_t(crc32(
+        0, reinterpret_cast<const Bytef*>(out.data() + start), uInt(out.size() - start)));
     put_u32(out, crc);
 }
 
@@ -36,7 +36,8 @@ uint8_t paeth(int a, int b, int c) {
 // Filters one row with each of PNG's five filters and keeps the one whose output has the
 // smallest sum of absolute (signed) bytes: the usual heuristic, and what makes a smooth
 // preview or a piecewise-constant sample map compress several-fold.
-void filter_row(const uint8_t* row, const uint8_t* prev, size_t n, int bpp, std::string& out) {
+void filter_row(const uint8_t* row, const uint8_t* prev, size_t n, int bpp,
+                std::string& out) {
     std::string best, trial(n + 1, '\0');
     long best_cost = -1;
     for (int f = 0; f < 5; ++f) {
@@ -48,11 +49,20 @@ void filter_row(const uint8_t* row, const uint8_t* prev, size_t n, int bpp, std:
             const int c = (prev && i >= size_t(bpp)) ? prev[i - bpp] : 0;
             int pred = 0;
             switch (f) {
-                case 1: pred = a; break;
-                case 2: pred = b; break;
-                case 3: pred = (a + b) / 2; break;
-                case 4: pred = paeth(a, b, c); break;
-                default: break;
+                case 1:
+                    pred = a;
+                    break;
+                case 2:
+                    pred = b;
+                    break;
+                case 3:
+                    pred = (a + b) / 2;
+                    break;
+                case 4:
+                    pred = paeth(a, b, c);
+                    break;
+                default:
+                    break;
             }
             const uint8_t v = uint8_t(row[i] - pred);
             trial[i + 1] = char(v);
@@ -68,8 +78,8 @@ void filter_row(const uint8_t* row, const uint8_t* prev, size_t n, int bpp, std:
 
 }  // namespace
 
-std::string encode_png(const std::vector<uint8_t>& pixels, uint32_t width, uint32_t height,
-                       int channels) {
+std::string encode_png(const std::vector<uint8_t>& pixels, uint32_t width,
+                       uint32_t height, int channels) {
     if (channels != 1 && channels != 3 && channels != 4)
         throw std::invalid_argument("png: channels must be 1, 3 or 4");
     const size_t stride = size_t(width) * size_t(channels);
@@ -79,13 +89,14 @@ std::string encode_png(const std::vector<uint8_t>& pixels, uint32_t width, uint3
     std::string raw;
     raw.reserve((stride + 1) * height);
     for (uint32_t y = 0; y < height; ++y)
-        filter_row(pixels.data() + y * stride, y ? pixels.data() + (y - 1) * stride : nullptr,
-                   stride, channels, raw);
+        filter_row(pixels.data() + y * stride,
+                   y ? pixels.data() + (y - 1) * stride : nullptr, stride, channels, raw);
 
     uLongf packed_size = compressBound(uLong(raw.size()));
     std::string packed(packed_size, '\0');
     if (compress2(reinterpret_cast<Bytef*>(packed.data()), &packed_size,
-                  reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()), 6) != Z_OK)
+                  reinterpret_cast<const Bytef*>(raw.data()), uLong(raw.size()),
+                  6) != Z_OK)
         throw std::runtime_error("png: zlib compression failed");
     packed.resize(packed_size);
 

@@ -4,11 +4,16 @@ namespace aliquot {
 
 std::string_view to_string(RenderState state) {
     switch (state) {
-        case RenderState::Queued: return "queued";
-        case RenderState::Running: return "running";
-        case RenderState::Done: return "done";
-        case RenderState::Cancelled: return "cancelled";
-        case RenderState::Failed: return "failed";
+        case RenderState::Queued:
+            return "queued";
+        case RenderState::Running:
+            return "running";
+        case RenderState::Done:
+            return "done";
+        case RenderState::Cancelled:
+            return "cancelled";
+        case RenderState::Failed:
+            return "failed";
     }
     return "failed";
 }

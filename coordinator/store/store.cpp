@@ -603,8 +603,8 @@ bool RunStore::add_round(const RoundRecord& r) {
                              .bind(r.created_at)
                              .run();
     if (inserted) {
-        // The render's progress is its last recorded round's: kept with the round, not with
-        // the checkpoint, which is written less often (see checkpoint_due).
+        // The render's progress is its last recorded round's: kept with the round, not
+        // with the checkpoint, which is written less often (see checkpoint_due).
         query("UPDATE renders SET samples_done = MAX(samples_done, ?) WHERE id = ?",
               "record progress of render " + r.render_id)
             .bind(r.samples_total)
@@ -654,8 +654,9 @@ std::vector<RoundRecord> RunStore::rounds(const std::string& render_id) {
 
 std::optional<RoundRecord> RunStore::last_round(const std::string& render_id) {
     std::lock_guard lock(mutex_);
-    static const std::string sql = "SELECT " + kRoundColumns +
-                                   " FROM rounds WHERE render_id = ? ORDER BY idx DESC LIMIT 1";
+    static const std::string sql =
+        "SELECT " + kRoundColumns +
+        " FROM rounds WHERE render_id = ? ORDER BY idx DESC LIMIT 1";
     Query q = query(sql, "read the last round of render " + render_id);
     q.bind(render_id);
     if (!q.step()) return std::nullopt;

@@ -206,7 +206,8 @@ public:
     std::optional<StudyRecord> get_study(const std::string& id);
     // Adds (study, render) to study_renders; linking again is a no-op.
     void link_study_render(const std::string& study_id, const std::string& render_id);
-    // Inserts or replaces the row of (study_id, render_key). Non-finite metrics become NULL.
+    // Inserts or replaces the row of (study_id, render_key). Non-finite metrics become
+    // NULL.
     void put_study_result(const StudyResult& result);
     // In the order they were first recorded.
     std::vector<StudyResult> study_results(const std::string& study_id);

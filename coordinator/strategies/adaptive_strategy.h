@@ -9,7 +9,7 @@
 namespace aliquot {
 
 class AdaptiveStrategy : public Strategy {
-  public:
+public:
     // Uses budget (or spp), initial_spp, max_variance, alpha, bucket_size and max_spp.
     AdaptiveStrategy(const StrategyParams& params, uint32_t width, uint32_t height);
 
@@ -33,7 +33,7 @@ class AdaptiveStrategy : public Strategy {
     static std::vector<double> bucket_weights(const std::vector<double>& variances,
                                               double max_variance, double alpha);
 
-  private:
+private:
     enum class Phase { initial, allocate, deliver, done };
     std::vector<PixelRect> grid() const;
     void plan_remainder();

@@ -11,7 +11,7 @@
 namespace aliquot {
 
 class DammertzStrategy : public Strategy {
-  public:
+public:
     enum class State { active, converged, capped };  // capped: stopped at max_spp
     struct Leaf {
         PixelRect rect;
@@ -48,7 +48,7 @@ class DammertzStrategy : public Strategy {
         const PixelRect& rect, const std::vector<double>& pixel_errors,
         uint32_t min_size);
 
-  private:
+private:
     void evaluate(const Accumulator& merged);
     std::string stop_reason() const;
 

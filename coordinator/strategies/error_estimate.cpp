@@ -12,7 +12,8 @@ double estimate_mean_abs_error(const Accumulator& merged) {
         double even[3], odd[3];
         merged.half_means(i, even, odd);
         sum += (std::abs(even[0] - odd[0]) + std::abs(even[1] - odd[1]) +
-                std::abs(even[2] - odd[2])) / 3.0;
+                std::abs(even[2] - odd[2])) /
+               3.0;
         ++n;
     }
     return n ? 0.5 * sum / double(n) : -1.0;

@@ -192,7 +192,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     const Accumulator& merged) {
     const size_t pixels = size_t(width_) * height_;
     // A budget given in samples is, in rays, what those samples cost at the pilot's mean.
-    if (cost_aware_ && ray_budget_ == 0) ray_budget_ = double(budget_) * rays_per_sample(merged);
+    if (cost_aware_ && ray_budget_ == 0)
+        ray_budget_ = double(budget_) * rays_per_sample(merged);
     const double spent =
         cost_aware_ ? double(merged.total_rays()) : double(merged.total_samples());
     const double limit = cost_aware_ ? ray_budget_ : double(budget_);
@@ -203,7 +204,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     const double share = std::min(remaining, std::max(spent, 1.0));
 
     const std::vector<double> sigma = sigma_estimates(merged);
-    const std::vector<double> cost = cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
+    const std::vector<double> cost =
+        cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
     std::vector<double> weight(pixels);
     bool any = false;
     for (size_t i = 0; i < pixels; ++i) {

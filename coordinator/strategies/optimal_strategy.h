@@ -10,7 +10,7 @@
 namespace aliquot {
 
 class OptimalStrategy : public Strategy {
-  public:
+public:
     // Uses budget (or spp), min_spp and max_spp.
     OptimalStrategy(const StrategyParams& params, uint32_t width, uint32_t height,
                     bool cost_aware);
@@ -37,7 +37,7 @@ class OptimalStrategy : public Strategy {
                                               const std::vector<double>& costs,
                                               double total, double lo, double hi);
 
-  private:
+private:
     // The first round: min_spp everywhere, the estimates' foundation.
     std::vector<uint32_t> pilot_round();
     // A later round from the merged estimates; nullopt when the budget is spent.

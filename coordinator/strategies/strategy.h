@@ -1,5 +1,5 @@
-// Strategy: decides where a render's next samples go. It sees only the merged buffers at a
-// round boundary (never arrival order or timings), so its decisions are deterministic.
+// Strategy: decides where a render's next samples go. It sees only the merged buffers at
+// a round boundary (never arrival order or timings), so its decisions are deterministic.
 #pragma once
 
 #include <cstdint>
@@ -23,8 +23,8 @@ struct Round {
     }
 };
 
-// A rectangle of pixels a strategy reasons about as one (Dammertz's tree leaves, adaptive's
-// grid); kept so dashboards can draw the boundaries.
+// A rectangle of pixels a strategy reasons about as one (Dammertz's tree leaves,
+// adaptive's grid); kept so dashboards can draw the boundaries.
 struct Bucket {
     PixelRect rect;
     double error = 0;        // the strategy's own error estimate for the bucket
@@ -41,8 +41,8 @@ public:
     // methods that stop early.
     virtual uint64_t planned_samples() const = 0;
 
-    // The strategy's state between rounds, so that a restarted coordinator that restores it
-    // with the checkpointed buffers makes exactly the decisions it would have made.
+    // The strategy's state between rounds, so that a restarted coordinator that restores
+    // it with the checkpointed buffers makes exactly the decisions it would have made.
     virtual nlohmann::json save_state() const = 0;
     virtual void restore_state(const nlohmann::json& state) = 0;
 

@@ -77,17 +77,18 @@ void from_json(const json& j, StrategyParams& p) {
     try {
         const JsonField root(j);
         root.expect_object("strategy parameters must be a JSON object");
-        root.allow_keys({"method", "spp", "budget", "max_variance", "samples_per_iteration",
-                         "split_factor", "min_bucket_size", "error_norm", "initial_spp",
-                         "alpha", "bucket_size", "min_spp", "max_spp", "max_samples"});
+        root.allow_keys({"method", "spp", "budget", "max_variance",
+                         "samples_per_iteration", "split_factor", "min_bucket_size",
+                         "error_norm", "initial_spp", "alpha", "bucket_size", "min_spp",
+                         "max_spp", "max_samples"});
         for (const auto& [key, v] : root.members()) read_member(key, v, p);
     } catch (const JsonError& e) {
         // Parameters arrive inside other documents (a request, a study): name the
         // parameter, and let the caller say where its parameters sit.
         const std::string& at = e.pointer().value_or("");
         if (at.empty()) throw std::invalid_argument(e.reason());
-        throw std::invalid_argument("strategy parameter '" + at.substr(1) + "': " +
-                                    e.reason());
+        throw std::invalid_argument("strategy parameter '" + at.substr(1) +
+                                    "': " + e.reason());
     }
 }
 

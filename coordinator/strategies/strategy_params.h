@@ -15,7 +15,8 @@ namespace aliquot {
 class Strategy;
 
 struct StrategyParams {
-    std::string method = "uniform";  // uniform | dammertz | adaptive | optimal | optimal-time
+    std::string method =
+        "uniform";  // uniform | dammertz | adaptive | optimal | optimal-time
 
     // uniform: spp, or budget (total samples; spp = floor(budget / pixels)). Adaptive,
     // optimal and optimal-time spend `budget` (or spp * pixels when only spp is given).
@@ -26,8 +27,9 @@ struct StrategyParams {
     double max_variance = 0.0064;
     uint32_t samples_per_iteration = 16;
     double split_factor = 64;
-    uint32_t min_bucket_size = 4;        // a bucket side below which it is never split
-    std::string error_norm = "seed";     // "seed": mean |even - odd|; "paper": Dammertz et al.
+    uint32_t min_bucket_size = 4;  // a bucket side below which it is never split
+    std::string error_norm =
+        "seed";  // "seed": mean |even - odd|; "paper": Dammertz et al.
 
     // adaptive (seed: initial samples, max variance, alpha; 16x16 buckets)
     uint32_t initial_spp = 16;
@@ -35,7 +37,8 @@ struct StrategyParams {
     uint32_t bucket_size = 16;
 
     // optimal / optimal-time
-    uint32_t min_spp = 4;  // floor every pixel gets before the allocation trusts its sigma
+    uint32_t min_spp =
+        4;  // floor every pixel gets before the allocation trusts its sigma
 
     // Caps that guarantee termination for every method (0: the method's default).
     uint32_t max_spp = 0;

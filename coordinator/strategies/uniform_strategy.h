@@ -1,5 +1,6 @@
 // UniformStrategy: every pixel gets the same number of samples (the seed's floor(B/N)),
-// delivered in progressive rounds so that progress and error can be watched as it converges.
+// delivered in progressive rounds so that progress and error can be watched as it
+// converges.
 #pragma once
 
 #include "strategy.h"

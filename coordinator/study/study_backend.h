@@ -1,5 +1,6 @@
 // What the study's loop needs from wherever its renders run (the embedded coordinator, a
-// farm): submit one, follow it, collect it. Declared here, by its user; cli/ has the farm's.
+// farm): submit one, follow it, collect it. Declared here, by its user; cli/ has the
+// farm's.
 #pragma once
 
 #include <cstdint>
@@ -32,17 +33,18 @@ struct CollectedRender {
 };
 
 class StudyBackend {
-  public:
+public:
     virtual ~StudyBackend() = default;
     // Recorded with each submitted render: only the backend that runs it follows it.
     virtual std::string origin() const = 0;
-    // Renders side by side (a farm), or one at a time so each wall time is the render's own.
+    // Renders side by side (a farm), or one at a time so each wall time is the render's
+    // own.
     virtual bool parallel() const = 0;
     virtual std::string submit(const RenderSpec& spec,
                                const std::filesystem::path& reference_path) = 0;
     virtual StudyRenderStatus status(const std::string& id) = 0;
-    // A done render. `store` is the study's database: a backend whose renders are recorded
-    // elsewhere mirrors them there, so one database holds the whole study.
+    // A done render. `store` is the study's database: a backend whose renders are
+    // recorded elsewhere mirrors them there, so one database holds the whole study.
     virtual CollectedRender collect(const std::string& id, const RenderSpec& spec,
                                     RunStore& store) = 0;
     virtual void cancel(const std::string& id) = 0;

@@ -14,7 +14,8 @@ using nlohmann::json;
 
 namespace {
 
-const std::vector<std::string> kTableKeys = {"title", "group", "compare", "columns", "note"};
+const std::vector<std::string> kTableKeys = {"title", "group", "compare", "columns",
+                                             "note"};
 const std::set<std::string> kChartKinds = {"error_vs_budget", "error_vs_time", "maps",
                                            "seed_spread", "sweep"};
 const std::set<std::string> kConclusionKinds = {"uniform_slope", "beats_everywhere",
@@ -30,7 +31,8 @@ std::string name_at(const JsonField& f) {
 }
 
 std::vector<std::string> names_at(const JsonField& f) {
-    if (!f.value().is_array() || f.value().empty()) f.fail("must be a non-empty list of names");
+    if (!f.value().is_array() || f.value().empty())
+        f.fail("must be a non-empty list of names");
     std::vector<std::string> out;
     for (size_t i = 0; i < f.size(); ++i) out.push_back(name_at(f.at(i)));
     return out;
@@ -68,7 +70,8 @@ void check_method(const JsonField& f, const std::string& method) {
 
 // `params` as a valid StrategyParams, or a failure at `at`. The params are merged from
 // defaults, the group and a sweep value, so `at` is where the group gives them.
-void check_strategy(const JsonField& at, const json& params, uint32_t width, uint32_t height) {
+void check_strategy(const JsonField& at, const json& params, uint32_t width,
+                    uint32_t height) {
     StrategyParams p;
     try {
         from_json(params, p);
@@ -105,7 +108,7 @@ struct GroupDefaults {
 };
 
 class StudyParser {
-  public:
+public:
     explicit StudyParser(const JsonField& root) : root_(root) {}
 
     StudyDefinition parse() {
@@ -128,13 +131,14 @@ class StudyParser {
         return std::move(def_);
     }
 
-  private:
+private:
     void parse_head() {
         const JsonField name = root_.require("name");
         def_.name = name_at(name);
         for (char c : def_.name)
             if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_')
-                name.fail("use letters, digits, - and _ only, got " + in_quotes(def_.name));
+                name.fail("use letters, digits, - and _ only, got " +
+                          in_quotes(def_.name));
         if (auto d = root_.find("description")) def_.description = name_at(*d);
         if (auto r = root_.find("reference_spp")) def_.reference_spp = r->whole(1);
     }
@@ -143,7 +147,8 @@ class StudyParser {
         d.expect_object("must be an object");
         d.allow_keys({"scene", "resolution", "seeds", "params"});
         if (auto s = d.find("scene")) defaults_.scene = name_at(*s);
-        if (auto r = d.find("resolution")) resolution_at(*r, defaults_.width, defaults_.height);
+        if (auto r = d.find("resolution"))
+            resolution_at(*r, defaults_.width, defaults_.height);
         if (auto s = d.find("seeds")) defaults_.seeds = seeds_at(*s);
         if (auto p = d.find("params")) {
             p->expect_object("must be an object");
@@ -156,9 +161,11 @@ class StudyParser {
         for (const auto& [name, v] : s.members()) {
             v.expect_object("must be an object");
             v.allow_keys({"max_side", "spp_factor", "reference_spp"});
-            StudyScale scale = def_.scales.count(name) ? def_.scales[name] : default_scale(name);
+            StudyScale scale =
+                def_.scales.count(name) ? def_.scales[name] : default_scale(name);
             scale.name = name;
-            if (auto m = v.find("max_side")) scale.max_side = uint32_t(m->whole(0, UINT32_MAX));
+            if (auto m = v.find("max_side"))
+                scale.max_side = uint32_t(m->whole(0, UINT32_MAX));
             if (auto f = v.find("spp_factor")) {
                 scale.spp_factor = f->number("must be a number greater than 0");
                 if (!(scale.spp_factor > 0)) f->fail("must be a number greater than 0");
@@ -184,7 +191,8 @@ class StudyParser {
         g.height = defaults_.height;
         if (auto res = r.find("resolution")) resolution_at(*res, g.width, g.height);
         if (g.width == 0)
-            throw JsonError(r.pointer() + "/resolution", "missing (and no /defaults/resolution)");
+            throw JsonError(r.pointer() + "/resolution",
+                            "missing (and no /defaults/resolution)");
         g.seeds = r.has("seeds") ? seeds_at(*r.find("seeds")) : defaults_.seeds;
         read_params(r, g);
         if (auto b = r.find("budget_from"))
@@ -192,8 +200,8 @@ class StudyParser {
         else if (auto s = r.find("sweep"))
             parse_sweep(*s, g);
         else
-            check_strategy(JsonField(g.params, r.pointer() + "/params"), g.params, g.width,
-                           g.height);
+            check_strategy(JsonField(g.params, r.pointer() + "/params"), g.params,
+                           g.width, g.height);
         def_.groups.push_back(std::move(g));
     }
 
@@ -202,7 +210,8 @@ class StudyParser {
         g.params = defaults_.params;
         if (auto p = r.find("params")) {
             p->expect_object("must be an object");
-            if (auto m = p->find("method")) m->fail("give the method as /renders/N/method");
+            if (auto m = p->find("method"))
+                m->fail("give the method as /renders/N/method");
             for (const auto& [k, v] : p->members()) g.params[k] = v.value();
         }
         const JsonField method = r.require("method");
@@ -213,7 +222,9 @@ class StudyParser {
 
     void parse_sweep(const JsonField& s, StudyGroup& g) {
         if (!s.value().is_object() || s.size() != 1)
-            s.fail("must be an object with exactly one parameter, e.g. {\"spp\": [1, 4, 16]}");
+            s.fail(
+                "must be an object with exactly one parameter, e.g. {\"spp\": [1, 4, "
+                "16]}");
         const auto [key, values] = s.members().front();
         g.sweep_key = key;
         if (!values.value().is_array() || values.value().empty())
@@ -234,7 +245,8 @@ class StudyParser {
             src.group = name_at(b);
             return src;
         }
-        if (!b.value().is_object()) b.fail("must be a group name or {group, match, rate_from}");
+        if (!b.value().is_object())
+            b.fail("must be a group name or {group, match, rate_from}");
         b.allow_keys({"group", "match", "rate_from"});
         src.group = name_at(b.require("group"));
         if (auto m = b.find("match")) src.match = name_at(*m);
@@ -263,7 +275,8 @@ class StudyParser {
     GroupDefaults defaults_;
 };
 
-void StudyParser::parse_dependent_group(const JsonField& r, const JsonField& b, StudyGroup& g) {
+void StudyParser::parse_dependent_group(const JsonField& r, const JsonField& b,
+                                        StudyGroup& g) {
     const BudgetSource src = read_budget_source(b);
     // Sources must come first: this keeps the order runnable and rules out cycles.
     const StudyGroup* source = def_.group(src.group);
@@ -277,12 +290,15 @@ void StudyParser::parse_dependent_group(const JsonField& r, const JsonField& b, 
             rate_at.fail("unknown render group " + in_quotes(src.rate_from) +
                          " (must be listed before)");
         if (!rate->budget_from)
-            rate_at.fail("group " + in_quotes(src.rate_from) +
-                         " must be an equal-budget group (with budget_from) whose renders "
-                         "pair with this one's by sweep position and seed");
+            rate_at.fail(
+                "group " + in_quotes(src.rate_from) +
+                " must be an equal-budget group (with budget_from) whose renders "
+                "pair with this one's by sweep position and seed");
     }
-    if (auto s = r.find("sweep")) s->fail("a group with budget_from follows its source's sweep");
-    if (auto s = r.find("seeds")) s->fail("a group with budget_from uses its source's seeds");
+    if (auto s = r.find("sweep"))
+        s->fail("a group with budget_from follows its source's sweep");
+    if (auto s = r.find("seeds"))
+        s->fail("a group with budget_from uses its source's seeds");
     for (const char* k : {"scene", "resolution"})
         if (auto f = r.find(k))
             f->fail("a group with budget_from renders its source's scene and resolution");
@@ -316,7 +332,8 @@ void StudyParser::parse_tables(const JsonField& tables) {
             const std::vector<std::string> names = names_at(*cols);
             const json known = StrategyParams{};
             for (size_t c = 0; c < names.size(); ++c)
-                if (names[c] != "method" && names[c] != "seed" && !known.contains(names[c]))
+                if (names[c] != "method" && names[c] != "seed" &&
+                    !known.contains(names[c]))
                     cols->at(c).fail("unknown strategy parameter " + in_quotes(names[c]));
         }
     }
@@ -332,8 +349,9 @@ void StudyParser::parse_charts(const JsonField& charts) {
         const JsonField kind_at = c.require("kind");
         const std::string kind = name_at(kind_at);
         if (!kChartKinds.count(kind))
-            kind_at.fail("unknown chart kind " + in_quotes(kind) +
-                         " (valid: error_vs_budget, error_vs_time, maps, seed_spread, sweep)");
+            kind_at.fail(
+                "unknown chart kind " + in_quotes(kind) +
+                " (valid: error_vs_budget, error_vs_time, maps, seed_spread, sweep)");
         name_at(c.require("name"));
         if (auto t = c.find("title")) name_at(*t);
         const JsonField groups = c.require("groups");
@@ -390,8 +408,8 @@ StudyScale study_scale(const StudyDefinition& def, const std::string& name) {
     if (it == def.scales.end()) {
         std::string all;
         for (const auto& [n, s] : def.scales) all += (all.empty() ? "" : ", ") + n;
-        throw StudyError("--scale: unknown scale " + in_quotes(name) + " (this study has " +
-                         all + ")");
+        throw StudyError("--scale: unknown scale " + in_quotes(name) +
+                         " (this study has " + all + ")");
     }
     return it->second;
 }

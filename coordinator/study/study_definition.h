@@ -1,5 +1,5 @@
-// Study definitions (studies/*.json): groups of renders swept over strategy parameters and
-// seeds, plus the tables and charts a report makes of them. Format: docs/STUDIES.md.
+// Study definitions (studies/*.json): groups of renders swept over strategy parameters
+// and seeds, plus the tables and charts a report makes of them. Format: docs/STUDIES.md.
 #pragma once
 
 #include <cstdint>
@@ -15,7 +15,7 @@ namespace aliquot {
 // A malformed study: the message names the file and the JSON pointer of the field, e.g.
 // `studies/x.json: /renders/2/method: unknown method "magik"`.
 class StudyError : public std::runtime_error {
-  public:
+public:
     using std::runtime_error::runtime_error;
 };
 

@@ -12,7 +12,7 @@ namespace aliquot {
 namespace {
 
 class EmbeddedBackend final : public StudyBackend {
-  public:
+public:
     EmbeddedBackend(const std::filesystem::path& data_dir, int threads)
         : coordinator_(options(data_dir)),
           workers_(coordinator_,
@@ -41,7 +41,8 @@ class EmbeddedBackend final : public StudyBackend {
         }
         return s;
     }
-    CollectedRender collect(const std::string& id, const RenderSpec&, RunStore&) override {
+    CollectedRender collect(const std::string& id, const RenderSpec&,
+                            RunStore&) override {
         const RenderInfo info = *coordinator_.info(id);
         CollectedRender c;
         c.local_id = id;
@@ -63,7 +64,7 @@ class EmbeddedBackend final : public StudyBackend {
         seen_ = coordinator_.wait_for_change(seen_, std::chrono::milliseconds(200));
     }
 
-  private:
+private:
     static CoordinatorOptions options(const std::filesystem::path& data_dir) {
         CoordinatorOptions o;
         o.data_dir = data_dir;

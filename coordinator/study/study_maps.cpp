@@ -25,7 +25,8 @@ void write_npy(const std::filesystem::path& path, uint32_t height, uint32_t widt
     const char len_bytes[2] = {char(len & 0xff), char(len >> 8)};
     out.write(len_bytes, 2);
     out.write(header.data(), std::streamsize(header.size()));
-    out.write(reinterpret_cast<const char*>(data.data()), std::streamsize(data.size() * 4));
+    out.write(reinterpret_cast<const char*>(data.data()),
+              std::streamsize(data.size() * 4));
     if (!out) throw StudyError("cannot write " + path.string());
 }
 

@@ -65,11 +65,13 @@ json scaled_params(json p, const ScaledSize& size, const StudyScale& scale) {
     for (auto& [k, v] : p.items()) {
         if (!v.is_number()) continue;
         if (kSideKeys.count(k))
-            v = std::max<uint64_t>(1, uint64_t(std::llround(v.get<double>() * size.side_ratio)));
+            v = std::max<uint64_t>(
+                1, uint64_t(std::llround(v.get<double>() * size.side_ratio)));
         else if (kPerPixelKeys.count(k))
             v = scale_count(v.get<uint64_t>(), scale.spp_factor, 1);
         else if (kTotalKeys.count(k))
-            v = scale_count(v.get<uint64_t>(), size.pixel_ratio * scale.spp_factor, size.pixels);
+            v = scale_count(v.get<uint64_t>(), size.pixel_ratio * scale.spp_factor,
+                            size.pixels);
         else if (k == "max_variance" && p.value("method", "") == "dammertz")
             v = v.get<double>() / std::sqrt(scale.spp_factor);
     }
@@ -79,7 +81,7 @@ json scaled_params(json p, const ScaledSize& size, const StudyScale& scale) {
 // Expands one group at a time; `by_group` remembers where each group's renders went, for
 // the groups whose budgets come from them.
 class PlanBuilder {
-  public:
+public:
     PlanBuilder(const StudyDefinition& def, const StudyScale& scale)
         : scale_(scale), mapped_(mapped_renders(def)) {}
 
@@ -108,9 +110,10 @@ class PlanBuilder {
         return std::move(out_);
     }
 
-  private:
+private:
     // Which (group, index) a maps chart shows: their first seed keeps per-pixel maps.
-    static std::set<std::pair<std::string, size_t>> mapped_renders(const StudyDefinition& def) {
+    static std::set<std::pair<std::string, size_t>> mapped_renders(
+        const StudyDefinition& def) {
         std::set<std::pair<std::string, size_t>> mapped;
         for (const json& c : def.charts)
             if (c.value("kind", "") == "maps")
@@ -164,8 +167,9 @@ class PlanBuilder {
         for (const StudyRender& r : out_) keys.insert(r.key);
         for (const StudyRender& r : out_)
             if (!r.rate_key.empty() && !keys.count(r.rate_key))
-                throw StudyError("render " + r.key + ": its rate_from group has no render " +
-                                 r.rate_key + " (same sweep position and seed)");
+                throw StudyError("render " + r.key +
+                                 ": its rate_from group has no render " + r.rate_key +
+                                 " (same sweep position and seed)");
     }
 
     const StudyScale& scale_;
@@ -176,7 +180,8 @@ class PlanBuilder {
 
 }  // namespace
 
-std::vector<StudyRender> expand_study(const StudyDefinition& def, const StudyScale& scale) {
+std::vector<StudyRender> expand_study(const StudyDefinition& def,
+                                      const StudyScale& scale) {
     PlanBuilder plan(def, scale);
     for (const StudyGroup& g : def.groups) plan.add_group(g);
     return plan.take();
@@ -187,7 +192,8 @@ void resolve_budget(StudyRender& r, uint64_t source_samples, double source_secon
     if (!r.budget_from) return;
     const uint64_t pixels = uint64_t(r.width) * r.height;
     double budget = double(source_samples);
-    if (r.budget_from->match == "seconds") budget = source_seconds * rate_samples_per_second;
+    if (r.budget_from->match == "seconds")
+        budget = source_seconds * rate_samples_per_second;
     if (!std::isfinite(budget)) budget = double(pixels);
     r.strategy.spp = 0;
     r.strategy.budget = std::max<uint64_t>(pixels, uint64_t(std::llround(budget)));

@@ -8,7 +8,8 @@ using nlohmann::json;
 
 StudyRecorder::StudyRecorder(RunStore& store, std::string id)
     : store_(store), id_(std::move(id)) {
-    for (StudyResult& r : store_.study_results(id_)) results_[r.render_key] = std::move(r);
+    for (StudyResult& r : store_.study_results(id_))
+        results_[r.render_key] = std::move(r);
 }
 
 void StudyRecorder::record_study(const StudyDefinition& def, const StudyScale& scale,
@@ -23,8 +24,9 @@ void StudyRecorder::record_study(const StudyDefinition& def, const StudyScale& s
           {"reference_spp", reference_spp},
           {"metric_bucket", metric_bucket}}},
         // As given (studies/x.json), so the report can say how to re-run it.
-        {"study_file", study_file.is_absolute() ? study_file.filename().string()
-                                                : study_file.lexically_normal().string()}};
+        {"study_file", study_file.is_absolute()
+                           ? study_file.filename().string()
+                           : study_file.lexically_normal().string()}};
     store_.put_study({id_, def.name, details.dump(), unix_millis_now()});
 }
 

@@ -14,7 +14,7 @@
 namespace aliquot {
 
 class StudyRecorder {
-  public:
+public:
     // Loads what earlier runs of study `id` recorded.
     StudyRecorder(RunStore& store, std::string id);
 
@@ -31,11 +31,11 @@ class StudyRecorder {
                           const std::string& origin, const std::string& remote_id);
     void record_done(const std::string& key, const CollectedRender& render,
                      const ErrorMetrics& metrics);
-    // Keys the file no longer has (edited since an earlier run) leave the study's results;
-    // their renders stay in the database.
+    // Keys the file no longer has (edited since an earlier run) leave the study's
+    // results; their renders stay in the database.
     void forget_unless(const std::map<std::string, size_t>& keys);
 
-  private:
+private:
     RunStore& store_;
     std::string id_;
     std::map<std::string, StudyResult> results_;

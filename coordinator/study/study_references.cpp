@@ -29,7 +29,9 @@ void run_self(const std::vector<std::string>& args, const std::string& what) {
 std::string safe_file_name(const std::string& s) {
     std::string out;
     for (char c : s)
-        out += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.') ? c : '_';
+        out += (std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.')
+                   ? c
+                   : '_';
     return out;
 }
 
@@ -55,11 +57,11 @@ StudyReferences prepare_references(const std::vector<StudyRender>& renders,
         const std::string scene = resolve_scene(r.scene, study_file);
         const std::string res = std::to_string(r.width) + "x" + std::to_string(r.height);
         StudyReference ref;
-        // Named by the scene's content, not only its name: an edited scene file gets a new
-        // reference instead of silently reusing the old one.
+        // Named by the scene's content, not only its name: an edited scene file gets a
+        // new reference instead of silently reusing the old one.
         ref.path = dir / (safe_file_name(fs::path(r.scene).stem().string()) + "-" +
-                          scene_hash(self_contained_scene_json(scene)).substr(0, 12) + "-" +
-                          res + "-" + std::to_string(spp) + "spp.exr");
+                          scene_hash(self_contained_scene_json(scene)).substr(0, 12) +
+                          "-" + res + "-" + std::to_string(spp) + "spp.exr");
         if (!fs::exists(ref.path)) {
             std::fprintf(stderr, "study: reference %s %s at %llu spp\n", r.scene.c_str(),
                          res.c_str(), (unsigned long long)spp);

@@ -30,8 +30,10 @@ StudyReferences prepare_references(const std::vector<StudyRender>& renders,
                                    const std::filesystem::path& dir, uint64_t spp,
                                    int threads);
 
-// The scene as the renders need it: a built-in name, or a file relative to the study file.
-std::string resolve_scene(const std::string& scene, const std::filesystem::path& study_file);
+// The scene as the renders need it: a built-in name, or a file relative to the study
+// file.
+std::string resolve_scene(const std::string& scene,
+                          const std::filesystem::path& study_file);
 
 // Letters, digits, '-' and '.' kept, the rest '_': a key as a file name.
 std::string safe_file_name(const std::string& s);

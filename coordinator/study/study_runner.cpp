@@ -25,9 +25,10 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 // The loop over a study's renders: adopt what earlier runs recorded or left running,
-// share results between keys of equal spec, submit what is runnable, collect what is done.
+// share results between keys of equal spec, submit what is runnable, collect what is
+// done.
 class StudyRun {
-  public:
+public:
     StudyRun(std::vector<StudyRender>& renders, StudyBackend& backend,
              StudyRecorder& recorder, const StudyReferences& references,
              const StudyRunOptions& options)
@@ -68,7 +69,7 @@ class StudyRun {
         return summary_;
     }
 
-  private:
+private:
     void step(StudyRender& r, int pass) {
         if (in_flight_.count(r.key)) return;
         if (r.budget_from && !resolve(r)) return;
@@ -103,7 +104,9 @@ class StudyRun {
         }
         if (row->origin != backend_.origin()) return false;
         const StudyRenderStatus s = backend_.status(row->remote_id);
-        if (!s.known || s.state == RenderState::Failed || s.state == RenderState::Cancelled) return false;
+        if (!s.known || s.state == RenderState::Failed ||
+            s.state == RenderState::Cancelled)
+            return false;
         in_flight_[r.key] = row->remote_id;
         return true;
     }
@@ -129,7 +132,8 @@ class StudyRun {
 
     RenderSpec spec_of(const StudyRender& r) const {
         RenderSpec spec;
-        spec.scene_json = self_contained_scene_json(resolve_scene(r.scene, options_.study_file));
+        spec.scene_json =
+            self_contained_scene_json(resolve_scene(r.scene, options_.study_file));
         spec.scene_name = r.scene;
         spec.width = r.width;
         spec.height = r.height;
@@ -160,9 +164,11 @@ class StudyRun {
         for (auto it = in_flight_.begin(); it != in_flight_.end();) {
             const std::string key = it->first, remote = it->second;
             const StudyRenderStatus s = backend_.status(remote);
-            if (!s.known || s.state == RenderState::Failed || s.state == RenderState::Cancelled)
+            if (!s.known || s.state == RenderState::Failed ||
+                s.state == RenderState::Cancelled)
                 throw StudyError("render " + key + " (" + remote + ") " +
-                                 (s.known ? std::string(to_string(s.state)) + (s.error.empty() ? "" : ": " + s.error)
+                                 (s.known ? std::string(to_string(s.state)) +
+                                                (s.error.empty() ? "" : ": " + s.error)
                                           : "vanished") +
                                  "; run the study again to retry it");
             if (s.state != RenderState::Done) {
@@ -182,14 +188,15 @@ class StudyRun {
         const StudyReference& ref = references_.at(reference_key(r));
         const ErrorMetrics m = compare_images(c.image, ref.image, int(r.metric_bucket));
         if (r.save_maps)
-            write_study_maps(options_.out / "data" / "maps" / (safe_file_name(key) + ".npy"),
-                             c.image, ref.image);
+            write_study_maps(
+                options_.out / "data" / "maps" / (safe_file_name(key) + ".npy"), c.image,
+                ref.image);
         recorder_.record_done(key, c, m);
         if (!isatty(STDERR_FILENO))  // no bar to watch: one line per render instead
             std::fprintf(stderr, "study: %zu/%zu %s %s: %llu samples, %.2f s, E %.6g\n",
                          finished_.size() + 1, renders_.size(), key.c_str(),
-                         r.strategy.method.c_str(), (unsigned long long)c.samples, c.seconds,
-                         m.mean_abs);
+                         r.strategy.method.c_str(), (unsigned long long)c.samples,
+                         c.seconds, m.mean_abs);
         finished_.insert(key);
         ++summary_.rendered;
     }
@@ -223,15 +230,17 @@ StudyRunSummary run_study(const StudyDefinition& def, const StudyScale& scale,
     const fs::path data = opt.out / "data";
     fs::create_directories(data / "maps");
     fs::create_directories(data / "references");
-    const int threads =
-        opt.threads > 0 ? opt.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+    const int threads = opt.threads > 0
+                            ? opt.threads
+                            : int(std::max(1u, std::thread::hardware_concurrency()));
 
     std::vector<StudyRender> renders = expand_study(def, scale);
     const std::string id = study_id(def, scale);
-    const uint64_t reference_spp = scale.reference_spp ? scale.reference_spp : def.reference_spp;
+    const uint64_t reference_spp =
+        scale.reference_spp ? scale.reference_spp : def.reference_spp;
     // References first (each through the shared cache), so a missing one fails early.
-    const StudyReferences references =
-        prepare_references(renders, opt.study_file, data / "references", reference_spp, threads);
+    const StudyReferences references = prepare_references(
+        renders, opt.study_file, data / "references", reference_spp, threads);
 
     // The backend opens (and migrates) the database first; the study's own connection
     // shares it (SQLite WAL).
@@ -242,7 +251,8 @@ StudyRunSummary run_study(const StudyDefinition& def, const StudyScale& scale,
     recorder.record_study(def, scale, reference_spp,
                           renders.empty() ? 16u : renders.front().metric_bucket,
                           opt.study_file);
-    StudyRunSummary summary = StudyRun(renders, *backend, recorder, references, opt).run();
+    StudyRunSummary summary =
+        StudyRun(renders, *backend, recorder, references, opt).run();
     backend.reset();
     summary.seconds = std::chrono::duration<double>(Clock::now() - started).count();
     return summary;

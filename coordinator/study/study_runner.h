@@ -1,7 +1,7 @@
 // Runs a study's renders on a backend (embedded: one at a time on local threads, so each
-// wall time is the render's own; a farm: all at once), measures each against its reference
-// and records it in OUT/data/aliquot.db. Resumable: a render recorded with the same spec is
-// never rendered again.
+// wall time is the render's own; a farm: all at once), measures each against its
+// reference and records it in OUT/data/aliquot.db. Resumable: a render recorded with the
+// same spec is never rendered again.
 #pragma once
 
 #include <cstdint>
@@ -18,7 +18,7 @@ namespace aliquot {
 struct StudyRunOptions {
     std::filesystem::path study_file;
     std::filesystem::path out;  // OUT: report here, database and images in OUT/data
-    int threads = 0;            // tracing threads, embedded and for references (0: all cores)
+    int threads = 0;  // tracing threads, embedded and for references (0: all cores)
     // Where the renders run, made once OUT/data exists and before the study opens its
     // database there. Null: the embedded coordinator.
     std::function<std::unique_ptr<StudyBackend>(const std::filesystem::path& data_dir)>

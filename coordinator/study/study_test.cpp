@@ -154,9 +154,11 @@ TEST(Study, ErrorsNameTheFileAndTheField) {
               0u)
         << error_of(text);
 
-    EXPECT_EQ(error_of("{\"name\": \"x\"}"), "studies/x.json: /: missing key \"renders\"");
+    EXPECT_EQ(error_of("{\"name\": \"x\"}"),
+              "studies/x.json: /: missing key \"renders\"");
     EXPECT_EQ(error_of("[1]"), "studies/x.json: /: a study must be a JSON object");
-    EXPECT_NE(error_of("{").find("studies/x.json: invalid JSON at line 1"), std::string::npos);
+    EXPECT_NE(error_of("{").find("studies/x.json: invalid JSON at line 1"),
+              std::string::npos);
 }
 
 TEST(Study, RejectsEachKindOfMistakeAtItsPointer) {

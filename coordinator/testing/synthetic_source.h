@@ -26,7 +26,7 @@ struct SyntheticPixel {
 };
 
 class SyntheticImage {
-  public:
+public:
     SyntheticImage(uint32_t width, uint32_t height, uint64_t seed = 1,
                    SyntheticPixel fill = {});
 
@@ -45,7 +45,7 @@ class SyntheticImage {
     // Same contract as trace_sample_job: sums over k = first .. first+count-1.
     SampleJobResult trace(const SampleJob& job) const;
 
-  private:
+private:
     uint32_t width_, height_;
     uint64_t seed_;
     std::vector<SyntheticPixel> pixels_;

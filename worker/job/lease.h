@@ -29,7 +29,8 @@ struct CompleteOutcome {
     std::string message;
 };
 
-// Thrown by a link when the coordinator cannot be reached; the worker backs off and retries.
+// Thrown by a link when the coordinator cannot be reached; the worker backs off and
+// retries.
 class LinkUnavailable : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;

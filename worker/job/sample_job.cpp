@@ -1,6 +1,5 @@
 #include "sample_job.h"
 
-
 namespace aliquot {
 
 uint64_t SampleJobResult::total_samples() const {

@@ -1,6 +1,7 @@
-// SampleJob: the unit of work. A pixel rectangle, how many samples each pixel gets, and the
-// index of each pixel's first sample; and SampleJobResult, the per-pixel sums it returns.
-// Plain data shared by the worker that traces a job and the coordinator that merges it.
+// SampleJob: the unit of work. A pixel rectangle, how many samples each pixel gets, and
+// the index of each pixel's first sample; and SampleJobResult, the per-pixel sums it
+// returns. Plain data shared by the worker that traces a job and the coordinator that
+// merges it.
 #pragma once
 
 #include <cstdint>
@@ -18,12 +19,13 @@ struct PixelRect {
 
 struct SampleJob {
     PixelRect rect;
-    std::vector<uint32_t> counts;        // per pixel of rect, row-major
-    std::vector<uint64_t> first_sample;  // per pixel: index of its first sample in this job
+    std::vector<uint32_t> counts;  // per pixel of rect, row-major
+    std::vector<uint64_t>
+        first_sample;  // per pixel: index of its first sample in this job
 };
 
-// What a job returns for one pixel. Sums over samples k = first .. first+count-1 in order of
-// k, so a pixel's sums depend on nothing but the job and the seed.
+// What a job returns for one pixel. Sums over samples k = first .. first+count-1 in order
+// of k, so a pixel's sums depend on nothing but the job and the seed.
 struct PixelSums {
     double even[3] = {0, 0, 0};  // RGB sum over even sample indices
     double odd[3] = {0, 0, 0};   // RGB sum over odd sample indices

@@ -36,7 +36,7 @@ bool parse_whole(std::string_view word, T& out) {
 }
 
 class ObjParser {
-  public:
+public:
     explicit ObjParser(const std::string& origin) : origin_(origin) {}
 
     ObjMesh parse(std::string_view text) {
@@ -52,7 +52,7 @@ class ObjParser {
         return std::move(mesh_);
     }
 
-  private:
+private:
     [[noreturn]] void fail(const std::string& what) const {
         throw SceneError(origin_ + ":" + std::to_string(line_number_) + ": " + what);
     }

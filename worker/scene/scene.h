@@ -1,5 +1,6 @@
 // Scene: what the tracer needs to know of a scene, already in world space.
-// Every shape but the sphere becomes a triangle mesh at load time; nothing else is modelled.
+// Every shape but the sphere becomes a triangle mesh at load time; nothing else is
+// modelled.
 #pragma once
 
 #include <array>
@@ -15,7 +16,8 @@ struct Camera {
     Vec3 position{0, 0, 1};
     Vec3 target{0, 0, 0};
     Vec3 up{0, 1, 0};
-    // Field of view in degrees along the image's smaller axis (Mitsuba's fov_axis "smaller").
+    // Field of view in degrees along the image's smaller axis (Mitsuba's fov_axis
+    // "smaller").
     float fov_degrees = 40.0f;
 };
 
@@ -24,7 +26,7 @@ struct Material {
     std::string name;
     Kind kind = Kind::Diffuse;
     Vec3 reflectance{0.5f, 0.5f, 0.5f};  // diffuse albedo, or mirror tint
-    float ior = 1.5f;                     // dielectric: interior / exterior index of refraction
+    float ior = 1.5f;  // dielectric: interior / exterior index of refraction
 };
 
 struct TriangleMesh {

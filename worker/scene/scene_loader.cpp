@@ -236,7 +236,8 @@ LocalMesh read_inline_mesh(const JsonField& shape) {
 
 // Mesh files resolve against the scene file's folder; an OBJ error keeps its own
 // file:line and is prefixed with the scene path that named the file.
-ObjMesh load_mesh_file(const JsonField& file_node, const std::filesystem::path& base_dir) {
+ObjMesh load_mesh_file(const JsonField& file_node,
+                       const std::filesystem::path& base_dir) {
     const std::string file = file_node.string("expected a path to an .obj file");
     std::string extension = std::filesystem::path(file).extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(),
@@ -264,7 +265,7 @@ void add_triangle_shape(Scene& scene, LocalMesh local, const Transform& m,
 }
 
 class SceneBuilder {
-  public:
+public:
     explicit SceneBuilder(const std::filesystem::path& base_dir) : base_dir_(base_dir) {}
 
     Scene build(const JsonField& root, const std::string& origin) {
@@ -279,7 +280,7 @@ class SceneBuilder {
         return std::move(scene_);
     }
 
-  private:
+private:
     void read_camera(const JsonField& n) {
         n.expect_object("expected an object with position, target, up and fov");
         n.allow_keys({"position", "target", "up", "fov"});
@@ -314,8 +315,7 @@ class SceneBuilder {
             const JsonField m = *n.find(name);
             m.expect_object("expected an object with a \"type\"");
             const JsonField type_node = m.require("type");
-            const std::string type =
-                type_node.string("expected a material type string");
+            const std::string type = type_node.string("expected a material type string");
             Material material;
             material.name = name;
             if (type == "diffuse") {
@@ -513,7 +513,8 @@ std::string self_contained_scene_json(const std::string& name_or_file) {
     json doc = parse_scene_json(source.text, source.origin);
     try {
         inline_mesh_files(doc, source);
-        // Validate what is sent, so that a broken scene fails here and not on every worker.
+        // Validate what is sent, so that a broken scene fails here and not on every
+        // worker.
         SceneBuilder(source.base_dir).build(JsonField(doc), source.origin);
     } catch (const JsonError& e) {
         fail_scene(source.origin, e);

@@ -1,5 +1,6 @@
 // Scene loading: the JSON scene format (docs/SCENES.md), built-in scenes, OBJ meshes.
-// Every mistake becomes a SceneError that names the file, the JSON path and what was expected.
+// Every mistake becomes a SceneError that names the file, the JSON path and what was
+// expected.
 #pragma once
 
 #include <filesystem>
@@ -18,8 +19,8 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-// Parses scene JSON. `origin` names the source in messages (a file path or "builtin:NAME");
-// relative mesh paths resolve against `base_dir`.
+// Parses scene JSON. `origin` names the source in messages (a file path or
+// "builtin:NAME"); relative mesh paths resolve against `base_dir`.
 Scene parse_scene(std::string_view json_text, const std::string& origin,
                   const std::filesystem::path& base_dir);
 

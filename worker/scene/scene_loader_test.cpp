@@ -124,7 +124,7 @@ const Material& material_of(const Scene& s, const TriangleMesh& m) {
 
 // A scene file and its meshes in a fresh folder of their own.
 class SceneFiles : public testing::Test {
-  protected:
+protected:
     void SetUp() override {
         dir_ = fs::path(testing::TempDir()) /
                ("aliquot-scene-test-" + std::to_string(::getpid()) + "-" +

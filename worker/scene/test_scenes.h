@@ -9,7 +9,8 @@ namespace aliquot::test {
 // facing +y when `up` and -y otherwise.
 inline TriangleMesh horizontal_rectangle(float hx, float hz, float height, bool up) {
     TriangleMesh m;
-    m.positions = {{-hx, height, -hz}, {hx, height, -hz}, {hx, height, hz}, {-hx, height, hz}};
+    m.positions = {
+        {-hx, height, -hz}, {hx, height, -hz}, {hx, height, hz}, {-hx, height, hz}};
     // cross(v1 - v0, v2 - v0) points -y for (0,1,2) in this order seen from above.
     if (up)
         m.triangles = {{0, 2, 1}, {0, 3, 2}};

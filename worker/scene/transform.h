@@ -1,4 +1,5 @@
-// Transform: an affine 4x4 matrix, composed from translate / rotate / scale as scenes say.
+// Transform: an affine 4x4 matrix, composed from translate / rotate / scale as scenes
+// say.
 #pragma once
 
 #include <array>
@@ -15,15 +16,20 @@ public:
 
     static Transform translate(const Vec3& t) {
         Transform r;
-        r.m_[0][3] = t.x; r.m_[1][3] = t.y; r.m_[2][3] = t.z;
+        r.m_[0][3] = t.x;
+        r.m_[1][3] = t.y;
+        r.m_[2][3] = t.z;
         return r;
     }
     static Transform scale(const Vec3& s) {
         Transform r;
-        r.m_[0][0] = s.x; r.m_[1][1] = s.y; r.m_[2][2] = s.z;
+        r.m_[0][0] = s.x;
+        r.m_[1][1] = s.y;
+        r.m_[2][2] = s.z;
         return r;
     }
-    // Rotation by `degrees` about `axis` (right-handed, as Mitsuba's Transform4f::rotate).
+    // Rotation by `degrees` about `axis` (right-handed, as Mitsuba's
+    // Transform4f::rotate).
     static Transform rotate(const Vec3& axis, double degrees) {
         const Vec3 a = normalize(axis);
         const double rad = degrees * std::numbers::pi / 180.0;

@@ -18,7 +18,8 @@ public:
         const Vec3 forward = normalize(camera.target - camera.position);
         const Vec3 right = normalize(cross(forward, camera.up));
         const Vec3 up = cross(right, forward);
-        const float tan_half = std::tan(camera.fov_degrees * float(std::numbers::pi) / 360.0f);
+        const float tan_half =
+            std::tan(camera.fov_degrees * float(std::numbers::pi) / 360.0f);
         const float smaller = float(std::min(width, height));
         forward_ = forward;
         right_ = right * (tan_half * float(width) / smaller);

@@ -16,7 +16,8 @@ namespace {
 // Installed before any other call, so that no Embree call needs its own error check:
 // configuration errors surface here, and construction fails below.
 void on_embree_error(void*, RTCError code, const char* message) {
-    std::fprintf(stderr, "aliquot: embree error %d: %s\n", int(code), message ? message : "");
+    std::fprintf(stderr, "aliquot: embree error %d: %s\n", int(code),
+                 message ? message : "");
 }
 
 void throw_if_failed(RTCDevice device, const char* what) {
@@ -55,9 +56,9 @@ RTCRay single_ray(const Vec3& origin, const Vec3& dir, float tmax) {
 }  // namespace
 
 // Rectangles and cube faces arrive as triangle pairs (a0, a1, a2), (a0, a2, b2). Embree
-// intersects such a pair as one quad noticeably faster than as two triangles (a tiny scene's
-// rays are dominated by per-primitive tests), so a mesh made only of such pairs becomes a
-// quad mesh.
+// intersects such a pair as one quad noticeably faster than as two triangles (a tiny
+// scene's rays are dominated by per-primitive tests), so a mesh made only of such pairs
+// becomes a quad mesh.
 bool pairs_into_quads(const TriangleMesh& mesh) {
     if (mesh.triangles.empty() || mesh.triangles.size() % 2 != 0) return false;
     for (size_t i = 0; i < mesh.triangles.size(); i += 2) {
@@ -70,9 +71,10 @@ bool pairs_into_quads(const TriangleMesh& mesh) {
 
 // Scenes made of a few simple shapes (every built-in scene) trace faster through Embree's
 // two-level BVH, one small BVH per shape under a top-level one, which it builds for
-// RTC_BUILD_QUALITY_LOW: on cornell-box 26 % fewer instructions a sample than its one-level
-// SAH BVH, where leaves mix quads of different walls. A large mesh is better served by the
-// SAH build (the two-level build makes each mesh's own BVH by Morton codes).
+// RTC_BUILD_QUALITY_LOW: on cornell-box 26 % fewer instructions a sample than its
+// one-level SAH BVH, where leaves mix quads of different walls. A large mesh is better
+// served by the SAH build (the two-level build makes each mesh's own BVH by Morton
+// codes).
 bool two_level_bvh(const Scene& scene) {
     constexpr size_t kSmallMesh = 256;  // triangles
     for (const TriangleMesh& mesh : scene.meshes)
@@ -91,8 +93,8 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
     if (!device_) throw std::runtime_error("embree: cannot create a device");
     rtcSetDeviceErrorFunction(device_, on_embree_error, nullptr);
     scene_ = rtcNewScene(device_);
-    rtcSetSceneBuildQuality(scene_, two_level_bvh(scene) ? RTC_BUILD_QUALITY_LOW
-                                                         : RTC_BUILD_QUALITY_HIGH);
+    rtcSetSceneBuildQuality(
+        scene_, two_level_bvh(scene) ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_HIGH);
 
     for (const TriangleMesh& mesh : scene.meshes) {
         const bool quads = pairs_into_quads(mesh);
@@ -102,15 +104,17 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
         normals.reserve(mesh.triangles.size());
         for (const auto& tri : mesh.triangles) {
             const Vec3 p0 = mesh.positions[tri[0]];
-            const Vec3 n = cross(mesh.positions[tri[1]] - p0, mesh.positions[tri[2]] - p0);
+            const Vec3 n =
+                cross(mesh.positions[tri[1]] - p0, mesh.positions[tri[2]] - p0);
             const float len = length(n);
-            normals.push_back(len > 0 ? n / len : Vec3(0, 0, 1));  // degenerate: never hit
+            normals.push_back(len > 0 ? n / len
+                                      : Vec3(0, 0, 1));  // degenerate: never hit
         }
-        RTCGeometry geom =
-            rtcNewGeometry(device_, quads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-            geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-            mesh.positions.size()));
+        RTCGeometry geom = rtcNewGeometry(
+            device_, quads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
+        auto* v = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                    3 * sizeof(float), mesh.positions.size()));
         for (size_t i = 0; i < mesh.positions.size(); ++i) {
             v[3 * i] = mesh.positions[i].x;
             v[3 * i + 1] = mesh.positions[i].y;
@@ -121,8 +125,9 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
             // (v2, v3, v1). Pair a = (a0, a1, a2), b = (a0, a2, b2) as (a1, a2, b2, a0):
             // the halves are exactly a and b, same vertices, winding and diagonal.
             const size_t count = mesh.triangles.size() / 2;
-            auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-                geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), count));
+            auto* idx = static_cast<unsigned*>(
+                rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4,
+                                        4 * sizeof(unsigned), count));
             for (size_t i = 0; i < count; ++i) {
                 const auto& a = mesh.triangles[2 * i];
                 const auto& b = mesh.triangles[2 * i + 1];
@@ -132,9 +137,9 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
                 idx[4 * i + 3] = a[0];
             }
         } else {
-            auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-                geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                mesh.triangles.size()));
+            auto* idx = static_cast<unsigned*>(
+                rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                        3 * sizeof(unsigned), mesh.triangles.size()));
             for (size_t i = 0; i < mesh.triangles.size(); ++i)
                 for (int k = 0; k < 3; ++k) idx[3 * i + k] = mesh.triangles[i][k];
         }
@@ -145,9 +150,9 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
 
     if (!scene.spheres.empty()) {
         RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-            geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float),
-            scene.spheres.size()));
+        auto* v = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                    4 * sizeof(float), scene.spheres.size()));
         for (size_t i = 0; i < scene.spheres.size(); ++i) {
             v[4 * i] = scene.spheres[i].center.x;
             v[4 * i + 1] = scene.spheres[i].center.y;
@@ -168,8 +173,8 @@ EmbreeScene::~EmbreeScene() {
     if (device_) rtcReleaseDevice(device_);
 }
 
-Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x,
-                        float ng_y, float ng_z) const {
+Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
+                        float ng_x, float ng_y, float ng_z) const {
     Hit hit;
     hit.t = t;
     hit.geom_id = geom;
@@ -187,8 +192,8 @@ Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
     return hit;
 }
 
-void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int count, Hit* hits,
-                                   bool* found) const {
+void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int count,
+                                   Hit* hits, bool* found) const {
     if (count < 0 || count > kPacket)
         throw std::invalid_argument("intersect_packet: more rays than a packet holds");
     RTCIntersectContext context;
@@ -218,12 +223,14 @@ void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int cou
     for (int i = 0; i < count; ++i) {
         found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (found[i])
-            hits[i] = to_hit(rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
-                             rh.hit.v[i], rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+            hits[i] =
+                to_hit(rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
+                       rh.hit.v[i], rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
     }
 }
 
-bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const {
+bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,
+                            Hit& hit) const {
     RTCIntersectContext context = incoherent_context();
     RTCRayHit rh;
     rh.ray = single_ray(origin, dir, tmax);
@@ -231,8 +238,8 @@ bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax, Hit
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v, rh.hit.Ng_x,
-                 rh.hit.Ng_y, rh.hit.Ng_z);
+    hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
+                 rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
     return true;
 }
 

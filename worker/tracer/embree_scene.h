@@ -14,7 +14,7 @@ namespace aliquot {
 
 struct Hit {
     float t = 0;
-    Vec3 ng;             // geometric normal, unit length, as the geometry defines it
+    Vec3 ng;               // geometric normal, unit length, as the geometry defines it
     uint32_t geom_id = 0;  // mesh index, or EmbreeScene::sphere_geometry() for spheres
     uint32_t prim_id = 0;  // triangle index within the mesh, or sphere index
 };
@@ -23,8 +23,8 @@ struct Hit {
 // slow on denormals. Every thread that traces calls it first.
 void enable_flush_to_zero();
 
-// Whether the mesh is made only of triangle pairs (a0, a1, a2), (a0, a2, b2), as the loader
-// makes rectangles and cubes, so Embree may trace it as quads.
+// Whether the mesh is made only of triangle pairs (a0, a1, a2), (a0, a2, b2), as the
+// loader makes rectangles and cubes, so Embree may trace it as quads.
 bool pairs_into_quads(const TriangleMesh& mesh);
 
 // Whether the scene is only small meshes, which Embree's two-level BVH traces fastest.
@@ -42,8 +42,9 @@ public:
     // Closest hits of up to kPacket rays from one origin (a pixel's camera rays) in one
     // Embree packet query, several times faster than one query per ray for such coherent
     // rays. found[i] says whether ray i hit; hits[i] is valid only then. Embree's packet
-    // kernel may round a hit differently from its single-ray kernel, and a ray's result may
-    // depend on the packet it travels in: callers make packets from what the render fixes.
+    // kernel may round a hit differently from its single-ray kernel, and a ray's result
+    // may depend on the packet it travels in: callers make packets from what the render
+    // fixes.
     static constexpr int kPacket = 16;
     void intersect_packet(const Vec3& origin, const Vec3* dirs, int count, Hit* hits,
                           bool* found) const;
@@ -53,8 +54,8 @@ public:
     uint32_t sphere_geometry() const { return sphere_geom_id_; }
 
 private:
-    Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x, float ng_y,
-               float ng_z) const;
+    Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x,
+               float ng_y, float ng_z) const;
 
     RTCDeviceTy* device_ = nullptr;
     RTCSceneTy* scene_ = nullptr;

@@ -20,19 +20,22 @@ bool inside(const TriangleMesh& m, uint32_t t, const Vec3& p) {
 }
 
 TEST(EmbreeScene, LoaderStyleTrianglePairsBecomeQuads) {
-    EXPECT_TRUE(pairs_into_quads(test::horizontal_rectangle(1, 1, 0, false)));  // (0,1,2)(0,2,3)
-    EXPECT_FALSE(pairs_into_quads(test::horizontal_rectangle(1, 1, 0, true)));  // (0,2,1)(0,3,2)
+    EXPECT_TRUE(
+        pairs_into_quads(test::horizontal_rectangle(1, 1, 0, false)));  // (0,1,2)(0,2,3)
+    EXPECT_FALSE(
+        pairs_into_quads(test::horizontal_rectangle(1, 1, 0, true)));  // (0,2,1)(0,3,2)
     TriangleMesh odd = test::horizontal_rectangle(1, 1, 0, false);
     odd.triangles.pop_back();
     EXPECT_FALSE(pairs_into_quads(odd));
     EXPECT_FALSE(pairs_into_quads(TriangleMesh{}));
 }
 
-// A skewed (non-rectangular, non-planar) quad traced as a quad must hit exactly where its two
-// triangles are, report the triangle that was hit and that triangle's unit normal.
+// A skewed (non-rectangular, non-planar) quad traced as a quad must hit exactly where its
+// two triangles are, report the triangle that was hit and that triangle's unit normal.
 TEST(EmbreeScene, QuadHitsReportTheirTriangleAndItsNormal) {
     TriangleMesh m;
-    m.positions = {{-1, 0, -1}, {1.2f, 0.1f, -0.8f}, {0.9f, -0.2f, 1.1f}, {-1.1f, 0.3f, 0.7f}};
+    m.positions = {
+        {-1, 0, -1}, {1.2f, 0.1f, -0.8f}, {0.9f, -0.2f, 1.1f}, {-1.1f, 0.3f, 0.7f}};
     m.triangles = {{0, 1, 2}, {0, 2, 3}};
     ASSERT_TRUE(pairs_into_quads(m));
     Scene scene;
@@ -43,7 +46,8 @@ TEST(EmbreeScene, QuadHitsReportTheirTriangleAndItsNormal) {
     int hits[2] = {0, 0};
     for (int i = 0; i < 40; ++i) {
         for (int j = 0; j < 40; ++j) {
-            const Vec3 origin(-1.2f + 2.4f * (i + 0.5f) / 40, 5, -1.2f + 2.4f * (j + 0.5f) / 40);
+            const Vec3 origin(-1.2f + 2.4f * (i + 0.5f) / 40, 5,
+                              -1.2f + 2.4f * (j + 0.5f) / 40);
             Hit hit;
             if (!embree.intersect(origin, {0, -1, 0}, 100, hit)) continue;
             ASSERT_LT(hit.prim_id, 2u);
@@ -61,8 +65,8 @@ TEST(EmbreeScene, QuadHitsReportTheirTriangleAndItsNormal) {
 }
 
 // Camera rays traced as packets find what single rays find. The packet kernel may round
-// differently, so hits are compared to a tolerance, and a ray grazing an edge may pick the
-// neighbouring primitive.
+// differently, so hits are compared to a tolerance, and a ray grazing an edge may pick
+// the neighbouring primitive.
 TEST(EmbreeScene, PacketHitsAgreeWithSingleRayHits) {
     const Scene scene = load_scene("cornell-box");
     const EmbreeScene embree(scene);
@@ -70,22 +74,26 @@ TEST(EmbreeScene, PacketHitsAgreeWithSingleRayHits) {
     size_t rays = 0, hits = 0, other_primitive = 0;
     for (uint32_t y = 0; y < 64; ++y) {
         for (uint32_t x = 0; x < 64; ++x) {
-            const int count = 1 + int((x + 3 * y) % EmbreeScene::kPacket);  // partial packets
+            const int count =
+                1 + int((x + 3 * y) % EmbreeScene::kPacket);  // partial packets
             Vec3 dirs[EmbreeScene::kPacket];
             for (int j = 0; j < count; ++j)
-                dirs[j] = camera.direction(x + (j % 4 + 0.5f) / 4, y + (j / 4 + 0.5f) / 4);
+                dirs[j] =
+                    camera.direction(x + (j % 4 + 0.5f) / 4, y + (j / 4 + 0.5f) / 4);
             Hit packet[EmbreeScene::kPacket];
             bool found[EmbreeScene::kPacket];
             embree.intersect_packet(camera.origin(), dirs, count, packet, found);
             for (int j = 0; j < count; ++j) {
                 ++rays;
                 Hit single;
-                const bool single_found = embree.intersect(camera.origin(), dirs[j], 1e30f, single);
+                const bool single_found =
+                    embree.intersect(camera.origin(), dirs[j], 1e30f, single);
                 ASSERT_EQ(found[j], single_found);
                 if (!found[j]) continue;
                 ++hits;
                 EXPECT_NEAR(packet[j].t, single.t, 1e-5f * single.t);
-                if (packet[j].geom_id != single.geom_id || packet[j].prim_id != single.prim_id)
+                if (packet[j].geom_id != single.geom_id ||
+                    packet[j].prim_id != single.prim_id)
                     ++other_primitive;
             }
         }
@@ -100,8 +108,9 @@ TEST(EmbreeScene, PacketRejectsMoreRaysThanItHolds) {
     Vec3 dirs[EmbreeScene::kPacket + 1];
     Hit hits[EmbreeScene::kPacket + 1];
     bool found[EmbreeScene::kPacket + 1];
-    EXPECT_THROW(embree.intersect_packet({0, 1, 3}, dirs, EmbreeScene::kPacket + 1, hits, found),
-                 std::invalid_argument);
+    EXPECT_THROW(
+        embree.intersect_packet({0, 1, 3}, dirs, EmbreeScene::kPacket + 1, hits, found),
+        std::invalid_argument);
 }
 
 TEST(EmbreeScene, TwoLevelBvhOnlyForScenesOfSmallMeshes) {

@@ -31,8 +31,8 @@ LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(
         cdf_.push_back(float(running / total));
     }
     if (!cdf_.empty()) cdf_.back() = 1.0f;
-    // A triangle picked by area x luminance and a point uniform on it: the density per unit
-    // area is luminance / total, the same on every triangle of a mesh.
+    // A triangle picked by area x luminance and a point uniform on it: the density per
+    // unit area is luminance / total, the same on every triangle of a mesh.
     for (uint32_t m = 0; m < scene.meshes.size(); ++m)
         if (scene.meshes[m].is_emitter() && total > 0)
             pdf_by_mesh_[m] = float(luminance(scene.meshes[m].emission) / total);
@@ -40,12 +40,14 @@ LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(
 
 LightSample LightSampler::sample(float u_select, float u1, float u2) const {
     const size_t i = std::min<size_t>(
-        std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(), cdf_.size() - 1);
+        std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(),
+        cdf_.size() - 1);
     const EmitterTriangle& tri = triangles_[i];
     // Uniform point on the triangle (square-root parameterisation).
     const float su = std::sqrt(u1);
     const float b1 = 1.0f - su, b2 = u2 * su;
-    return {tri.p0 + tri.e1 * b1 + tri.e2 * b2, tri.normal, tri.radiance, pdf_by_mesh_[tri.mesh]};
+    return {tri.p0 + tri.e1 * b1 + tri.e2 * b2, tri.normal, tri.radiance,
+            pdf_by_mesh_[tri.mesh]};
 }
 
 float LightSampler::pdf_area(uint32_t mesh) const { return pdf_by_mesh_[mesh]; }

@@ -1,6 +1,6 @@
 // LightSampler: picks a point on the scene's emitters, each emitting triangle with
-// probability proportional to its area times its radiance's luminance (for a single emitter:
-// uniform by area, as Mitsuba samples one area light).
+// probability proportional to its area times its radiance's luminance (for a single
+// emitter: uniform by area, as Mitsuba samples one area light).
 #pragma once
 
 #include <cstdint>
@@ -12,9 +12,9 @@ namespace aliquot {
 
 struct LightSample {
     Vec3 position;
-    Vec3 normal;      // unit, the emitting side
+    Vec3 normal;  // unit, the emitting side
     Vec3 radiance;
-    float pdf_area;   // with respect to area on the emitter
+    float pdf_area;  // with respect to area on the emitter
 };
 
 class LightSampler {

@@ -15,7 +15,8 @@ constexpr float kInvPi = float(1.0 / std::numbers::pi);
 // Rays leave a surface from a point pushed off it along the geometric normal, to the side
 // they travel to; scaled by the point's magnitude so float spacing never swallows it.
 float offset_scale(const Vec3& p) {
-    return 1e-4f * (1.0f + std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
+    return 1e-4f *
+           (1.0f + std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
 }
 Vec3 offset_origin(const Vec3& p, const Vec3& ng, float scale, const Vec3& dir) {
     return dot(dir, ng) > 0 ? p + ng * scale : p - ng * scale;
@@ -41,7 +42,8 @@ float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
 
 }  // namespace
 
-PathTracer::PathTracer(const Scene& scene) : scene_(scene), embree_(scene), lights_(scene) {}
+PathTracer::PathTracer(const Scene& scene)
+    : scene_(scene), embree_(scene), lights_(scene) {}
 
 const Material& PathTracer::material_at(const Hit& hit) const {
     const uint32_t index = hit.geom_id == embree_.sphere_geometry()
@@ -50,7 +52,8 @@ const Material& PathTracer::material_at(const Hit& hit) const {
     return scene_.materials[index];
 }
 
-Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleRng& rng) const {
+Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction,
+                              SampleRng& rng) const {
     Hit hit;
     const bool found =
         embree_.intersect(origin, direction, std::numeric_limits<float>::infinity(), hit);
@@ -60,15 +63,16 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, SampleR
 // One bounce loop, kept whole on purpose (longer than our ~80-line rule): the path's
 // state (throughput, IOR product, the previous BSDF pdf for MIS, the order of random
 // draws) lives in its locals, and the order in which it draws from `rng` is the sample's
-// identity; split into functions, that state and order would be threaded through every call.
+// identity; split into functions, that state and order would be threaded through every
+// call.
 Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const Hit* first,
                               SampleRng& rng) const {
     Radiance out;
     Vec3 L{0, 0, 0};
     Vec3 beta{1, 1, 1};
-    float eta = 1.0f;              // product of relative IORs crossed: Mitsuba's RR uses it
-    float prev_bsdf_pdf = 0.0f;    // solid-angle pdf of the direction that led here
-    bool prev_specular = true;     // camera rays and delta lobes take emission unweighted
+    float eta = 1.0f;            // product of relative IORs crossed: Mitsuba's RR uses it
+    float prev_bsdf_pdf = 0.0f;  // solid-angle pdf of the direction that led here
+    bool prev_specular = true;   // camera rays and delta lobes take emission unweighted
     Vec3 o = origin, d = direction;
     const int max_depth = scene_.max_depth;
 
@@ -149,7 +153,8 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const H
                     wo = d + n * (2.0f * cos_i);
                 } else {
                     wo = normalize(d / eta_rel + n * (cos_i / eta_rel - cos_t));
-                    // Radiance is compressed into the denser medium (Veach's thesis, 5.2).
+                    // Radiance is compressed into the denser medium (Veach's
+                    // thesis, 5.2).
                     beta *= 1.0f / (eta_rel * eta_rel);
                     eta *= eta_rel;
                 }

@@ -49,7 +49,8 @@ TEST(PathTracer, WhiteFurnaceMatchesTheGeometricSeries) {
 
 // Direct lighting at a point of a diffuse floor under a parallel square emitter, against
 // the closed-form view factor from a differential area to a parallel rectangle (Howell,
-// "A Catalog of Radiation Heat Transfer Configuration Factors", B-3): L = albedo * Le * F.
+// "A Catalog of Radiation Heat Transfer Configuration Factors", B-3): L = albedo * Le *
+// F.
 TEST(PathTracer, DirectLightingMatchesTheViewFactor) {
     const float half = 0.5f, height = 1.0f, albedo = 0.8f;
     Scene scene;
@@ -95,7 +96,8 @@ TEST(PathTracer, CountsEveryEmbreeQueryAsARay) {
     const PathTracer tracer(scene);
     const CameraModel camera(scene.camera, 16, 16);
     SampleRng rng(1, 8, 8, 0);
-    const Radiance r = tracer.radiance(camera.origin(), camera.direction(8.5f, 8.5f), rng);
+    const Radiance r =
+        tracer.radiance(camera.origin(), camera.direction(8.5f, 8.5f), rng);
     // At least the camera ray; at most one closest-hit and one shadow ray per vertex.
     EXPECT_GE(r.rays, 1u);
     EXPECT_LE(r.rays, uint32_t(2 * scene.max_depth));

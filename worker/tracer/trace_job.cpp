@@ -29,14 +29,15 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
         PixelSums& sums = result.pixels[i];
         const uint64_t first = job.first_sample[i], end = first + job.counts[i];
         // The pixel's camera rays leave together, kPacket at a time, cut from its first
-        // sample here. A job holds all of a pixel's samples of its round, so which samples
-        // share a packet follows from the render's rounds, never from how rounds are cut
-        // into jobs or jobs spread over threads and workers.
+        // sample here. A job holds all of a pixel's samples of its round, so which
+        // samples share a packet follows from the render's rounds, never from how rounds
+        // are cut into jobs or jobs spread over threads and workers.
         for (uint64_t k0 = first; k0 < end; k0 += kPacket) {
             const int n = int(std::min<uint64_t>(kPacket, end - k0));
             for (int j = 0; j < n; ++j) {
                 SampleRng& rng = rngs[j].emplace(geometry.seed, x, y, k0 + j);
-                // Box filter: a uniform point in the pixel, so the pixel is its area's average.
+                // Box filter: a uniform point in the pixel, so the pixel is its area's
+                // average.
                 const float px = float(x) + rng.next_float();
                 const float py = float(y) + rng.next_float();
                 dirs[j] = camera.direction(px, py);
@@ -44,8 +45,8 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
             tracer.embree().intersect_packet(camera.origin(), dirs.data(), n, hits.data(),
                                              found.data());
             for (int j = 0; j < n; ++j) {
-                const Radiance L = tracer.radiance(camera.origin(), dirs[j],
-                                                   found[j] ? &hits[j] : nullptr, *rngs[j]);
+                const Radiance L = tracer.radiance(
+                    camera.origin(), dirs[j], found[j] ? &hits[j] : nullptr, *rngs[j]);
                 add_sample(sums, k0 + j, L.value, L.rays);
             }
         }
@@ -60,7 +61,8 @@ SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry&
     const auto start = std::chrono::steady_clock::now();
     const PixelRect& r = job.rect;
     if (job.counts.size() != r.size() || job.first_sample.size() != r.size())
-        throw std::invalid_argument("sample job: per-pixel arrays do not match its rectangle");
+        throw std::invalid_argument(
+            "sample job: per-pixel arrays do not match its rectangle");
     if (r.x + r.width > geometry.width || r.y + r.height > geometry.height)
         throw std::invalid_argument("sample job: rectangle lies outside the image");
 

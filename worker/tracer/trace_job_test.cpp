@@ -36,11 +36,13 @@ TEST_F(SampleJobTest, ResultDoesNotDependOnThreadCount) {
     const SampleJob job = whole_image_job(24, 16, 4);
     const SampleJobResult one = trace_sample_job(tracer, geometry, job, 1);
     const SampleJobResult two = trace_sample_job(tracer, geometry, job, 2);
-    for (size_t i = 0; i < one.pixels.size(); ++i) ASSERT_TRUE(same_bits(one.pixels[i], two.pixels[i]));
+    for (size_t i = 0; i < one.pixels.size(); ++i)
+        ASSERT_TRUE(same_bits(one.pixels[i], two.pixels[i]));
 }
 
 TEST_F(SampleJobTest, ResultDoesNotDependOnHowPixelsAreCut) {
-    const SampleJobResult whole = trace_sample_job(tracer, geometry, whole_image_job(24, 16, 3));
+    const SampleJobResult whole =
+        trace_sample_job(tracer, geometry, whole_image_job(24, 16, 3));
     SampleJob part;
     part.rect = {5, 7, 6, 4};
     part.counts.assign(part.rect.size(), 3);
@@ -53,7 +55,8 @@ TEST_F(SampleJobTest, ResultDoesNotDependOnHowPixelsAreCut) {
 }
 
 TEST_F(SampleJobTest, SplitsSamplesByParityOfTheirIndex) {
-    // Samples 0..3 of one pixel: 0 and 2 are even. Starting at 1 instead shifts the parity.
+    // Samples 0..3 of one pixel: 0 and 2 are even. Starting at 1 instead shifts the
+    // parity.
     SampleJob job = whole_image_job(24, 16, 0);
     job.counts[0] = 4;
     const PixelSums from0 = trace_sample_job(tracer, geometry, job).pixels[0];
@@ -71,7 +74,8 @@ TEST_F(SampleJobTest, DifferentSeedGivesDifferentSums) {
     const SampleJobResult a = trace_sample_job(tracer, geometry, job);
     const SampleJobResult b = trace_sample_job(tracer, {24, 16, 6}, job);
     size_t differing = 0;
-    for (size_t i = 0; i < a.pixels.size(); ++i) differing += !same_bits(a.pixels[i], b.pixels[i]);
+    for (size_t i = 0; i < a.pixels.size(); ++i)
+        differing += !same_bits(a.pixels[i], b.pixels[i]);
     EXPECT_GT(differing, a.pixels.size() / 2);
 }
 

@@ -1,4 +1,5 @@
-// Warps: uniform random numbers in [0, 1) turned into the directions the path tracer samples.
+// Warps: uniform random numbers in [0, 1) turned into the directions the path tracer
+// samples.
 #pragma once
 
 #include <cmath>
@@ -17,14 +18,27 @@ inline void unit_circle(float u, float& c, float& s) {
     const int quadrant = int(t + 0.5f);  // 0..4; 4 is a full turn, the same as 0
     const float a = (t - float(quadrant)) * float(std::numbers::pi / 2);
     const float a2 = a * a;
-    const float sa = a * (1.0f + a2 * (-1.0f / 6 + a2 * (1.0f / 120 + a2 * (-1.0f / 5040))));
+    const float sa =
+        a * (1.0f + a2 * (-1.0f / 6 + a2 * (1.0f / 120 + a2 * (-1.0f / 5040))));
     const float ca =
         1.0f + a2 * (-0.5f + a2 * (1.0f / 24 + a2 * (-1.0f / 720 + a2 * (1.0f / 40320))));
     switch (quadrant & 3) {
-        case 0: c = ca; s = sa; break;
-        case 1: c = -sa; s = ca; break;
-        case 2: c = -ca; s = -sa; break;
-        default: c = sa; s = -ca; break;
+        case 0:
+            c = ca;
+            s = sa;
+            break;
+        case 1:
+            c = -sa;
+            s = ca;
+            break;
+        case 2:
+            c = -ca;
+            s = -sa;
+            break;
+        default:
+            c = sa;
+            s = -ca;
+            break;
     }
 }
 

@@ -16,7 +16,8 @@ TEST(Warp, UnitCircleMatchesCosAndSinEverywhere) {
         float c, s;
         unit_circle(u, c, s);
         const double phi = 2 * std::numbers::pi * double(u);
-        worst = std::max({worst, std::abs(c - std::cos(phi)), std::abs(s - std::sin(phi))});
+        worst =
+            std::max({worst, std::abs(c - std::cos(phi)), std::abs(s - std::sin(phi))});
     }
     EXPECT_LT(worst, 4e-7);
     float c, s;
