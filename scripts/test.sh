@@ -14,6 +14,7 @@ run() {
     if "$@"; then echo "=== $name: passed"; else echo "=== $name: FAILED"; failures+=("$name"); fi
 }
 
+run "format" bash scripts/format.sh --check
 run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
 run "cli" bash tests/cli/render_test.sh build/bin/aliquot
 run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
