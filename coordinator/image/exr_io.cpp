@@ -20,6 +20,8 @@ namespace aliquot {
 namespace {
 
 constexpr const char* kRgb[3] = {"R", "G", "B"};
+// Twice the largest side the farm renders: larger claims are refused before allocating.
+constexpr int64_t kMaxSide = 16384;
 
 [[noreturn]] void fail(const char* verb, const std::filesystem::path& path,
                        const std::string& why) {
@@ -45,11 +47,8 @@ void check_writable(const std::filesystem::path& path, const Image& image) {
     }
 }
 
-}  // namespace
-
-void write_exr(const std::filesystem::path& path, const Image& image) {
-    check_writable(path, image);
-
+// Writes `image` to an OpenEXR stream (a file or memory): the one writer of both.
+void write_to(Imf::OStream& stream, const Image& image) {
     // The header holds only the fixed attributes: no dates or software names, so the same
     // Image always gives the same bytes (tests compare files produced by different runs).
     Imf::Header header(int(image.width), int(image.height));
@@ -72,15 +71,77 @@ void write_exr(const std::filesystem::path& path, const Image& image) {
                      Imf::Slice(Imf::FLOAT, base, sizeof(float), sizeof(float) * w));
     }
 
+    Imf::OutputFile file(stream, header);
+    file.setFrameBuffer(frame);
+    file.writePixels(int(image.height));
+}
+
+// Reads R, G, B and every other channel from an OpenEXR stream; `path` (a file, or what
+// the bytes came from) goes into errors. The one reader of files and memory.
+Image read_from(Imf::IStream& stream, const std::filesystem::path& path) {
+    Imf::InputFile file(stream);
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
+    const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
+    // A header may claim any size; bytes from the network must not make us allocate it.
+    if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide)
+        fail("read", path,
+             "data window " + std::to_string(w) + "x" + std::to_string(h) +
+                 " is outside 1.." + std::to_string(kMaxSide) + " a side");
+    const Imf::ChannelList& channels = file.header().channels();
+    for (const char* name : kRgb)
+        if (!channels.findChannel(name))
+            fail("read", path, std::string("no channel ") + name);
+    for (auto it = channels.begin(); it != channels.end(); ++it)
+        if (it.channel().xSampling != 1 || it.channel().ySampling != 1)
+            fail("read", path,
+                 std::string("subsampled channel ") + it.name() + " is not supported");
+
+    Image image{uint32_t(w), uint32_t(h)};
+    Imf::FrameBuffer frame;
+    // Slice::Make offsets the base pointer by the data window origin, which need not
+    // be 0.
+    for (int c = 0; c < 3; ++c)
+        frame.insert(kRgb[c], Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, dw,
+                                               3 * sizeof(float), 3 * sizeof(float) * w));
+    // ChannelList iterates by name, so extras come back sorted, whatever order was
+    // written.
+    for (auto it = channels.begin(); it != channels.end(); ++it) {
+        const std::string name = it.name();
+        if (name == "R" || name == "G" || name == "B") continue;
+        image.extra.push_back({name, std::vector<float>(image.pixel_count())});
+    }
+    for (Image::Channel& ch : image.extra)
+        frame.insert(ch.name, Imf::Slice::Make(Imf::FLOAT, ch.values.data(), dw,
+                                               sizeof(float), sizeof(float) * w));
+    file.setFrameBuffer(frame);
+    file.readPixels(dw.min.y, dw.max.y);
+    return image;
+}
+
+// Turns OpenEXR's and the library's exceptions into one ImageFileError naming `name`.
+template <typename F>
+Image reading(const std::filesystem::path& name, F&& read) {
+    try {
+        return read();
+    } catch (const ImageFileError&) {
+        throw;
+    } catch (const std::exception& e) {
+        fail("read", name, e.what());
+    }
+}
+
+}  // namespace
+
+void write_exr(const std::filesystem::path& path, const Image& image) {
+    check_writable(path, image);
     // Opening the stream ourselves gives errno, hence a plain "No such file or directory"
     // instead of OpenEXR's longer message.
     std::ofstream os(path, std::ios::binary | std::ios::trunc);
     if (!os) fail("write", path, std::strerror(errno));
     try {
         Imf::StdOFStream stream(os, path.string().c_str());
-        Imf::OutputFile file(stream, header);
-        file.setFrameBuffer(frame);
-        file.writePixels(int(image.height));
+        write_to(stream, image);
     } catch (const std::exception& e) {
         os.close();
         std::error_code ignored;
@@ -107,49 +168,32 @@ Image read_exr(const std::filesystem::path& path) {
     if (!is.read(magic, 4) || !Imf::isImfMagic(magic))
         fail("read", path, "not an OpenEXR file");
     is.seekg(0);
-
-    try {
+    return reading(path, [&] {
         Imf::StdIFStream stream(is, path.string().c_str());
-        Imf::InputFile file(stream);
-        const Imath::Box2i dw = file.header().dataWindow();
-        const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
-        const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
-        const Imf::ChannelList& channels = file.header().channels();
-        for (const char* name : kRgb)
-            if (!channels.findChannel(name))
-                fail("read", path, std::string("no channel ") + name);
-        for (auto it = channels.begin(); it != channels.end(); ++it)
-            if (it.channel().xSampling != 1 || it.channel().ySampling != 1)
-                fail(
-                    "read", path,
-                    std::string("subsampled channel ") + it.name() + " is not supported");
+        return read_from(stream, path);
+    });
+}
 
-        Image image{uint32_t(w), uint32_t(h)};
-        Imf::FrameBuffer frame;
-        // Slice::Make offsets the base pointer by the data window origin, which need not
-        // be 0.
-        for (int c = 0; c < 3; ++c)
-            frame.insert(kRgb[c],
-                         Imf::Slice::Make(Imf::FLOAT, image.rgb.data() + c, dw,
-                                          3 * sizeof(float), 3 * sizeof(float) * w));
-        // ChannelList iterates by name, so extras come back sorted, whatever order was
-        // written.
-        for (auto it = channels.begin(); it != channels.end(); ++it) {
-            const std::string name = it.name();
-            if (name == "R" || name == "G" || name == "B") continue;
-            image.extra.push_back({name, std::vector<float>(image.pixel_count())});
-        }
-        for (Image::Channel& ch : image.extra)
-            frame.insert(ch.name, Imf::Slice::Make(Imf::FLOAT, ch.values.data(), dw,
-                                                   sizeof(float), sizeof(float) * w));
-        file.setFrameBuffer(frame);
-        file.readPixels(dw.min.y, dw.max.y);
-        return image;
-    } catch (const ImageFileError&) {
-        throw;
+std::string encode_exr(const Image& image) {
+    const std::filesystem::path name = "image in memory";
+    check_writable(name, image);
+    try {
+        Imf::StdOSStream stream;
+        write_to(stream, image);
+        return stream.str();
     } catch (const std::exception& e) {
-        fail("read", path, e.what());
+        fail("write", name, e.what());
     }
+}
+
+Image decode_exr(const std::string& bytes, const std::string& name) {
+    if (bytes.size() < 4 || !Imf::isImfMagic(bytes.data()))
+        fail("read", name, "not an OpenEXR file");
+    return reading(name, [&] {
+        Imf::StdISStream stream;
+        stream.str(bytes);
+        return read_from(stream, name);
+    });
 }
 
 }  // namespace aliquot

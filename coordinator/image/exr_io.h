@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <stdexcept>
+#include <string>
 
 #include "image.h"
 
@@ -20,5 +21,11 @@ void write_exr(const std::filesystem::path& path, const Image& image);
 
 // Reads R, G, B (any pixel type, converted to float) and every other channel as extra.
 Image read_exr(const std::filesystem::path& path);
+
+// The same bytes as write_exr and the same reading as read_exr, in memory: EXRs that
+// cross the network never touch a file (a predictable temporary name is an attack).
+// `name` says in errors where the bytes came from.
+std::string encode_exr(const Image& image);
+Image decode_exr(const std::string& bytes, const std::string& name);
 
 }  // namespace aliquot

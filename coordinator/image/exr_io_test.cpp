@@ -193,5 +193,39 @@ TEST_F(ExrIo, ReadingFileWithoutBlueChannelFails) {
     }
 }
 
+TEST_F(ExrIo, AHeaderClaimingAHugeImageIsRefusedBeforeAllocating) {
+    write_foreign(dir / "wide.exr", Imath::Box2i({0, 0}, {99999, 0}), {"R", "G", "B"});
+    try {
+        read_exr(dir / "wide.exr");
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_NE(std::string(e.what()).find("100000x1 is outside 1..16384"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST_F(ExrIo, EncodingInMemoryGivesTheFilesBytesAndDecodesBack) {
+    const Image image = patterned(33, 17);
+    write_exr(dir / "a.exr", image);
+    const std::string bytes = encode_exr(image);
+    EXPECT_EQ(bytes, bytes_of(dir / "a.exr"));
+    expect_same(decode_exr(bytes, "upload"), image);
+}
+
+TEST_F(ExrIo, DecodingBadBytesNamesTheirSource) {
+    const std::string bytes = encode_exr(patterned(32, 32));
+    for (const std::string& bad :
+         {std::string("not an exr"), bytes.substr(0, bytes.size() / 2)}) {
+        try {
+            decode_exr(bad, "the reference");
+            FAIL() << "expected ImageFileError";
+        } catch (const ImageFileError& e) {
+            EXPECT_EQ(std::string(e.what()).rfind("cannot read the reference: ", 0), 0u)
+                << e.what();
+        }
+    }
+}
+
 }  // namespace
 }  // namespace aliquot
