@@ -123,6 +123,10 @@ std::string query(const httplib::Request& req, const std::string& name,
 
 }  // namespace
 
+// The server's threads, and how many of them event streams may never take.
+constexpr size_t kThreads = 32;
+constexpr size_t kFreeThreads = 8;
+
 struct HttpServer::Impl {
     Coordinator& coordinator;
     HttpOptions options;
@@ -274,13 +278,51 @@ struct HttpServer::Impl {
         }
     }
 
+    // One open event stream: holds a slot of `max_event_streams` while it lives.
+    class StreamSlot {
+    public:
+        explicit StreamSlot(Impl& impl) : impl_(impl) {}
+        ~StreamSlot() {
+            std::lock_guard lock(impl_.streams_mutex);
+            --impl_.streams;
+        }
+        StreamSlot(const StreamSlot&) = delete;
+        StreamSlot& operator=(const StreamSlot&) = delete;
+
+    private:
+        Impl& impl_;
+    };
+    std::mutex streams_mutex;
+    size_t streams = 0;
+
+    std::shared_ptr<StreamSlot> take_stream_slot() {
+        std::lock_guard lock(streams_mutex);
+        if (streams >= options.max_event_streams) return nullptr;
+        ++streams;
+        return std::make_shared<StreamSlot>(*this);
+    }
+
     void events(const httplib::Request&, httplib::Response& res) {
+        // A refused stream is told when to come back; the dashboard backs off further.
+        std::shared_ptr<StreamSlot> slot = take_stream_slot();
+        if (!slot) {
+            res.set_header("Retry-After", "10");
+            res.set_header("Connection", "close");
+            send_error(res, 503,
+                       "too many live-update streams are open (at most " +
+                           std::to_string(options.max_event_streams) +
+                           "); try again later");
+            return;
+        }
         res.set_header("Cache-Control", "no-store");
         res.set_header("X-Accel-Buffering", "no");
         auto from = std::make_shared<uint64_t>(hub.next());
         auto greeted = std::make_shared<bool>(false);
+        // The provider owns the slot: httplib destroys it with the response, however the
+        // stream ends (client gone, write failed, server stopping).
         res.set_chunked_content_provider(
-            "text/event-stream", [this, from, greeted](size_t, httplib::DataSink& sink) {
+            "text/event-stream",
+            [this, from, greeted, slot](size_t, httplib::DataSink& sink) {
                 std::string out;
                 if (!*greeted) {
                     *greeted = true;
@@ -291,14 +333,25 @@ struct HttpServer::Impl {
                 }
                 std::vector<std::string> messages;
                 bool missed = false;
-                if (!hub.wait(*from, std::chrono::seconds(15), messages, missed)) {
-                    sink.done();
-                    return true;
+                // Waits in short slices, looking between them whether the client is
+                // still there (httplib's is_writable sees a closed peer), so a stream
+                // whose client left gives its thread back promptly, not at the next
+                // write.
+                const auto idle_until =
+                    std::chrono::steady_clock::now() + std::chrono::seconds(15);
+                for (;;) {
+                    if (!hub.wait(*from, options.client_check_interval, messages,
+                                  missed)) {
+                        sink.done();
+                        return true;
+                    }
+                    if (missed || !messages.empty()) break;
+                    if (!sink.is_writable()) return false;  // ends the connection
+                    if (std::chrono::steady_clock::now() >= idle_until) break;
                 }
                 if (missed) out += "data: {\"type\":\"resync\"}\n\n";
                 for (const std::string& m : messages) out += "data: " + m + "\n\n";
-                // A comment keeps proxies from closing an idle stream and finds dead
-                // peers.
+                // A comment keeps proxies from closing an idle stream.
                 if (out.empty()) out = ": idle\n\n";
                 return sink.write(out.data(), out.size());
             });
@@ -597,8 +650,13 @@ struct HttpServer::Impl {
         if (wanted < 0 || wanted > 65535)
             throw std::runtime_error("http: bad port in \"" + address + "\"");
 
-        // Event streams hold a thread each and browsers keep a few idle connections open.
-        server.new_task_queue = [] { return new httplib::ThreadPool(32); };
+        // Event streams hold a thread each and browsers keep a few idle connections open;
+        // at most max_event_streams of the threads go to streams.
+        if (options.max_event_streams + kFreeThreads > kThreads)
+            throw std::invalid_argument(
+                "http: at most " + std::to_string(kThreads - kFreeThreads) +
+                " event streams, so that the server keeps threads for other requests");
+        server.new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
         server.set_payload_max_length(1 << 20);
         server.set_keep_alive_timeout(5);
         routes();
