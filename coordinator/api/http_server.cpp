@@ -259,6 +259,15 @@ struct HttpServer::Impl {
         }
     }
 
+    // Tells the browsers when writing the run record starts or stops failing.
+    std::string seen_storage_warning;
+    void publish_storage_warning() {
+        std::string warning = coordinator.storage_warning();
+        if (warning == seen_storage_warning) return;
+        seen_storage_warning = warning;
+        hub.publish(json{{"type", "storage"}, {"storage_warning", warning}}.dump());
+    }
+
     void broadcast() {
         uint64_t version = 0;
         while (!hub.stopping()) {
@@ -267,6 +276,8 @@ struct HttpServer::Impl {
             const uint64_t now =
                 coordinator.wait_for_change(version, std::chrono::milliseconds(200));
             if (hub.stopping()) break;
+            // The record's disk can fill or free up without any render changing.
+            publish_storage_warning();
             if (now == version) continue;
             version = now;
             try {
@@ -327,7 +338,10 @@ struct HttpServer::Impl {
                 if (!*greeted) {
                     *greeted = true;
                     out = "retry: 2000\n\ndata: " +
-                          json{{"type", "hello"}, {"now_ms", unix_millis_now()}}.dump() +
+                          json{{"type", "hello"},
+                               {"now_ms", unix_millis_now()},
+                               {"storage_warning", coordinator.storage_warning()}}
+                              .dump() +
                           "\n\n";
                     return sink.write(out.data(), out.size());
                 }
@@ -462,7 +476,8 @@ struct HttpServer::Impl {
                 const size_t limit = size_t(http_api::number_param(
                     "limit", query(req, "limit", "200"), 1, double(options.max_list)));
                 send_json(res, {{"renders", list_renders(limit)},
-                                {"now_ms", unix_millis_now()}});
+                                {"now_ms", unix_millis_now()},
+                                {"storage_warning", coordinator.storage_warning()}});
             }));
         server.Post("/api/renders",
                     guarded([this](const httplib::Request& req, auto& res) {
@@ -475,7 +490,9 @@ struct HttpServer::Impl {
         server.Get(R"(/api/renders/([^/]+))",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const RenderInfo info = render_or_404(req.matches[1]);
-                       send_json(res, render_detail(info, progress_of(info)));
+                       json detail = render_detail(info, progress_of(info));
+                       detail["storage_warning"] = coordinator.storage_warning();
+                       send_json(res, detail);
                    }));
         server.Post(R"(/api/renders/([^/]+)/cancel)",
                     guarded([this](const httplib::Request& req, auto& res) {
@@ -669,6 +686,7 @@ struct HttpServer::Impl {
             port = wanted;
         }
         snapshot(false);  // later updates say what changed since now
+        seen_storage_warning = coordinator.storage_warning();
         listener = std::thread([this] { server.listen_after_bind(); });
         broadcaster = std::thread([this] { broadcast(); });
     }

@@ -588,6 +588,62 @@ TEST_F(HttpServerTest, AStreamWhoseClientLeftFreesItsSlot) {
     EXPECT_EQ(get_json("/healthz")["ok"], true);
 }
 
+// The coordinator's record cannot be written (here the render's directory was replaced
+// by a file, which stops root as well as a user): the API says so, in the list, in a
+// render, and in the event stream's greeting.
+TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-http-storage-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    {
+        CoordinatorOptions co;
+        co.data_dir = dir / "data";
+        Coordinator coordinator(co);
+        HttpServer server(coordinator, "127.0.0.1:0");
+        httplib::Client c("127.0.0.1", server.port());
+        c.set_read_timeout(10, 0);
+        auto list = [&] {
+            auto res = c.Get("/api/renders");
+            EXPECT_TRUE(res && res->status == 200);
+            return res ? json::parse(res->body) : json{};
+        };
+        EXPECT_EQ(list()["storage_warning"], "");
+
+        auto submitted =
+            c.Post("/api/renders", R"({"resolution":"16x16","strategy":{"spp":4}})",
+                   "application/json");
+        ASSERT_TRUE(submitted);
+        ASSERT_EQ(submitted->status, 201) << submitted->body;
+        const std::string id = json::parse(submitted->body)["id"];
+        const fs::path render_dir = dir / "data" / "renders" / id;
+        ASSERT_TRUE(fs::is_directory(render_dir));
+        fs::remove_all(render_dir);
+        std::ofstream(render_dir) << "not a directory";
+        coordinator.register_worker("w1", 1);
+        fake_jobs(coordinator, "w1");
+        ASSERT_EQ(coordinator.info(id)->state, RenderState::Done);
+
+        const std::string warning = list()["storage_warning"];
+        EXPECT_NE(warning.find(id), std::string::npos) << warning;
+        auto detail = c.Get(("/api/renders/" + id).c_str());
+        ASSERT_TRUE(detail);
+        EXPECT_EQ(json::parse(detail->body)["storage_warning"], warning);
+        RawStream stream = open_stream(server.port());
+        ASSERT_EQ(stream.status, 200);
+        EXPECT_TRUE(stream.read_until("\"storage_warning\":\"cannot"));
+
+        // Once the disk takes writes again the warning goes away.
+        fs::remove(render_dir);
+        fs::create_directory(render_dir);
+        for (int i = 0; i < 100 && !coordinator.storage_warning().empty(); ++i) {
+            coordinator.tick();
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+        EXPECT_EQ(list()["storage_warning"], "");
+    }
+    fs::remove_all(dir);
+}
+
 TEST(PngEncoder, WritesSignatureHeaderAndRejectsBadSizes) {
     const std::string png = encode_png(std::vector<uint8_t>(3 * 5 * 3, 128), 3, 5, 3);
     EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
