@@ -47,19 +47,24 @@ void register_status(CLI::App& app) {
     cmd->callback([o] {
         ClientConnection c(o->coordinator);
         std::vector<RenderInfo> renders;
+        v1::ListRendersRequest list;
+        v1::ListRendersReply reply;
         if (!o->id.empty()) {
             v1::GetRenderRequest req;
             req.set_id(o->id);
             v1::RenderInfo info;
             c.check(c.stub().GetRender(c.context().get(), req, &info), "status " + o->id);
             renders.push_back(from_proto(info));
-        } else {
-            v1::ListRendersRequest req;
-            v1::ListRendersReply reply;
-            c.check(c.stub().ListRenders(c.context().get(), req, &reply), "status");
+            list.set_limit(1);  // only for the storage warning below
+        }
+        c.check(c.stub().ListRenders(c.context().get(), list, &reply), "status");
+        if (o->id.empty())
             for (const v1::RenderInfo& r : reply.renders())
                 renders.push_back(from_proto(r));
-        }
+        // On stderr, so that --json output stays one document.
+        if (!reply.storage_warning().empty())
+            std::cerr << "warning: the coordinator cannot write its record: "
+                      << reply.storage_warning() << std::endl;
         if (o->json) {
             // The HTTP API's documents (render_json.h), so a script reads either the same
             // way.

@@ -100,6 +100,7 @@ public:
                        v1::ListRendersReply* reply) override {
         for (const RenderInfo& i : c_.list(req->limit() ? req->limit() : 100))
             to_proto(i, *reply->add_renders());
+        reply->set_storage_warning(c_.storage_warning());
         return Status::OK;
     }
 

@@ -123,6 +123,10 @@ std::string query(const httplib::Request& req, const std::string& name,
 
 }  // namespace
 
+// The server's threads, and how many of them event streams may never take.
+constexpr size_t kThreads = 32;
+constexpr size_t kFreeThreads = 8;
+
 struct HttpServer::Impl {
     Coordinator& coordinator;
     HttpOptions options;
@@ -255,6 +259,15 @@ struct HttpServer::Impl {
         }
     }
 
+    // Tells the browsers when writing the run record starts or stops failing.
+    std::string seen_storage_warning;
+    void publish_storage_warning() {
+        std::string warning = coordinator.storage_warning();
+        if (warning == seen_storage_warning) return;
+        seen_storage_warning = warning;
+        hub.publish(json{{"type", "storage"}, {"storage_warning", warning}}.dump());
+    }
+
     void broadcast() {
         uint64_t version = 0;
         while (!hub.stopping()) {
@@ -263,6 +276,8 @@ struct HttpServer::Impl {
             const uint64_t now =
                 coordinator.wait_for_change(version, std::chrono::milliseconds(200));
             if (hub.stopping()) break;
+            // The record's disk can fill or free up without any render changing.
+            publish_storage_warning();
             if (now == version) continue;
             version = now;
             try {
@@ -274,31 +289,83 @@ struct HttpServer::Impl {
         }
     }
 
+    // One open event stream: holds a slot of `max_event_streams` while it lives.
+    class StreamSlot {
+    public:
+        explicit StreamSlot(Impl& impl) : impl_(impl) {}
+        ~StreamSlot() {
+            std::lock_guard lock(impl_.streams_mutex);
+            --impl_.streams;
+        }
+        StreamSlot(const StreamSlot&) = delete;
+        StreamSlot& operator=(const StreamSlot&) = delete;
+
+    private:
+        Impl& impl_;
+    };
+    std::mutex streams_mutex;
+    size_t streams = 0;
+
+    std::shared_ptr<StreamSlot> take_stream_slot() {
+        std::lock_guard lock(streams_mutex);
+        if (streams >= options.max_event_streams) return nullptr;
+        ++streams;
+        return std::make_shared<StreamSlot>(*this);
+    }
+
     void events(const httplib::Request&, httplib::Response& res) {
+        // A refused stream is told when to come back; the dashboard backs off further.
+        std::shared_ptr<StreamSlot> slot = take_stream_slot();
+        if (!slot) {
+            res.set_header("Retry-After", "10");
+            res.set_header("Connection", "close");
+            send_error(res, 503,
+                       "too many live-update streams are open (at most " +
+                           std::to_string(options.max_event_streams) +
+                           "); try again later");
+            return;
+        }
         res.set_header("Cache-Control", "no-store");
         res.set_header("X-Accel-Buffering", "no");
         auto from = std::make_shared<uint64_t>(hub.next());
         auto greeted = std::make_shared<bool>(false);
+        // The provider owns the slot: httplib destroys it with the response, however the
+        // stream ends (client gone, write failed, server stopping).
         res.set_chunked_content_provider(
-            "text/event-stream", [this, from, greeted](size_t, httplib::DataSink& sink) {
+            "text/event-stream",
+            [this, from, greeted, slot](size_t, httplib::DataSink& sink) {
                 std::string out;
                 if (!*greeted) {
                     *greeted = true;
                     out = "retry: 2000\n\ndata: " +
-                          json{{"type", "hello"}, {"now_ms", unix_millis_now()}}.dump() +
+                          json{{"type", "hello"},
+                               {"now_ms", unix_millis_now()},
+                               {"storage_warning", coordinator.storage_warning()}}
+                              .dump() +
                           "\n\n";
                     return sink.write(out.data(), out.size());
                 }
                 std::vector<std::string> messages;
                 bool missed = false;
-                if (!hub.wait(*from, std::chrono::seconds(15), messages, missed)) {
-                    sink.done();
-                    return true;
+                // Waits in short slices, looking between them whether the client is
+                // still there (httplib's is_writable sees a closed peer), so a stream
+                // whose client left gives its thread back promptly, not at the next
+                // write.
+                const auto idle_until =
+                    std::chrono::steady_clock::now() + std::chrono::seconds(15);
+                for (;;) {
+                    if (!hub.wait(*from, options.client_check_interval, messages,
+                                  missed)) {
+                        sink.done();
+                        return true;
+                    }
+                    if (missed || !messages.empty()) break;
+                    if (!sink.is_writable()) return false;  // ends the connection
+                    if (std::chrono::steady_clock::now() >= idle_until) break;
                 }
                 if (missed) out += "data: {\"type\":\"resync\"}\n\n";
                 for (const std::string& m : messages) out += "data: " + m + "\n\n";
-                // A comment keeps proxies from closing an idle stream and finds dead
-                // peers.
+                // A comment keeps proxies from closing an idle stream.
                 if (out.empty()) out = ": idle\n\n";
                 return sink.write(out.data(), out.size());
             });
@@ -409,7 +476,8 @@ struct HttpServer::Impl {
                 const size_t limit = size_t(http_api::number_param(
                     "limit", query(req, "limit", "200"), 1, double(options.max_list)));
                 send_json(res, {{"renders", list_renders(limit)},
-                                {"now_ms", unix_millis_now()}});
+                                {"now_ms", unix_millis_now()},
+                                {"storage_warning", coordinator.storage_warning()}});
             }));
         server.Post("/api/renders",
                     guarded([this](const httplib::Request& req, auto& res) {
@@ -422,7 +490,9 @@ struct HttpServer::Impl {
         server.Get(R"(/api/renders/([^/]+))",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const RenderInfo info = render_or_404(req.matches[1]);
-                       send_json(res, render_detail(info, progress_of(info)));
+                       json detail = render_detail(info, progress_of(info));
+                       detail["storage_warning"] = coordinator.storage_warning();
+                       send_json(res, detail);
                    }));
         server.Post(R"(/api/renders/([^/]+)/cancel)",
                     guarded([this](const httplib::Request& req, auto& res) {
@@ -597,8 +667,13 @@ struct HttpServer::Impl {
         if (wanted < 0 || wanted > 65535)
             throw std::runtime_error("http: bad port in \"" + address + "\"");
 
-        // Event streams hold a thread each and browsers keep a few idle connections open.
-        server.new_task_queue = [] { return new httplib::ThreadPool(32); };
+        // Event streams hold a thread each and browsers keep a few idle connections open;
+        // at most max_event_streams of the threads go to streams.
+        if (options.max_event_streams + kFreeThreads > kThreads)
+            throw std::invalid_argument(
+                "http: at most " + std::to_string(kThreads - kFreeThreads) +
+                " event streams, so that the server keeps threads for other requests");
+        server.new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
         server.set_payload_max_length(1 << 20);
         server.set_keep_alive_timeout(5);
         routes();
@@ -611,6 +686,7 @@ struct HttpServer::Impl {
             port = wanted;
         }
         snapshot(false);  // later updates say what changed since now
+        seen_storage_warning = coordinator.storage_warning();
         listener = std::thread([this] { server.listen_after_bind(); });
         broadcaster = std::thread([this] { broadcast(); });
     }

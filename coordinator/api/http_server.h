@@ -26,6 +26,13 @@ struct HttpOptions {
     std::chrono::milliseconds event_interval{250};
     // Listed renders per request at most (GET /api/renders?limit=).
     size_t max_list = 1000;
+    // Event streams open at once at most; one more is refused with 503 and Retry-After.
+    // Each open stream holds one of the server's 32 threads, so this many always stay
+    // free for everything else (the API, /healthz, the dashboard's files).
+    size_t max_event_streams = 16;
+    // How often an idle event stream looks whether its client has left: a departed
+    // client's thread is free again within about this long.
+    std::chrono::milliseconds client_check_interval{250};
 };
 
 class HttpServer {

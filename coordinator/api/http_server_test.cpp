@@ -3,8 +3,12 @@
 // bad request gets a 4xx with a message, and that responses stay small with many renders.
 #include "http_server.h"
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -55,6 +59,81 @@ size_t fake_jobs(Coordinator& c, const std::string& worker, size_t max_jobs = 10
         ++jobs;
     }
     return jobs;
+}
+
+// An event stream opened over a raw socket, so that a test holds many at once without a
+// thread each and can drop one the way a closed browser tab does.
+struct RawStream {
+    int fd = -1;
+    int status = 0;
+    std::string head, body;  // body: what arrived after the headers so far
+
+    RawStream() = default;
+    RawStream(RawStream&& o) noexcept
+        : fd(std::exchange(o.fd, -1)),
+          status(o.status),
+          head(std::move(o.head)),
+          body(std::move(o.body)) {}
+    RawStream& operator=(RawStream&&) = delete;
+    ~RawStream() { close(); }
+    void close() {
+        if (fd >= 0) ::close(fd);
+        fd = -1;
+    }
+    // Reads until `text` has arrived after the headers (or the peer closes, or 10 s).
+    bool read_until(const std::string& text) {
+        char buffer[4096];
+        while (body.find(text) == std::string::npos) {
+            const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+            if (n <= 0) return false;
+            body.append(buffer, size_t(n));
+        }
+        return true;
+    }
+};
+
+RawStream open_stream(int port, const std::string& path = "/api/events") {
+    RawStream s;
+    s.fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    timeval timeout{10, 0};  // generous: a refused or starved request fails, not hangs
+    ::setsockopt(s.fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_port = htons(uint16_t(port));
+    addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::connect(s.fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return s;
+    const std::string request = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    if (::send(s.fd, request.data(), request.size(), MSG_NOSIGNAL) < 0) return s;
+    char buffer[4096];
+    std::string got;
+    size_t end;
+    while ((end = got.find("\r\n\r\n")) == std::string::npos) {
+        const ssize_t n = ::recv(s.fd, buffer, sizeof buffer, 0);
+        if (n <= 0) return s;
+        got.append(buffer, size_t(n));
+    }
+    s.head = got.substr(0, end);
+    s.body = got.substr(end + 4);
+    if (s.head.rfind("HTTP/1.1 ", 0) == 0) s.status = std::atoi(s.head.c_str() + 9);
+    return s;
+}
+
+// The JSON body of a plain (Content-Length) response read by open_stream.
+json body_json(RawStream& s) {
+    const std::string key = "content-length: ";
+    std::string lower = s.head;
+    std::transform(lower.begin(), lower.end(), lower.begin(),
+                   [](unsigned char c) { return char(std::tolower(c)); });
+    const size_t at = lower.find(key);
+    if (at == std::string::npos) return {};
+    const size_t length = std::stoul(lower.substr(at + key.size()));
+    char buffer[4096];
+    while (s.body.size() < length) {
+        const ssize_t n = ::recv(s.fd, buffer, sizeof buffer, 0);
+        if (n <= 0) break;
+        s.body.append(buffer, size_t(n));
+    }
+    return json::parse(s.body, nullptr, false);
 }
 
 class HttpServerTest : public ::testing::Test {
@@ -443,6 +522,126 @@ TEST_F(HttpServerTest, ServesTheDashboard) {
     ASSERT_TRUE(res);
     EXPECT_EQ(res->status, 200);
     EXPECT_NE(res->body.find("<title>dash</title>"), std::string::npos);
+}
+
+// Issue 12, item 6: every event stream held a server thread, so 32 open streams left
+// none for /healthz. Streams over the cap are refused and the rest of the API still
+// answers.
+TEST_F(HttpServerTest, EventStreamsOverTheCapAreRefusedAndHealthStillAnswers) {
+    const size_t cap = HttpOptions{}.max_event_streams;
+    std::vector<RawStream> streams;
+    size_t open = 0, refused = 0;
+    for (size_t i = 0; i < 32; ++i) {  // as many as the server has threads
+        RawStream s = open_stream(server_->port());
+        if (s.status == 200) {
+            ++open;
+        } else {
+            ASSERT_EQ(s.status, 503) << "stream " << i << ": " << s.head;
+            EXPECT_NE(s.head.find("Retry-After: "), std::string::npos) << s.head;
+            const json error = body_json(s);
+            ASSERT_TRUE(error.is_object()) << s.body;
+            EXPECT_NE(error.value("error", "").find("too many"), std::string::npos)
+                << s.body;
+            // The answer says the connection ends here, and a client leaves then.
+            EXPECT_NE(s.head.find("Connection: close"), std::string::npos) << s.head;
+            s.close();
+            ++refused;
+        }
+        streams.push_back(std::move(s));
+    }
+    EXPECT_EQ(open, cap);
+    EXPECT_EQ(refused, 32 - cap);
+    // The open streams are live: each got its hello.
+    for (RawStream& s : streams)
+        if (s.status == 200) EXPECT_TRUE(s.read_until("\"hello\""));
+    // And the server still answers everything else while they stay open.
+    httplib::Client c("127.0.0.1", server_->port());
+    c.set_connection_timeout(5, 0);
+    c.set_read_timeout(5, 0);
+    auto health = c.Get("/healthz");
+    ASSERT_TRUE(health) << "/healthz got no answer with " << open << " streams open";
+    EXPECT_EQ(health->status, 200);
+    auto renders = c.Get("/api/renders");
+    ASSERT_TRUE(renders);
+    EXPECT_EQ(renders->status, 200);
+}
+
+TEST_F(HttpServerTest, AStreamWhoseClientLeftFreesItsSlot) {
+    const size_t cap = HttpOptions{}.max_event_streams;
+    for (int pass = 0; pass < 2; ++pass) {
+        std::vector<RawStream> streams;
+        // The previous pass's clients have just left: their slots come back within
+        // about a quarter of a second, well inside the 15 s between idle comments that
+        // used to be the first sign of a departed client.
+        for (int attempt = 0; attempt < 50 && streams.size() < cap; ++attempt) {
+            RawStream s = open_stream(server_->port());
+            if (s.status == 200)
+                streams.push_back(std::move(s));
+            else
+                std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+        ASSERT_EQ(streams.size(), cap) << "pass " << pass;
+        for (RawStream& s : streams) EXPECT_TRUE(s.read_until("\"hello\""));
+        EXPECT_EQ(open_stream(server_->port()).status, 503) << "pass " << pass;
+        for (RawStream& s : streams) s.close();
+    }
+    EXPECT_EQ(get_json("/healthz")["ok"], true);
+}
+
+// The coordinator's record cannot be written (here the render's directory was replaced
+// by a file, which stops root as well as a user): the API says so, in the list, in a
+// render, and in the event stream's greeting.
+TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-http-storage-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    {
+        CoordinatorOptions co;
+        co.data_dir = dir / "data";
+        Coordinator coordinator(co);
+        HttpServer server(coordinator, "127.0.0.1:0");
+        httplib::Client c("127.0.0.1", server.port());
+        c.set_read_timeout(10, 0);
+        auto list = [&] {
+            auto res = c.Get("/api/renders");
+            EXPECT_TRUE(res && res->status == 200);
+            return res ? json::parse(res->body) : json{};
+        };
+        EXPECT_EQ(list()["storage_warning"], "");
+
+        auto submitted =
+            c.Post("/api/renders", R"({"resolution":"16x16","strategy":{"spp":4}})",
+                   "application/json");
+        ASSERT_TRUE(submitted);
+        ASSERT_EQ(submitted->status, 201) << submitted->body;
+        const std::string id = json::parse(submitted->body)["id"];
+        const fs::path render_dir = dir / "data" / "renders" / id;
+        ASSERT_TRUE(fs::is_directory(render_dir));
+        fs::remove_all(render_dir);
+        std::ofstream(render_dir) << "not a directory";
+        coordinator.register_worker("w1", 1);
+        fake_jobs(coordinator, "w1");
+        ASSERT_EQ(coordinator.info(id)->state, RenderState::Done);
+
+        const std::string warning = list()["storage_warning"];
+        EXPECT_NE(warning.find(id), std::string::npos) << warning;
+        auto detail = c.Get(("/api/renders/" + id).c_str());
+        ASSERT_TRUE(detail);
+        EXPECT_EQ(json::parse(detail->body)["storage_warning"], warning);
+        RawStream stream = open_stream(server.port());
+        ASSERT_EQ(stream.status, 200);
+        EXPECT_TRUE(stream.read_until("\"storage_warning\":\"cannot"));
+
+        // Once the disk takes writes again the warning goes away.
+        fs::remove(render_dir);
+        fs::create_directory(render_dir);
+        for (int i = 0; i < 100 && !coordinator.storage_warning().empty(); ++i) {
+            coordinator.tick();
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+        EXPECT_EQ(list()["storage_warning"], "");
+    }
+    fs::remove_all(dir);
 }
 
 TEST(PngEncoder, WritesSignatureHeaderAndRejectsBadSizes) {

@@ -17,6 +17,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.request
 
 ALIQUOT = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else "build/bin/aliquot")
 TMP = tempfile.mkdtemp(prefix="aliquot-farm-")
@@ -43,11 +44,12 @@ def run(*args, check=True, timeout=300):
 
 
 class Farm:
-    def __init__(self, name, lease_seconds=2, lost_seconds=3):
+    def __init__(self, name, lease_seconds=2, lost_seconds=3, http=False):
         self.dir = os.path.join(TMP, name)
         os.makedirs(self.dir, exist_ok=True)
         self.port = free_port()
         self.addr = f"127.0.0.1:{self.port}"
+        self.http_port = free_port() if http else None
         self.lease_seconds, self.lost_seconds = lease_seconds, lost_seconds
         self.coordinator = None
         self.workers = {}
@@ -57,6 +59,8 @@ class Farm:
                                  os.path.join(self.dir, "data"),
                                  "--lease-seconds", str(self.lease_seconds),
                                  "--lost-seconds", str(self.lost_seconds),
+                                 *(["--http", f"127.0.0.1:{self.http_port}"]
+                                   if self.http_port else []),
                                  log=os.path.join(self.dir, "coordinator.log"))
         deadline = time.time() + 20
         while time.time() < deadline:
@@ -269,6 +273,48 @@ def test_client_errors_are_one_line():
         r = run("status", "--coordinator", f"127.0.0.1:{free_port()}", check=False)
         assert r.returncode != 0 and "cannot reach coordinator" in r.stderr, r.stderr
         assert len(r.stderr.strip().splitlines()) == 1, r.stderr
+    finally:
+        farm.stop()
+
+
+def test_storage_warning_reaches_status_and_http():
+    # The render's directory replaced by a file: its EXR cannot be written, for root as
+    # for a user, as if the disk were full.
+    farm = Farm("storage", http=True)
+    warning_line = "warning: the coordinator cannot write its record: "
+
+    def http_warning():
+        url = f"http://127.0.0.1:{farm.http_port}/api/renders"
+        with urllib.request.urlopen(url, timeout=10) as r:
+            return json.load(r)["storage_warning"]
+
+    try:
+        farm.start_coordinator()
+        render_id = farm.submit(*SMALL)["id"]
+        render_dir = os.path.join(farm.dir, "data", "renders", render_id)
+        shutil.rmtree(render_dir)
+        with open(render_dir, "w") as f:
+            f.write("not a directory")
+        r = run("status", "--coordinator", farm.addr)
+        assert warning_line not in r.stderr and http_warning() == "", r.stderr
+        farm.start_worker("w0")
+        farm.wait_until(render_id, lambda s: s["state"] == "done")
+        r = run("status", "--coordinator", farm.addr)
+        lines = [l for l in r.stderr.splitlines() if l.startswith(warning_line)]
+        assert len(lines) == 1 and render_id in lines[0], r.stderr
+        assert render_id in r.stdout, r.stdout
+        r = run("status", render_id, "--json", "--coordinator", farm.addr)
+        assert json.loads(r.stdout)["state"] == "done" and warning_line in r.stderr, r.stderr
+        assert lines[0][len(warning_line):] == http_warning()
+        # The disk takes writes again: the record is written and the warning goes.
+        os.remove(render_dir)
+        os.mkdir(render_dir)
+        deadline = time.time() + 90
+        while warning_line in run("status", "--coordinator", farm.addr).stderr:
+            assert time.time() < deadline, "the warning stayed after the disk recovered"
+            time.sleep(0.5)
+        assert http_warning() == ""
+        assert os.path.exists(os.path.join(render_dir, "image.exr"))
     finally:
         farm.stop()
 

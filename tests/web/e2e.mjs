@@ -416,6 +416,57 @@ await check("a killed worker turns lost on the workers page", async () => {
   await shot("workers-lost");
 });
 
+// The live stream faked by the browser's router: what the page does with a storage
+// warning, and with a server that refuses streams (503 when too many are open).
+const eventsUrl = `${BASE}/api/events`;
+const countEvents = (since) => requests.filter((r) => r.url === eventsUrl && r.t >= since).length;
+
+await check("a storage warning shows a banner on every page until it clears", async () => {
+  assert(await page.isHidden("#storage-warning"), "banner shown without a warning");
+  const warning = "cannot record round 3 of r-000001: database or disk is full";
+  await page.route(eventsUrl, (route) =>
+    route.fulfill({
+      status: 200,
+      headers: { "Content-Type": "text/event-stream", "Cache-Control": "no-store" },
+      body: `retry: 60000\n\ndata: ${JSON.stringify({ type: "hello", now_ms: Date.now(), storage_warning: warning })}\n\n`,
+    }),
+  );
+  await page.goto(`${BASE}/#/workers`);
+  await page.reload();
+  await page.waitForSelector("#storage-warning", { state: "visible" });
+  const text = await page.textContent("#storage-warning");
+  assert(text.includes("cannot write its record") && text.includes("database or disk is full"), `banner says "${text}"`);
+  await page.goto(`${BASE}/#/renders`);
+  assert(await page.isVisible("#storage-warning"), "banner gone on the renders page");
+  await shot("storage-warning");
+  await page.unroute(eventsUrl);
+  await page.reload();
+  await page.waitForSelector('#live[data-status="live"]');
+  await page.waitForSelector("#storage-warning", { state: "hidden" });
+});
+
+await check("a refused live stream is retried with backoff, then goes live", async () => {
+  await page.route(eventsUrl, (route) =>
+    route.fulfill({
+      status: 503,
+      headers: { "Content-Type": "application/json", "Retry-After": "10" },
+      body: JSON.stringify({ error: "too many live-update streams are open (at most 16); try again later" }),
+    }),
+  );
+  const since = Date.now();
+  await page.reload();
+  await page.waitForSelector('#live[data-status="reconnecting"]');
+  await sleep(5000);
+  // 2 s, then 4 s later at the earliest: two or three attempts in 5 s, not one a second.
+  const attempts = countEvents(since);
+  assert(attempts >= 2 && attempts <= 3, `${attempts} attempts in 5 s`);
+  await page.unroute(eventsUrl);
+  await page.waitForSelector('#live[data-status="live"]', { timeout: 20000 });
+  // What the browser logs about the refused streams is expected here.
+  for (let i = pageErrors.length - 1; i >= 0; i--)
+    if (/EventSource|503|Service Unavailable/.test(pageErrors[i])) pageErrors.splice(i, 1);
+});
+
 await check("API responses stay under 100 KB", async () => {
   assert(apiSizes.length > 20, `only ${apiSizes.length} responses seen`);
   const big = apiSizes.filter((s) => s.bytes >= MAX_RESPONSE);

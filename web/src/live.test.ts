@@ -1,5 +1,5 @@
 import { afterEach, describe, expect, it, vi } from "vitest";
-import { throttle } from "./live";
+import { Live, reconnectDelay, throttle, type EventSourceLike } from "./live";
 
 describe("throttle", () => {
   afterEach(() => vi.useRealTimers());
@@ -19,5 +19,93 @@ describe("throttle", () => {
     expect(runs).toBe(2);
     vi.advanceTimersByTime(5000);
     expect(runs).toBe(2);
+  });
+});
+
+class FakeSource implements EventSourceLike {
+  readyState = 0;
+  onopen: ((e: Event) => unknown) | null = null;
+  onerror: ((e: Event) => unknown) | null = null;
+  onmessage: ((m: MessageEvent) => unknown) | null = null;
+  closed = false;
+  close(): void {
+    this.closed = true;
+    this.readyState = 2;
+  }
+  /** What a browser does when the server answers anything but 200 (e.g. 503). */
+  refuse(): void {
+    this.readyState = 2;
+    this.onerror?.({} as Event);
+  }
+  accept(): void {
+    this.readyState = 1;
+    this.onopen?.({} as Event);
+  }
+}
+
+describe("Live", () => {
+  afterEach(() => vi.useRealTimers());
+
+  it("backs off after refused streams instead of reconnecting at once", () => {
+    vi.useFakeTimers();
+    const sources: FakeSource[] = [];
+    const live = new Live("/api/events", () => {
+      const s = new FakeSource();
+      sources.push(s);
+      return s;
+    });
+    live.start();
+    expect(sources.length).toBe(1);
+
+    sources[0].refuse();
+    expect(live.status).toBe("reconnecting");
+    vi.advanceTimersByTime(1999);
+    expect(sources.length).toBe(1); // not before 2 s
+    vi.advanceTimersByTime(600);
+    expect(sources.length).toBe(2);
+
+    sources[1].refuse(); // the second refusal waits at least twice as long
+    vi.advanceTimersByTime(3999);
+    expect(sources.length).toBe(2);
+    vi.advanceTimersByTime(1100);
+    expect(sources.length).toBe(3);
+
+    sources[2].accept();
+    expect(live.status).toBe("live");
+    live.stop();
+    expect(sources[2].closed).toBe(true);
+  });
+
+  it("leaves a dropped stream to the browser's own retry and stops cleanly", () => {
+    vi.useFakeTimers();
+    const sources: FakeSource[] = [];
+    const live = new Live("/api/events", () => {
+      const s = new FakeSource();
+      sources.push(s);
+      return s;
+    });
+    const events: string[] = [];
+    live.subscribe((e) => events.push(e.type));
+    live.start();
+    sources[0].accept();
+    sources[0].readyState = 0; // CONNECTING: the browser retries by itself
+    sources[0].onerror?.({} as Event);
+    vi.advanceTimersByTime(60000);
+    expect(sources.length).toBe(1);
+    sources[0].accept();
+    expect(events).toEqual(["resync"]);
+
+    sources[0].refuse();
+    live.stop(); // a pending reconnect is cancelled
+    vi.advanceTimersByTime(120000);
+    expect(sources.length).toBe(1);
+  });
+
+  it("waits 2 s doubling up to a minute, with at most a quarter more", () => {
+    expect(reconnectDelay(1, () => 0)).toBe(2000);
+    expect(reconnectDelay(2, () => 0)).toBe(4000);
+    expect(reconnectDelay(3, () => 0.999)).toBeLessThanOrEqual(10000);
+    expect(reconnectDelay(20, () => 0)).toBe(60000);
+    expect(reconnectDelay(20, () => 1)).toBe(75000);
   });
 });

@@ -4,7 +4,8 @@
 import type { RenderSummary, RoundRow, Worker } from "./api";
 
 export type LiveEvent =
-  | { type: "hello"; now_ms: number }
+  | { type: "hello"; now_ms: number; storage_warning?: string }
+  | { type: "storage"; storage_warning: string }
   | { type: "render"; renders: RenderSummary[] }
   | { type: "round"; rounds: (RoundRow & { id: string; position: number })[] }
   | { type: "workers"; workers: Worker[]; now_ms: number }
@@ -12,20 +13,49 @@ export type LiveEvent =
 
 export type Listener = (e: LiveEvent) => void;
 
+/** What Live needs of EventSource; tests pass a fake. */
+export interface EventSourceLike {
+  readonly readyState: number;
+  onopen: ((e: Event) => unknown) | null;
+  onerror: ((e: Event) => unknown) | null;
+  onmessage: ((m: MessageEvent) => unknown) | null;
+  close(): void;
+}
+
+/** EventSource.CLOSED: the browser gave up and will not reconnect by itself. */
+const CLOSED = 2;
+
+/**
+ * How long to wait before reconnecting after the browser gave up on the stream (the
+ * server refused it, e.g. 503 when too many streams are open): 2 s doubling to 60 s, with
+ * up to a quarter more at random so that many pages refused at once do not come back at
+ * once.
+ */
+export function reconnectDelay(failures: number, random = Math.random): number {
+  const base = Math.min(60000, 2000 * 2 ** Math.max(0, failures - 1));
+  return Math.round(base * (1 + 0.25 * random()));
+}
+
 export class Live {
-  private source: EventSource | null = null;
+  private source: EventSourceLike | null = null;
   private listeners = new Set<Listener>();
   private everOpen = false;
   private lost = false;
+  private failures = 0;
+  private timer: ReturnType<typeof setTimeout> | null = null;
   status: "connecting" | "live" | "reconnecting" = "connecting";
   onStatus: (s: Live["status"]) => void = () => {};
 
-  constructor(private readonly url = "/api/events") {}
+  constructor(
+    private readonly url = "/api/events",
+    private readonly open: (url: string) => EventSourceLike = (u) => new EventSource(u),
+  ) {}
 
   start(): void {
-    const source = new EventSource(this.url);
+    const source = this.open(this.url);
     this.source = source;
     source.onopen = () => {
+      this.failures = 0;
       this.setStatus("live");
       if (this.everOpen && this.lost) this.emit({ type: "resync" });
       this.everOpen = true;
@@ -33,7 +63,18 @@ export class Live {
     };
     source.onerror = () => {
       this.lost = true;
-      this.setStatus("reconnecting"); // EventSource retries by itself ("retry: 2000")
+      this.setStatus("reconnecting");
+      // A dropped stream is retried by the browser ("retry: 2000"); a refused one (any
+      // status but 200) is closed for good, so we come back later ourselves, waiting
+      // longer after each refusal rather than hammering a busy server.
+      if (source.readyState !== CLOSED || this.source !== source) return;
+      source.close();
+      this.source = null;
+      this.failures++;
+      this.timer = setTimeout(() => {
+        this.timer = null;
+        this.start();
+      }, reconnectDelay(this.failures));
     };
     source.onmessage = (m) => {
       let e: LiveEvent;
@@ -47,6 +88,8 @@ export class Live {
   }
 
   stop(): void {
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
     this.source?.close();
     this.source = null;
   }

@@ -7,10 +7,12 @@ import { RenderPage } from "./pages/render";
 import { RendersPage } from "./pages/renders";
 import { StudiesPage } from "./pages/studies";
 import { WorkersPage } from "./pages/workers";
+import { StorageBanner } from "./storage";
 
 const app = document.getElementById("app")!;
 const liveBadge = document.getElementById("live")!;
 const live = new Live();
+const storage = new StorageBanner(document.getElementById("storage-warning")!);
 let page: Page | null = null;
 
 function route(): Page {
@@ -45,6 +47,7 @@ live.onStatus = (s) => {
   liveBadge.dataset.status = s;
   liveBadge.textContent = s === "live" ? "live" : s === "connecting" ? "connecting…" : "reconnecting…";
 };
+live.subscribe((e) => storage.onEvent(e));
 live.subscribe((e) => page?.onEvent?.(e));
 window.addEventListener("hashchange", show);
 show();
