@@ -1,6 +1,9 @@
 // aliquot coordinator: the long-running farm process. Stops cleanly on SIGTERM / SIGINT.
+#include <cctype>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <vector>
@@ -32,6 +35,40 @@ fs::path default_web_dir() {
     return bin / ".." / ".." / "web" / "dist";
 }
 
+// "512M", "2G", "1048576": bytes, with an optional K, M or G (powers of 1024).
+uint64_t parse_bytes(const std::string& text) {
+    const std::string why =
+        "--memory-limit: expected bytes with an optional K, M or G, like 8G, got '" +
+        text + "'";
+    if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0])))
+        throw CommandError(why);
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long n = std::strtoull(text.c_str(), &end, 10);
+    if (errno != 0) throw CommandError(why);
+    std::string unit(end);
+    if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
+    int shift = 0;
+    if (unit.size() > 1) throw CommandError(why);
+    if (!unit.empty()) {
+        switch (std::toupper(static_cast<unsigned char>(unit[0]))) {
+            case 'K':
+                shift = 10;
+                break;
+            case 'M':
+                shift = 20;
+                break;
+            case 'G':
+                shift = 30;
+                break;
+            default:
+                throw CommandError(why);
+        }
+    }
+    if (n == 0 || n > (UINT64_MAX >> shift)) throw CommandError(why);
+    return uint64_t(n) << shift;
+}
+
 struct CoordinatorCommand {
     std::string grpc_address = "127.0.0.1:7070";
     std::string data_dir = "aliquot-data";
@@ -42,9 +79,12 @@ struct CoordinatorCommand {
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
+    std::string memory_limit;  // empty: default_memory_limit()
 
     void run() {
         if (lease_seconds <= 0) throw CommandError("--lease-seconds: must be positive");
+        const uint64_t memory =
+            memory_limit.empty() ? default_memory_limit() : parse_bytes(memory_limit);
         // Block the stop signals before any thread starts, then wait for one below.
         sigset_t stop;
         sigemptyset(&stop);
@@ -58,10 +98,14 @@ struct CoordinatorCommand {
         options.worker_lost_after =
             std::chrono::milliseconds(int64_t(lost_seconds * 1000));
         options.max_side = max_side;
+        options.memory_limit = memory;
         Coordinator coordinator(options);
         GrpcServer server(coordinator, grpc_address);
-        std::fprintf(stderr, "coordinator: gRPC on %s (port %d), data in %s\n",
-                     grpc_address.c_str(), server.port(), data_dir.c_str());
+        std::fprintf(stderr,
+                     "coordinator: gRPC on %s (port %d), data in %s, memory limit %llu "
+                     "MiB\n",
+                     grpc_address.c_str(), server.port(), data_dir.c_str(),
+                     (unsigned long long)(memory >> 20));
         std::unique_ptr<HttpServer> http;
         if (!http_address.empty()) {
             HttpOptions http_options;
@@ -122,6 +166,10 @@ void register_coordinator(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
         ->capture_default_str();
+    cmd->add_option("--memory-limit", c->memory_limit,
+                    "bytes (K, M, G suffixes) the renders in memory may use together; a "
+                    "submission past it is refused (default: half the physical memory, " +
+                        std::to_string(default_memory_limit() >> 20) + "M here)");
     cmd->callback([c] { c->run(); });
 }
 

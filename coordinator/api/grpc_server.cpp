@@ -75,6 +75,8 @@ public:
             const std::string id = c_.submit(std::move(spec));
             to_proto(*c_.info(id), *reply);
             return Status::OK;
+        } catch (const MemoryBudgetError& e) {
+            return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
         } catch (const nlohmann::json::exception& e) {
             return {StatusCode::INVALID_ARGUMENT, std::string("strategy: ") + e.what()};
         } catch (const std::invalid_argument& e) {

@@ -154,5 +154,29 @@ TEST_F(WorkerServiceTest, IgnoresALateResultForALeaseGivenToAnotherWorker) {
     EXPECT_EQ(complete(reissued.lease_id(), trace(reissued)), v1::COMPLETE_STATUS_MERGED);
 }
 
+// Issue 12, item 7: a render past the coordinator's memory budget is RESOURCE_EXHAUSTED.
+TEST(ClientServiceMemory, ASubmissionPastTheMemoryBudgetIsResourceExhausted) {
+    CoordinatorOptions options;
+    options.memory_limit = 1024;
+    Coordinator coordinator(options);
+    GrpcServer server(coordinator, "127.0.0.1:0");
+    auto stub = v1::ClientService::NewStub(
+        grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
+                            grpc::InsecureChannelCredentials()));
+    grpc::ClientContext ctx;
+    v1::SubmitRequest req;
+    req.set_scene_name("cornell-box");
+    req.set_scene_json(self_contained_scene_json("cornell-box"));
+    req.set_width(64);
+    req.set_height(64);
+    req.set_strategy_json(R"({"method":"uniform","spp":1})");
+    v1::RenderInfo reply;
+    const grpc::Status status = stub->Submit(&ctx, req, &reply);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_NE(status.error_message().find("--memory-limit"), std::string::npos)
+        << status.error_message();
+    EXPECT_TRUE(coordinator.list(10).empty());
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -447,6 +447,8 @@ struct HttpServer::Impl {
                 fn(req, res);
             } catch (const ApiError& e) {
                 send_error(res, e.status(), e.what());
+            } catch (const MemoryBudgetError& e) {  // submit: try again later
+                send_error(res, 429, e.what());
             } catch (const std::invalid_argument& e) {  // spec validation
                 send_error(res, 400, e.what());
             } catch (const SceneError& e) {

@@ -552,8 +552,11 @@ TEST_F(HttpServerTest, EventStreamsOverTheCapAreRefusedAndHealthStillAnswers) {
     EXPECT_EQ(open, cap);
     EXPECT_EQ(refused, 32 - cap);
     // The open streams are live: each got its hello.
-    for (RawStream& s : streams)
-        if (s.status == 200) EXPECT_TRUE(s.read_until("\"hello\""));
+    for (RawStream& s : streams) {
+        if (s.status == 200) {
+            EXPECT_TRUE(s.read_until("\"hello\""));
+        }
+    }
     // And the server still answers everything else while they stay open.
     httplib::Client c("127.0.0.1", server_->port());
     c.set_connection_timeout(5, 0);
@@ -653,6 +656,24 @@ TEST(PngEncoder, WritesSignatureHeaderAndRejectsBadSizes) {
     EXPECT_EQ(png.substr(png.size() - 8, 4), "IEND");
     EXPECT_THROW(encode_png(std::vector<uint8_t>(10), 3, 5, 3), std::invalid_argument);
     EXPECT_THROW(encode_png(std::vector<uint8_t>(15), 3, 5, 2), std::invalid_argument);
+}
+
+// Issue 12, item 7: a render past the coordinator's memory budget is refused with 429
+// and the numbers.
+TEST(HttpServerMemory, ASubmissionPastTheMemoryBudgetGets429) {
+    CoordinatorOptions options;
+    options.memory_limit = 1024;
+    Coordinator coordinator(options);
+    HttpServer server(coordinator, "127.0.0.1:0", HttpOptions{});
+    httplib::Client client("127.0.0.1", server.port());
+    auto res =
+        client.Post("/api/renders", R"({"scene":"cornell-box","resolution":"64x64"})",
+                    "application/json");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 429) << res->body;
+    const json body = json::parse(res->body);
+    EXPECT_NE(body.dump().find("--memory-limit"), std::string::npos) << res->body;
+    EXPECT_TRUE(coordinator.list(10).empty());
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #include "coordinator.h"
 
-#include <algorithm>
+#include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 
@@ -21,6 +22,9 @@ nlohmann::json spec_json(const RenderSpec& spec) {
         {"strategy", spec.strategy},     {"has_reference", spec.reference.has_value()}};
 }
 
+// The outcome's key, in the store only, for what a render's end records besides it.
+constexpr const char* kFinalKey = "_final";
+
 void log_error(const std::string& what) {
     std::fprintf(stderr, "coordinator: %s\n", what.c_str());
 }
@@ -35,6 +39,9 @@ Coordinator::Coordinator(CoordinatorOptions options)
     if (!options_.data_dir.empty()) {
         std::filesystem::create_directories(options_.data_dir / "renders");
         store_ = std::make_unique<RunStore>(options_.data_dir);
+        // Checkpoints, images and store writes run on the backlog's thread, in order,
+        // not under mutex_ (a 2048x2048 checkpoint and EXR held it for 1.4 s).
+        backlog_.start_writer();
         next_render_number_ = first_free_render_number();
         resume_unfinished();
     }
@@ -60,6 +67,8 @@ Coordinator::~Coordinator() {
     stop();
     if (ticker_.joinable()) ticker_.join();
     tick();  // the workers' last samples reach the store
+    // What waits is written before the sessions its writes read go away.
+    backlog_.stop_writer();
 }
 
 void Coordinator::stop() {
@@ -140,22 +149,58 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
                 "record round " + std::to_string(round.index) + " of " + r.id(),
                 [this, rec] { store_->add_round(rec); });
             CheckpointTiming& timing = checkpoint_timing_[r.id()];
-            const auto start = std::chrono::steady_clock::now();
-            if (checkpoint_due(
-                    std::chrono::duration<double>(start - timing.ended).count(),
-                    timing.cost_seconds)) {
-                Checkpoint cp{r.merged(), r.strategy().save_state(), r.rounds_done(),
-                              round.seconds};
-                save_checkpoint(render_dir(r.id()) / "checkpoint.bin", cp);
+            if (!timing.in_flight &&
+                checkpoint_due(std::chrono::duration<double>(
+                                   std::chrono::steady_clock::now() - timing.ended)
+                                   .count(),
+                               timing.cost_seconds)) {
+                // A copy of the buffers, taken here (far cheaper than writing them), is
+                // written by the backlog's thread after the round's record, outside the
+                // lock. One copy per render waits at a time: a due checkpoint meanwhile
+                // is skipped, and the next round's tries again.
+                struct Pending {
+                    Checkpoint cp;
+                    bool saved = false;
+                };
+                auto pending = std::make_shared<Pending>(
+                    Pending{{r.merged(), r.strategy().save_state(), r.rounds_done(),
+                             round.seconds},
+                            false});
+                timing.in_flight = true;
                 backlog_.submit(
                     "record the progress of " + r.id(),
-                    [this, id = r.id(), samples = int64_t(round.samples_total),
-                     state = cp.strategy_state.dump()] {
-                        store_->update_render_progress(id, samples, state);
+                    [this, id = r.id(), samples = int64_t(round.samples_total), pending] {
+                        const auto start = std::chrono::steady_clock::now();
+                        if (!pending->saved) {
+                            try {
+                                save_checkpoint(render_dir(id) / "checkpoint.bin",
+                                                pending->cp);
+                                pending->saved = true;
+                            } catch (const std::exception& e) {
+                                // The render goes on; the next round's checkpoint tries
+                                // again.
+                                log_error("cannot checkpoint " + id + ": " + e.what());
+                            }
+                        }
+                        const auto end = std::chrono::steady_clock::now();
+                        {
+                            std::lock_guard lock(mutex_);
+                            if (auto it = checkpoint_timing_.find(id);
+                                it != checkpoint_timing_.end()) {
+                                it->second.in_flight = false;
+                                if (pending->saved) {
+                                    it->second.ended = end;
+                                    it->second.cost_seconds =
+                                        std::chrono::duration<double>(end - start)
+                                            .count();
+                                }
+                            }
+                        }
+                        // Throws on a full disk: retried, without writing the file again.
+                        if (pending->saved)
+                            store_->update_render_progress(
+                                id, samples, pending->cp.strategy_state.dump());
                     });
-                timing.ended = std::chrono::steady_clock::now();
-                timing.cost_seconds =
-                    std::chrono::duration<double>(timing.ended - start).count();
             }
         } catch (const std::exception& e) {
             // The render goes on; the next round's checkpoint tries again.
@@ -165,17 +210,26 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     };
     s->on_finished = [this](RenderSession& r) {
         checkpoint_timing_.erase(r.id());
-        if (!store_) return;
+        if (!store_) return;  // the embedded render keeps its session: no disk to read
         // The session stays in memory until this is written, so a retry finds its
-        // buffers.
-        backlog_.submit("record the end of " + r.id(), [this, id = r.id()] {
-            const RenderSession& done = *sessions_.at(id);
-            write_exr(render_dir(id) / "image.exr", done.merged().image(true));
-            store_->finish_render(id, done.state(), done.strategy().outcome().dump(),
-                                  unix_millis_now());
-            if (!done.error().empty())
-                store_->update_render_state(id, done.state(), done.error(),
+        // buffers; then this write drops it. A finished session changes no more, so the
+        // backlog's thread reads it without the lock; only this write removes it.
+        backlog_.submit("record the end of " + r.id(), [this, id = r.id(), done = &r] {
+            write_exr(render_dir(id) / "image.exr", done->merged().image(true));
+            // What info() reads back once the session is gone: the final samples, and
+            // in the outcome the rays and seconds the store has no column for.
+            store_->update_render_progress(id, int64_t(done->merged().total_samples()),
+                                           done->strategy().save_state().dump());
+            nlohmann::json outcome = done->strategy().outcome();
+            if (outcome.is_object())
+                outcome[kFinalKey] = {{"rays", done->merged().total_rays()},
+                                      {"seconds", done->seconds()}};
+            store_->finish_render(id, done->state(), outcome.dump(), unix_millis_now());
+            if (!done->error().empty())
+                store_->update_render_state(id, done->state(), done->error(),
                                             unix_millis_now());
+            std::lock_guard lock(mutex_);
+            evict(id);
         });
     };
     order_.push_back(s->id());
@@ -207,6 +261,13 @@ std::string Coordinator::submit(RenderSpec spec) {
                 ".");
     const std::string hash = scene_hash(spec.scene_json);
     std::lock_guard lock(mutex_);
+    // Before anything is claimed or written: a refused render leaves no trace.
+    const uint64_t needed =
+        render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
+    const uint64_t in_use = memory_in_use_locked();
+    if (options_.memory_limit > 0 &&
+        (needed > options_.memory_limit || in_use > options_.memory_limit - needed))
+        throw MemoryBudgetError(needed, in_use, sessions_.size(), options_.memory_limit);
     const std::string id = claim_render_id();
     const int64_t created = unix_millis_now();
     scenes_[hash] = spec.scene_json;
@@ -263,6 +324,7 @@ void Coordinator::resume_unfinished() {
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
                 session->restore(std::move(cp->merged), cp->strategy_state,
                                  cp->rounds_done, cp->seconds);
+            std::lock_guard lock(mutex_);  // the backlog's thread may evict meanwhile
             attach(std::move(session));
         } catch (const std::exception& e) {
             log_error("cannot resume " + rec.id + ": " + e.what());
@@ -336,6 +398,16 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     info.created_ms = rec->created_at;
     info.finished_ms = rec->finished_at.value_or(0);
     info.outcome_json = rec->outcome_json;
+    nlohmann::json outcome = nlohmann::json::parse(rec->outcome_json, nullptr, false);
+    if (outcome.is_object() && outcome.contains(kFinalKey)) {
+        const nlohmann::json final = outcome[kFinalKey];
+        info.rays = final.value("rays", uint64_t(0));
+        info.seconds = final.value("seconds", info.seconds);
+        info.samples_per_second =
+            info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
+        outcome.erase(kFinalKey);
+        info.outcome_json = outcome.dump();
+    }
     return info;
 }
 
@@ -631,6 +703,92 @@ std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
         out.push_back(b);
     }
     return out;
+}
+
+// ---- Memory: the budget, and finished renders leaving it ----
+
+namespace {
+
+uint64_t cgroup_memory_limit() {
+    // A container's limit (cgroup v2), which sysconf does not see; 0 when there is none.
+    std::FILE* f = std::fopen("/sys/fs/cgroup/memory.max", "r");
+    if (!f) return 0;
+    unsigned long long v = 0;
+    const bool number = std::fscanf(f, "%llu", &v) == 1;  // "max" when unlimited
+    std::fclose(f);
+    return number ? uint64_t(v) : 0;
+}
+
+std::string mib(uint64_t bytes) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / (1024.0 * 1024.0));
+    return text;
+}
+
+}  // namespace
+
+uint64_t default_memory_limit() {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    uint64_t physical = pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : 0;
+    if (const uint64_t cg = cgroup_memory_limit();
+        cg > 0 && (physical == 0 || cg < physical))
+        physical = cg;
+    return physical > 0 ? physical / 2 : uint64_t(4) << 30;
+}
+
+uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
+    const uint64_t pixels = uint64_t(width) * height;
+    uint64_t per_pixel = sizeof(PixelSums)    // the accumulator
+                         + sizeof(PixelSums)  // the copy a checkpoint is written from
+                         + 12                 // a round's jobs: counts, first indices
+                         + 16                 // the round's spp; a strategy's per pixel
+                         + 20;                // the final image: RGB, spp, variance
+    if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
+    return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
+}
+
+MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t renders,
+                                     uint64_t limit_)
+    : std::runtime_error("not enough memory for this render: it needs " + mib(needed_) +
+                         " and the " + std::to_string(renders) +
+                         " render(s) in memory use " + mib(in_use_) +
+                         " of the coordinator's " + mib(limit_) +
+                         " (--memory-limit); wait for renders to finish, or submit a "
+                         "smaller one"),
+      needed(needed_),
+      in_use(in_use_),
+      limit(limit_) {}
+
+uint64_t Coordinator::memory_in_use_locked() const {
+    uint64_t total = 0;
+    for (const auto& [id, s] : sessions_)
+        total += render_memory_estimate(s->spec().width, s->spec().height,
+                                        s->spec().reference.has_value());
+    return total;
+}
+
+uint64_t Coordinator::memory_in_use() {
+    std::lock_guard lock(mutex_);
+    return memory_in_use_locked();
+}
+
+size_t Coordinator::sessions_in_memory() {
+    std::lock_guard lock(mutex_);
+    return sessions_.size();
+}
+
+void Coordinator::evict(const std::string& id) {
+    const auto it = sessions_.find(id);
+    if (it == sessions_.end() || !it->second->finished()) return;
+    sessions_.erase(it);
+    order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
+    // Leases of a cancelled render that workers still hold: their results are now
+    // answered as unknown, which is what they were (ignored) before.
+    std::erase_if(lease_render_, [&id](const auto& kv) { return kv.second == id; });
+    round_history_.erase(id);
+    bucket_shapes_.erase(id);
+    checkpoint_timing_.erase(id);
+    changed();
 }
 
 }  // namespace aliquot

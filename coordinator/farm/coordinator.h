@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <unordered_map>
@@ -22,11 +23,32 @@ namespace aliquot {
 
 class RunStore;
 
+// Half of the machine's physical memory (sysconf), or 4 GiB when it cannot be read: the
+// default budget for the buffers of the renders a coordinator holds in memory.
+uint64_t default_memory_limit();
+
+// What a render's session may hold in memory at its peak, in bytes: the accumulator (72
+// bytes a pixel), a round's jobs and the strategy's per-pixel state, the copy of the
+// buffers a checkpoint is written from, the final image, and the reference with its
+// per-round comparison image when there is one. docs/FARM.md has the measured numbers.
+uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference);
+
+// Coordinator::submit refuses a render whose buffers would take the renders in memory
+// past the budget. Nothing has changed when it is thrown: no render id, no directory.
+class MemoryBudgetError : public std::runtime_error {
+public:
+    MemoryBudgetError(uint64_t needed, uint64_t in_use, size_t renders, uint64_t limit);
+    uint64_t needed, in_use, limit;
+};
+
 struct CoordinatorOptions {
     std::filesystem::path data_dir;  // empty: in memory only (the embedded render)
     std::chrono::milliseconds lease_time{30000};
     std::chrono::milliseconds worker_lost_after{10000};
     uint32_t max_side = 8192;
+    // Bytes the sessions in memory may use together (render_memory_estimate each); a
+    // submission past it throws MemoryBudgetError. 0: no limit.
+    uint64_t memory_limit = default_memory_limit();
 };
 
 // A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
@@ -56,7 +78,8 @@ public:
     explicit Coordinator(CoordinatorOptions options);
     ~Coordinator() override;
 
-    // Client side. submit throws std::invalid_argument (bad spec) or SceneError.
+    // Client side. submit throws std::invalid_argument (bad spec), SceneError or
+    // MemoryBudgetError.
     std::string submit(RenderSpec spec);
     std::optional<RenderInfo> info(const std::string& id);
     std::vector<RenderInfo> list(size_t limit);
@@ -79,6 +102,12 @@ public:
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
+
+    // The renders held in memory and their estimated bytes (render_memory_estimate). With
+    // a data directory a finished render leaves memory once its end is recorded (image,
+    // state); its info, image, rounds and buckets are then read from the store and disk.
+    size_t sessions_in_memory();
+    uint64_t memory_in_use();
 
     // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls
     // it.
@@ -104,6 +133,9 @@ private:
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
     void changed();
+    uint64_t memory_in_use_locked() const;
+    // Drops a finished render whose end is recorded, and what is kept per render.
+    void evict(const std::string& id);
 
     CoordinatorOptions options_;
     std::unique_ptr<RunStore> store_;
@@ -124,6 +156,7 @@ private:
     struct CheckpointTiming {
         std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
         double cost_seconds = 0;                        // how long writing it took
+        bool in_flight = false;  // a copy waits for the writer: no second one meanwhile
     };
     std::map<std::string, CheckpointTiming>
         checkpoint_timing_;  // render -> its checkpoints

@@ -15,30 +15,64 @@ constexpr std::chrono::seconds kLongestDelay{30};
 
 void RecordBacklog::submit(std::string what, Write write, Clock::time_point now) {
     Pending p{std::move(what), std::move(write)};
-    if (!queue_.empty() || !attempt(p, now)) queue_.push_back(std::move(p));
+    std::unique_lock lock(mutex_);
+    if (background_) {
+        queue_.push_back(std::move(p));
+        wake_.notify_all();
+        return;
+    }
+    if (queue_.empty()) {
+        // Without a writer the caller serialises submits and retries (the coordinator's
+        // lock): running the write unlocked here cannot interleave with another.
+        lock.unlock();
+        std::string error;
+        const bool ok = run(p, error);
+        lock.lock();
+        note(p, ok, error, now);
+        if (ok) return;
+    }
+    queue_.push_back(std::move(p));
 }
 
 void RecordBacklog::retry(Clock::time_point now) {
-    if (queue_.empty() || now < next_try_) return;
+    std::unique_lock lock(mutex_);
+    if (background_ || queue_.empty() || now < next_try_) return;
     while (!queue_.empty()) {
-        if (!attempt(queue_.front(), now)) return;
+        Pending& p = queue_.front();  // deque: references survive push_back
+        lock.unlock();
+        std::string error;
+        const bool ok = run(p, error);
+        lock.lock();
+        note(p, ok, error, now);
+        if (!ok) return;
         queue_.pop_front();
     }
 }
 
-bool RecordBacklog::attempt(Pending& p, Clock::time_point now) {
+bool RecordBacklog::run(Pending& p, std::string& error) {
     try {
         p.write();
+        return true;
     } catch (const std::exception& e) {
+        error = e.what();
+    } catch (...) {
+        error = "unknown error";
+    }
+    return false;
+}
+
+void RecordBacklog::note(const Pending& p, bool ok, const std::string& error,
+                         Clock::time_point now) {
+    if (!ok) {
         const bool first = warning_.empty();
-        warning_ = "cannot " + p.what + ": " + e.what();
+        warning_ = "cannot " + p.what + ": " + error;
         // Logged when writes start failing and then at most every 30 s, not every retry.
         if (first || delay_ >= kLongestDelay)
             std::fprintf(stderr, "coordinator: %s (kept, retrying)\n", warning_.c_str());
         delay_ = first ? Clock::duration(kFirstDelay)
                        : std::min<Clock::duration>(2 * delay_, kLongestDelay);
         next_try_ = now + delay_;
-        return false;
+        return;
     }
     if (!warning_.empty() && queue_.size() <= 1)
         std::fprintf(stderr, "coordinator: the run record is written again\n");
@@ -46,7 +80,74 @@ bool RecordBacklog::attempt(Pending& p, Clock::time_point now) {
         warning_.clear();
         delay_ = {};
     }
-    return true;
+}
+
+void RecordBacklog::start_writer() {
+    std::lock_guard lock(mutex_);
+    if (background_) return;
+    background_ = true;
+    stopping_ = false;
+    writer_ = std::thread([this] { writer_main(); });
+}
+
+void RecordBacklog::stop_writer() {
+    {
+        std::lock_guard lock(mutex_);
+        if (!background_) return;
+        stopping_ = true;
+    }
+    wake_.notify_all();
+    if (writer_.joinable()) writer_.join();
+    std::lock_guard lock(mutex_);
+    background_ = false;
+    idle_.notify_all();
+}
+
+void RecordBacklog::writer_main() {
+    std::unique_lock lock(mutex_);
+    while (true) {
+        if (queue_.empty()) {
+            idle_.notify_all();
+            if (stopping_) return;
+            wake_.wait(lock);
+            continue;
+        }
+        if (!stopping_ && Clock::now() < next_try_) {
+            wake_.wait_until(lock, next_try_);
+            continue;
+        }
+        Pending& p = queue_.front();  // deque: references survive push_back
+        running_ = true;
+        lock.unlock();
+        std::string error;
+        const bool ok = run(p, error);
+        lock.lock();
+        running_ = false;
+        note(p, ok, error, Clock::now());
+        if (ok) {
+            queue_.pop_front();
+        } else if (stopping_) {
+            // Stopping on a failing disk: what is left is redone after a restart.
+            queue_.clear();
+            idle_.notify_all();
+            return;
+        }
+    }
+}
+
+bool RecordBacklog::wait_idle(std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    return idle_.wait_for(lock, timeout, [this] { return queue_.empty() && !running_; });
+}
+
+size_t RecordBacklog::waiting() const {
+    std::lock_guard lock(mutex_);
+    return queue_.size();
+}
+
+std::string RecordBacklog::warning() const {
+    std::lock_guard lock(mutex_);
+    return warning_;
 }
 
 }  // namespace aliquot
