@@ -97,7 +97,7 @@ class Farm:
     def _log(self, name):
         return open(os.path.join(TMP, f"{name}.log"), "a")
 
-    def start_coordinator(self):
+    def start_coordinator(self, wait=True):
         self.coordinator_starts += 1
         log_file = self._log("coordinator")
         log_file.write(f"---- start {self.coordinator_starts}\n")
@@ -106,6 +106,8 @@ class Farm:
             [ALIQUOT, "coordinator", "--grpc", self.addr, "--data", self.data,
              "--lease-seconds", str(LEASE_SECONDS), "--lost-seconds", str(LOST_SECONDS)],
             stdout=log_file, stderr=subprocess.STDOUT)
+        if not wait:
+            return
         deadline = time.time() + 30
         while time.time() < deadline:
             if self.coordinator.poll() is not None:
@@ -148,18 +150,24 @@ class Farm:
                 log(f"SIGCONT worker {name}")
 
     def stop_all(self):
+        """SIGTERM to all; returns what did not stop cleanly (exit 0 within 15 s)."""
         self.resume_stopped(0, force=True)
-        procs = list(self.workers.values()) + [self.coordinator]
-        for p in procs:
+        procs = sorted(self.workers.items()) + [("coordinator", self.coordinator)]
+        unclean = []
+        for _, p in procs:
             if p and p.poll() is None:
                 p.terminate()
-        for p in procs:
-            if p:
-                try:
-                    p.wait(timeout=15)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
+        for name, p in procs:
+            if not p or p.pid in self.killed:
+                continue
+            try:
+                if p.wait(timeout=15) != 0:
+                    unclean.append(f"{name} exited with {p.returncode} on SIGTERM")
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+                unclean.append(f"{name} did not stop within 15 s of SIGTERM")
+        return unclean
 
 
 def make_schedule(rng, seconds):
@@ -175,6 +183,9 @@ def make_schedule(rng, seconds):
             fault["worker"] = rng.choice(["w0", "w1", "w2"])
         if kind == "stop-worker":
             fault["for"] = round(LEASE_SECONDS + rng.uniform(1.0, 3.0), 1)
+        if kind == "kill-coordinator" and rng.random() < 0.4:
+            # Killed again while it starts up and resumes its renders.
+            fault["again_after"] = round(rng.uniform(0.0, 0.4), 2)
         if kind == "kill-worker":
             fault["restart_after"] = round(rng.uniform(0.0, 2.0), 1)
         faults.append(fault)
@@ -305,7 +316,14 @@ def main():
                 if kind == "kill-coordinator":
                     farm.kill9(farm.coordinator)
                     log("kill -9 coordinator; restarting it on the same --data and port")
-                    farm.start_coordinator()
+                    if "again_after" in f:
+                        farm.start_coordinator(wait=False)
+                        time.sleep(f["again_after"])
+                        farm.kill9(farm.coordinator)
+                        log(f"kill -9 coordinator again {f['again_after']} s into its start")
+                        farm.start_coordinator()
+                    else:
+                        farm.start_coordinator()
                     log("coordinator back")
                 elif kind == "kill-worker":
                     name = f["worker"]
@@ -369,10 +387,16 @@ def main():
               f"{kinds.count('stop-worker')} worker stops, "
               f"{kinds.count('kill-coordinator')} coordinator kills; "
               f"coordinator started {farm.coordinator_starts} times")
+        # Not asserted (a known issue, see the report of issue 12): workers that last
+        # registered with an earlier coordinator are known to this one with 0 threads.
+        for w in json.loads(run("workers", "--json", "--coordinator", farm.addr).stdout):
+            if w["threads"] != 1:
+                print(f"note: worker {w['name']} is listed with {w['threads']} threads "
+                      f"(it has 1)")
     except Exception as e:
         failures.append(f"{type(e).__name__}: {e}")
     finally:
-        farm.stop_all()
+        failures += farm.stop_all()
 
     elapsed = time.time() - T0
     if failures:
