@@ -671,7 +671,11 @@ void RunStore::upsert_worker(const std::string& name, int64_t threads, int64_t n
         "INSERT INTO workers (name, threads, first_seen, last_seen, samples_traced, "
         "state)"
         " VALUES (?, ?, ?, ?, 0, 'online') ON CONFLICT (name) DO UPDATE SET"
-        " threads = excluded.threads, last_seen = excluded.last_seen, state = 'online'",
+        // 0 threads is "not told": a worker first heard of by a restarted coordinator
+        // keeps the count it registered with.
+        " threads = CASE WHEN excluded.threads > 0"
+        " THEN excluded.threads ELSE threads END,"
+        " last_seen = excluded.last_seen, state = 'online'",
         "register worker " + name)
         .bind(name)
         .bind(threads)

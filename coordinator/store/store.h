@@ -173,7 +173,8 @@ public:
     // The highest-numbered round, without reading the others.
     std::optional<RoundRecord> last_round(const std::string& render_id);
 
-    // Registers a worker or refreshes it: threads, last_seen and state "online".
+    // Registers a worker or refreshes it: threads, last_seen and state "online". Threads
+    // 0 means unknown and keeps the count already recorded.
     void upsert_worker(const std::string& name, int64_t threads, int64_t now_ms);
     // Adds to a known worker's samples_traced and refreshes last_seen.
     void record_worker_samples(const std::string& name, int64_t samples, int64_t now_ms);

@@ -330,6 +330,12 @@ TEST_F(RunStoreTest, WorkersAccumulateSamplesAndKeepTheirState) {
     EXPECT_EQ(workers[1].samples_traced, 750);
     EXPECT_EQ(workers[1].state, "online");
 
+    // Heard from by a coordinator it never registered with: the count is not lost.
+    store.upsert_worker("w1", 0, 300);
+    workers = store.workers();
+    EXPECT_EQ(workers[1].threads, 16);
+    EXPECT_EQ(workers[1].last_seen, 300);
+
     EXPECT_THROW(store.record_worker_samples("w9", 1, 1), StoreError);
     EXPECT_THROW(store.record_worker_samples("w1", -1, 1), StoreError);
     EXPECT_THROW(store.mark_worker_state("w9", "lost"), StoreError);
