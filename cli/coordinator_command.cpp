@@ -42,9 +42,12 @@ struct CoordinatorCommand {
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
+    uint32_t max_job_failures = FailurePolicy{}.max_job_failures;
 
     void run() {
         if (lease_seconds <= 0) throw CommandError("--lease-seconds: must be positive");
+        if (max_job_failures == 0)
+            throw CommandError("--max-job-failures: must be 1 or more");
         // Block the stop signals before any thread starts, then wait for one below.
         sigset_t stop;
         sigemptyset(&stop);
@@ -58,6 +61,7 @@ struct CoordinatorCommand {
         options.worker_lost_after =
             std::chrono::milliseconds(int64_t(lost_seconds * 1000));
         options.max_side = max_side;
+        options.failure_policy.max_job_failures = max_job_failures;
         Coordinator coordinator(options);
         GrpcServer server(coordinator, grpc_address);
         std::fprintf(stderr, "coordinator: gRPC on %s (port %d), data in %s\n",
@@ -121,6 +125,9 @@ void register_coordinator(CLI::App& app) {
                     "silence after which a worker is lost")
         ->capture_default_str();
     cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
+        ->capture_default_str();
+    cmd->add_option("--max-job-failures", c->max_job_failures,
+                    "workers a job may fail on before its render fails (docs/FARM.md)")
         ->capture_default_str();
     cmd->callback([c] { c->run(); });
 }

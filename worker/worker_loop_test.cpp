@@ -47,7 +47,8 @@ public:
         std::this_thread::sleep_for(wait);  // a long-poll with no work
         return std::nullopt;
     }
-    CompleteOutcome complete(const std::string&, uint64_t, const SampleJobResult&) override {
+    CompleteOutcome complete(const std::string&, uint64_t,
+                             const SampleJobResult&) override {
         return {CompleteStatus::Merged, {}};
     }
     std::optional<std::string> fetch_scene(const std::string&) override {

@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <unordered_map>
@@ -27,6 +28,9 @@ struct CoordinatorOptions {
     std::chrono::milliseconds lease_time{30000};
     std::chrono::milliseconds worker_lost_after{10000};
     uint32_t max_side = 8192;
+    // Jobs workers cannot trace: how many failures fail a render, when a worker is kept
+    // off one (docs/FARM.md).
+    FailurePolicy failure_policy;
 };
 
 // A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
@@ -76,6 +80,13 @@ public:
     std::optional<std::string> fetch_scene(const std::string& hash) override;
     bool renew(const std::string& worker, uint64_t lease_id) override;
     bool abandon(const std::string& worker, uint64_t lease_id) override;
+    bool fail(const std::string& worker, uint64_t lease_id,
+              const std::string& reason) override;
+    // Whether `name` registered with this coordinator (a worker that did so with one
+    // before a restart did not): the gRPC service tells one that did not to register.
+    bool knows_worker(const std::string& name);
+    // Leases out now, across renders (what `lease_render_` holds): for tests.
+    size_t leases_out();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -94,6 +105,7 @@ private:
         uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
         double rate = 0;          // samples/s, smoothed over recent jobs
         bool lost = false;
+        bool registered = false;  // called register_worker here (not only heard from)
     };
 
     void resume_unfinished();
@@ -103,6 +115,10 @@ private:
     RenderInfo info_of(const RenderSession& s) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
+    // Workers registered here and not lost: those a job may go to (RenderSession::issue).
+    std::set<std::string> alive_workers() const;
+    // Drops lease_render_ entries whose lease ended (expired, render finished or gone).
+    void forget_ended_leases();
     void changed();
 
     CoordinatorOptions options_;
