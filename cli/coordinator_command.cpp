@@ -80,9 +80,12 @@ struct CoordinatorCommand {
     double lost_seconds = 10;
     uint32_t max_side = 8192;
     std::string memory_limit;  // empty: default_memory_limit()
+    uint32_t max_job_failures = FailurePolicy{}.max_job_failures;
 
     void run() {
         if (lease_seconds <= 0) throw CommandError("--lease-seconds: must be positive");
+        if (max_job_failures == 0)
+            throw CommandError("--max-job-failures: must be 1 or more");
         const uint64_t memory =
             memory_limit.empty() ? default_memory_limit() : parse_bytes(memory_limit);
         // Block the stop signals before any thread starts, then wait for one below.
@@ -99,6 +102,7 @@ struct CoordinatorCommand {
             std::chrono::milliseconds(int64_t(lost_seconds * 1000));
         options.max_side = max_side;
         options.memory_limit = memory;
+        options.failure_policy.max_job_failures = max_job_failures;
         Coordinator coordinator(options);
         GrpcServer server(coordinator, grpc_address);
         std::fprintf(stderr,
@@ -170,6 +174,9 @@ void register_coordinator(CLI::App& app) {
                     "bytes (K, M, G suffixes) the renders in memory may use together; a "
                     "submission past it is refused (default: half the physical memory, " +
                         std::to_string(default_memory_limit() >> 20) + "M here)");
+    cmd->add_option("--max-job-failures", c->max_job_failures,
+                    "workers a job may fail on before its render fails (docs/FARM.md)")
+        ->capture_default_str();
     cmd->callback([c] { c->run(); });
 }
 

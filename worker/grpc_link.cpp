@@ -31,8 +31,14 @@ GrpcLink::GrpcLink(const std::string& address) : stub_(new Stub), address_(addre
     args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
     args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
     args.SetInt(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
-    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 200);
-    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+    // Reconnecting to a coordinator that went away: the first retry after 100 ms, then at
+    // most a second apart (gRPC's default grows to 120 s); a connect attempt to a host
+    // that does not answer gives up after a second (the default is 20 s). Calls fail fast
+    // meanwhile and the worker loop retries at most a second apart too, so a worker is
+    // back within about a second of the coordinator (docs/FARM.md).
+    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+    args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 1000);
+    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
     stub_->channel =
         grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
     stub_->stub = v1::WorkerService::NewStub(stub_->channel);
@@ -65,6 +71,9 @@ std::optional<LeaseGrant> GrpcLink::lease(const std::string& worker,
     req.set_wait_ms(uint32_t(wait.count()));
     v1::LeaseReply reply;
     check(stub_->stub->Lease(context(wait).get(), req, &reply), address_);
+    if (reply.register_first())
+        throw WorkerUnknown("coordinator " + address_ + " does not know worker " +
+                            worker);
     if (!reply.has_lease()) return std::nullopt;
     const v1::Lease& l = reply.lease();
     return LeaseGrant{l.lease_id(),        l.render_id(),
@@ -109,6 +118,17 @@ bool GrpcLink::abandon(const std::string& worker, uint64_t lease_id) {
     v1::RenewReply reply;
     check(stub_->stub->Abandon(context().get(), req, &reply), address_);
     return reply.valid();
+}
+
+bool GrpcLink::fail(const std::string& worker, uint64_t lease_id,
+                    const std::string& reason) {
+    v1::FailRequest req;
+    req.set_worker(worker);
+    req.set_lease_id(lease_id);
+    req.set_reason(reason);
+    v1::FailReply reply;
+    check(stub_->stub->Fail(context().get(), req, &reply), address_);
+    return reply.accepted();
 }
 
 }  // namespace aliquot

@@ -22,6 +22,8 @@ public:
     std::optional<std::string> fetch_scene(const std::string& hash) override;
     bool renew(const std::string& worker, uint64_t lease_id) override;
     bool abandon(const std::string& worker, uint64_t lease_id) override;
+    bool fail(const std::string& worker, uint64_t lease_id,
+              const std::string& reason) override;
 
 private:
     struct Stub;

@@ -1,6 +1,7 @@
 // WorkerLoop: a worker's life. Each of its threads asks for a lease, traces the job and
 // returns the sums; a keeper thread renews held leases. A coordinator that goes away is
-// waited for with backoff, never a crash; stop() gives held leases back.
+// waited for with backoff, never a crash; a job that cannot be traced is reported with
+// Fail and followed by a growing wait; stop() gives held leases back.
 #pragma once
 
 #include <atomic>
@@ -19,6 +20,13 @@ struct WorkerOptions {
     int threads = 1;
     std::chrono::milliseconds lease_wait{2000};  // long-poll length
     bool quiet = false;                          // no log lines (embedded render)
+    // Every retry waits, doubling from `backoff_initial` (each wait jittered down to
+    // half): up to `reconnect_max` while the coordinator cannot be reached (so a worker
+    // is back soon after it is), up to `failure_max` after a job this worker could not
+    // trace or an error reply.
+    std::chrono::milliseconds backoff_initial{200};
+    std::chrono::milliseconds reconnect_max{1000};
+    std::chrono::milliseconds failure_max{10000};
 };
 
 class WorkerLoop {
@@ -31,13 +39,17 @@ public:
 
     uint64_t samples_traced() const { return samples_traced_; }
     uint64_t jobs_done() const { return jobs_done_; }
+    // Jobs this worker reported it could not trace.
+    uint64_t jobs_failed() const { return jobs_failed_; }
 
 private:
     void thread_main();
     void keeper_main();
     void log(const std::string& line) const;
-    void backoff(std::chrono::milliseconds& delay);
     void sleep_unless_stopping(std::chrono::milliseconds duration);
+    // Registers (again) unless another thread did since it saw `seen` registrations;
+    // whether this call did. Throws what the link throws.
+    bool register_again(uint64_t seen);
     // Drops the lease from the held set; whether it was still there.
     bool release(uint64_t lease_id);
 
@@ -46,7 +58,9 @@ private:
     SceneCache scenes_;
     std::atomic<bool> stopping_{false};
     std::atomic<uint32_t> lease_ms_{30000};
-    std::atomic<uint64_t> samples_traced_{0}, jobs_done_{0};
+    std::atomic<uint64_t> samples_traced_{0}, jobs_done_{0}, jobs_failed_{0};
+    std::mutex register_mutex_;
+    std::atomic<uint64_t> registrations_{0};
     std::mutex held_mutex_;
     std::set<uint64_t> held_;
 };

@@ -194,6 +194,12 @@ public:
 
     Status Lease(ServerContext*, const v1::LeaseRequest* req,
                  v1::LeaseReply* reply) override {
+        if (!c_.knows_worker(req->worker())) {
+            // Registered with a coordinator before a restart: it must register again,
+            // with its threads, before it gets work.
+            reply->set_register_first(true);
+            return Status::OK;
+        }
         const auto wait =
             std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
         const std::optional<LeaseGrant> grant = c_.lease(req->worker(), wait);
@@ -249,6 +255,12 @@ public:
     Status Abandon(ServerContext*, const v1::RenewRequest* req,
                    v1::RenewReply* reply) override {
         reply->set_valid(c_.abandon(req->worker(), req->lease_id()));
+        return Status::OK;
+    }
+
+    Status Fail(ServerContext*, const v1::FailRequest* req,
+                v1::FailReply* reply) override {
+        reply->set_accepted(c_.fail(req->worker(), req->lease_id(), req->reason()));
         return Status::OK;
     }
 

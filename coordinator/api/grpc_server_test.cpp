@@ -40,6 +40,7 @@ protected:
         scene_ = parse_scene(spec.scene_json, "test", ".");
         tracer_ = std::make_unique<PathTracer>(scene_);
         id_ = coordinator_->submit(spec);
+        coordinator_->register_worker("tester", 1);
     }
     void TearDown() override {
         server_.reset();
@@ -176,6 +177,54 @@ TEST(ClientServiceMemory, ASubmissionPastTheMemoryBudgetIsResourceExhausted) {
     EXPECT_NE(status.error_message().find("--memory-limit"), std::string::npos)
         << status.error_message();
     EXPECT_TRUE(coordinator.list(10).empty());
+}
+
+// Issue 12, item 9: a worker a restarted coordinator does not know is told to register.
+TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
+    v1::LeaseRequest req;
+    req.set_worker("stranger");
+    v1::LeaseReply reply;
+    {
+        grpc::ClientContext ctx;
+        ASSERT_TRUE(stub_->Lease(&ctx, req, &reply).ok());
+    }
+    EXPECT_TRUE(reply.register_first());
+    EXPECT_FALSE(reply.has_lease());
+    {
+        grpc::ClientContext ctx;
+        v1::RegisterRequest reg;
+        reg.set_name("stranger");
+        reg.set_threads(3);
+        v1::RegisterReply ok;
+        ASSERT_TRUE(stub_->Register(&ctx, reg, &ok).ok());
+    }
+    {
+        grpc::ClientContext ctx;
+        ASSERT_TRUE(stub_->Lease(&ctx, req, &reply).ok());
+    }
+    EXPECT_FALSE(reply.register_first());
+    EXPECT_TRUE(reply.has_lease());
+}
+
+// Issue 12, item 5: a worker that cannot trace a lease says so, with why.
+TEST_F(WorkerServiceTest, AFailedLeaseIsCountedOnceAndTheJobGoesBack) {
+    const v1::Lease l = lease();
+    auto fail = [&](const std::string& worker) {
+        grpc::ClientContext ctx;
+        v1::FailRequest req;
+        req.set_worker(worker);
+        req.set_lease_id(l.lease_id());
+        req.set_reason("cannot open mesh.obj");
+        v1::FailReply reply;
+        EXPECT_TRUE(stub_->Fail(&ctx, req, &reply).ok());
+        return reply.accepted();
+    };
+    EXPECT_FALSE(fail("intruder"));
+    EXPECT_TRUE(fail("tester"));
+    EXPECT_FALSE(fail("tester"));     // counted once
+    const v1::Lease again = lease();  // the only worker alive tries again
+    EXPECT_NE(again.lease_id(), l.lease_id());
+    EXPECT_EQ(complete(again.lease_id(), trace(again)), v1::COMPLETE_STATUS_MERGED);
 }
 
 }  // namespace

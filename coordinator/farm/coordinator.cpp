@@ -484,6 +484,7 @@ uint32_t Coordinator::register_worker(const std::string& name, uint32_t threads)
     std::lock_guard lock(mutex_);
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
+    w.registered = true;
     if (store_) store_->upsert_worker(name, threads, unix_millis_now());
     changed();
     return uint32_t(options_.lease_time.count());
@@ -495,12 +496,14 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& worker,
     touch_worker(worker);
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
+        const std::set<std::string> alive = alive_workers();
         for (const std::string& id : order_) {
             RenderSession& s = *sessions_[id];
             if (s.state() != RenderState::Running || !s.has_pending()) continue;
             const uint64_t lease_id = next_lease_id_++;
             std::optional<SampleJob> job = s.issue(
-                lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
+                lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
+                alive, options_.failure_policy);
             if (!job) continue;
             lease_render_[lease_id] = id;
             changed();
@@ -521,8 +524,11 @@ CompleteOutcome Coordinator::complete(const std::string& worker, uint64_t lease_
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end())
         return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
-    RenderSession& s = *sessions_.at(it->second);
-    lease_render_.erase(it);
+    const auto session = sessions_.find(it->second);
+    lease_render_.erase(it);  // whatever the outcome, this lease has ended
+    if (session == sessions_.end())
+        return {CompleteStatus::Ignored, "the render is no longer here"};
+    RenderSession& s = *session->second;
     const CompleteOutcome outcome = s.complete(lease_id, result);
     if (outcome.status == CompleteStatus::Merged) {
         const uint64_t samples = result.total_samples();
@@ -552,8 +558,10 @@ bool Coordinator::renew(const std::string& worker, uint64_t lease_id) {
     touch_worker(worker);
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end()) return false;
-    return sessions_.at(it->second)
-        ->renew(lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
+    const auto session = sessions_.find(it->second);
+    if (session == sessions_.end()) return false;
+    return session->second->renew(lease_id, worker,
+                                  RenderSession::Clock::now() + options_.lease_time);
 }
 
 bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
@@ -561,12 +569,63 @@ bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
     touch_worker(worker);
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end()) return false;
+    const auto session = sessions_.find(it->second);
+    if (session == sessions_.end()) return false;
     // Only the holder may give a lease back; anyone else's word leaves it with its
     // holder.
-    if (!sessions_.at(it->second)->abandon(lease_id, worker)) return false;
+    if (!session->second->abandon(lease_id, worker)) return false;
     lease_render_.erase(it);
     changed();
     return true;
+}
+
+bool Coordinator::fail(const std::string& worker, uint64_t lease_id,
+                       const std::string& reason) {
+    std::lock_guard lock(mutex_);
+    touch_worker(worker);
+    const auto it = lease_render_.find(lease_id);
+    if (it == lease_render_.end()) return false;
+    const auto session = sessions_.find(it->second);
+    if (session == sessions_.end()) return false;
+    RenderSession& s = *session->second;
+    // Only the holder's word counts, as for abandon.
+    if (!s.fail_job(lease_id, worker, reason, alive_workers(), options_.failure_policy))
+        return false;
+    lease_render_.erase(it);
+    if (s.state() == RenderState::Failed) {
+        log_error(s.id() + " failed: " + s.error());
+        forget_ended_leases();  // the render's other leases ended with it
+    }
+    changed();
+    return true;
+}
+
+bool Coordinator::knows_worker(const std::string& name) {
+    std::lock_guard lock(mutex_);
+    const auto it = workers_.find(name);
+    return it != workers_.end() && it->second.registered;
+}
+
+size_t Coordinator::leases_out() {
+    std::lock_guard lock(mutex_);
+    return lease_render_.size();
+}
+
+std::set<std::string> Coordinator::alive_workers() const {
+    std::set<std::string> alive;
+    for (const auto& [name, w] : workers_)
+        if (w.registered && !w.lost) alive.insert(name);
+    return alive;
+}
+
+void Coordinator::forget_ended_leases() {
+    for (auto it = lease_render_.begin(); it != lease_render_.end();) {
+        const auto session = sessions_.find(it->second);
+        if (session == sessions_.end() || !session->second->holds(it->first))
+            it = lease_render_.erase(it);
+        else
+            ++it;
+    }
 }
 
 std::vector<WorkerStatus> Coordinator::workers() {
@@ -602,6 +661,8 @@ void Coordinator::tick() {
     bool any = false;
     for (auto& [id, s] : sessions_)
         if (!s->finished() && s->expire(now) > 0) any = true;
+    // Expired leases, and those of renders cancelled or finished since: gone for good.
+    forget_ended_leases();
     const int64_t wall = unix_millis_now();
     for (auto& [name, w] : workers_) {
         if (store_ && w.unrecorded > 0) {

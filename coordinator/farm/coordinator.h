@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -49,6 +50,9 @@ struct CoordinatorOptions {
     // Bytes the sessions in memory may use together (render_memory_estimate each); a
     // submission past it throws MemoryBudgetError. 0: no limit.
     uint64_t memory_limit = default_memory_limit();
+    // Jobs workers cannot trace: how many failures fail a render, when a worker is kept
+    // off one (docs/FARM.md).
+    FailurePolicy failure_policy;
 };
 
 // A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
@@ -99,6 +103,13 @@ public:
     std::optional<std::string> fetch_scene(const std::string& hash) override;
     bool renew(const std::string& worker, uint64_t lease_id) override;
     bool abandon(const std::string& worker, uint64_t lease_id) override;
+    bool fail(const std::string& worker, uint64_t lease_id,
+              const std::string& reason) override;
+    // Whether `name` registered with this coordinator (a worker that did so with one
+    // before a restart did not): the gRPC service tells one that did not to register.
+    bool knows_worker(const std::string& name);
+    // Leases out now, across renders (what `lease_render_` holds): for tests.
+    size_t leases_out();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -123,6 +134,7 @@ private:
         uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
         double rate = 0;          // samples/s, smoothed over recent jobs
         bool lost = false;
+        bool registered = false;  // called register_worker here (not only heard from)
     };
 
     void resume_unfinished();
@@ -132,6 +144,10 @@ private:
     RenderInfo info_of(const RenderSession& s) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
+    // Workers registered here and not lost: those a job may go to (RenderSession::issue).
+    std::set<std::string> alive_workers() const;
+    // Drops lease_render_ entries whose lease ended (expired, render finished or gone).
+    void forget_ended_leases();
     void changed();
     uint64_t memory_in_use_locked() const;
     // Drops a finished render whose end is recorded, and what is kept per render.

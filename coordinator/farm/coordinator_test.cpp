@@ -169,5 +169,84 @@ TEST_F(CoordinatorTest, ASubmissionPastTheMemoryBudgetIsRefusedAndChangesNothing
     EXPECT_EQ(c.submit(small_spec()), "r-000002");
 }
 
+// Issue 12, item 5: a job no worker can trace went round forever at 0 samples. Now it
+// fails the render with the reason, in memory and in the store.
+TEST_F(CoordinatorTest, AJobNoWorkerCanTraceFailsTheRenderWithTheReason) {
+    options.worker_lost_after = std::chrono::seconds(60);  // all three stay alive
+    std::string id;
+    {
+        Coordinator c(options);
+        for (const char* w : {"a", "b", "c"}) c.register_worker(w, 1);
+        id = c.submit(small_spec());  // one job
+        for (const char* w : {"a", "b", "c"}) {
+            const auto grant = c.lease(w, std::chrono::milliseconds(0));
+            ASSERT_TRUE(grant) << w;
+            // The worker it failed on gets nothing while another could take the job.
+            if (std::string(w) == "a") {
+                EXPECT_TRUE(c.fail(w, grant->lease_id, "cannot open mesh.obj"));
+                EXPECT_FALSE(c.lease("a", std::chrono::milliseconds(0)));
+            } else {
+                EXPECT_FALSE(c.fail("intruder", grant->lease_id, "not mine"));
+                EXPECT_TRUE(c.fail(w, grant->lease_id, "cannot open mesh.obj"));
+            }
+        }
+        const RenderInfo info = *c.info(id);
+        EXPECT_EQ(info.state, RenderState::Failed);
+        EXPECT_EQ(info.error, "job 0,0 4x4 failed on 3 workers: cannot open mesh.obj");
+        EXPECT_EQ(c.leases_out(), 0u);
+    }
+    Coordinator again(options);  // what the store kept
+    const RenderInfo info = *again.info(id);
+    EXPECT_EQ(info.state, RenderState::Failed);
+    EXPECT_EQ(info.error, "job 0,0 4x4 failed on 3 workers: cannot open mesh.obj");
+}
+
+TEST_F(CoordinatorTest, ALoneWorkerFailsTheRenderInsteadOfRetryingForever) {
+    options.failure_policy.max_job_failures = 2;
+    Coordinator c(options);
+    c.register_worker("only", 1);
+    const std::string id = c.submit(small_spec());
+    for (int i = 0; i < 2; ++i) {
+        const auto grant = c.lease("only", std::chrono::milliseconds(0));
+        ASSERT_TRUE(grant) << i;
+        ASSERT_TRUE(c.fail("only", grant->lease_id, "boom"));
+    }
+    EXPECT_EQ(c.info(id)->state, RenderState::Failed);
+    EXPECT_EQ(c.info(id)->error, "job 0,0 4x4 failed 2 times on 1 worker: boom");
+}
+
+// A lease that ends, whatever the way, leaves nothing behind in the coordinator.
+TEST_F(CoordinatorTest, LeasesAreForgottenWhenTheyEnd) {
+    options.lease_time = std::chrono::milliseconds(30);
+    Coordinator c(options);
+    c.register_worker("w", 1);
+    const std::string first = c.submit(small_spec());
+    ASSERT_TRUE(c.lease("w", std::chrono::milliseconds(0)));
+    EXPECT_EQ(c.leases_out(), 1u);
+    std::this_thread::sleep_for(std::chrono::milliseconds(60));
+    c.tick();  // expired
+    EXPECT_EQ(c.leases_out(), 0u);
+
+    ASSERT_TRUE(c.lease("w", std::chrono::milliseconds(0)));
+    EXPECT_EQ(c.leases_out(), 1u);
+    c.cancel(first);
+    c.tick();  // its render was cancelled
+    EXPECT_EQ(c.leases_out(), 0u);
+}
+
+// Issue 12, item 9: after a restart the coordinator did not know its workers, which never
+// registered again and showed 0 threads.
+TEST_F(CoordinatorTest, KnowsOnlyWorkersThatRegisteredWithIt) {
+    {
+        Coordinator c(options);
+        EXPECT_FALSE(c.lease("w", std::chrono::milliseconds(0)));
+        EXPECT_FALSE(c.knows_worker("w"));  // heard from, but never registered here
+        c.register_worker("w", 4);
+        EXPECT_TRUE(c.knows_worker("w"));
+    }
+    Coordinator restarted(options);
+    EXPECT_FALSE(restarted.knows_worker("w"));
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -1,5 +1,6 @@
 #include "render_session.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "error_estimate.h"
@@ -60,18 +61,50 @@ void RenderSession::plan_next_round() {
         round_samples_ = round->total();
         for (SampleJob& job : jobs) {
             pending_.push_back(jobs_.size());
-            jobs_.push_back(JobSlot{std::move(job), {}, {}});
+            jobs_.push_back(JobSlot{std::move(job), {}, {}, {}, 0});
         }
         return;
     }
 }
 
+bool RenderSession::blocklisted(const std::string& worker,
+                                const FailurePolicy& policy) const {
+    const auto it = worker_failures_.find(worker);
+    return it != worker_failures_.end() && it->second >= policy.blocklist_after;
+}
+
+bool RenderSession::another_could_take(const JobSlot& slot, const std::string& worker,
+                                       const std::set<std::string>& alive,
+                                       const FailurePolicy& policy) const {
+    for (const std::string& other : alive)
+        if (other != worker && !blocklisted(other, policy) &&
+            std::find(slot.failed_on.begin(), slot.failed_on.end(), other) ==
+                slot.failed_on.end())
+            return true;
+    return false;
+}
+
 std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
                                               const std::string& worker,
-                                              Clock::time_point deadline) {
+                                              Clock::time_point deadline,
+                                              const std::set<std::string>& alive,
+                                              const FailurePolicy& policy) {
     if (state_ != RenderState::Running || pending_.empty()) return std::nullopt;
-    const size_t j = pending_.front();
-    pending_.pop_front();
+    if (blocklisted(worker, policy) &&
+        std::any_of(alive.begin(), alive.end(), [&](const std::string& other) {
+            return other != worker && !blocklisted(other, policy);
+        }))
+        return std::nullopt;  // kept off this render while someone else can trace it
+    // The first pending job this worker may take: one it failed on waits for another.
+    auto pick = std::find_if(pending_.begin(), pending_.end(), [&](size_t j) {
+        const JobSlot& slot = jobs_[j];
+        const bool failed_here = std::find(slot.failed_on.begin(), slot.failed_on.end(),
+                                           worker) != slot.failed_on.end();
+        return !failed_here || !another_could_take(slot, worker, alive, policy);
+    });
+    if (pick == pending_.end()) return std::nullopt;
+    const size_t j = *pick;
+    pending_.erase(pick);
     JobSlot& slot = jobs_[j];
     slot.worker = worker;
     slot.deadline = deadline;
@@ -149,6 +182,69 @@ bool RenderSession::abandon(uint64_t lease_id, const std::string& worker) {
     lease_to_job_.erase(it);
     pending_.push_front(size_t(&slot - jobs_.data()));
     return true;
+}
+
+namespace {
+
+// A worker's reason as one bounded line: it ends up in the render's error.
+std::string one_line(const std::string& text) {
+    constexpr size_t kMax = 500;
+    std::string out;
+    for (char c : text) {
+        if (out.size() >= kMax) {
+            out += "...";
+            break;
+        }
+        out += (c == '\n' || c == '\r' || c == '\t') ? ' ' : c;
+    }
+    return out.empty() ? "no reason given" : out;
+}
+
+}  // namespace
+
+bool RenderSession::fail_job(uint64_t lease_id, const std::string& worker,
+                             const std::string& reason,
+                             const std::set<std::string>& alive,
+                             const FailurePolicy& policy) {
+    const auto it = lease_to_job_.find(lease_id);
+    if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
+    const size_t j = it->second;
+    JobSlot& slot = jobs_[j];
+    lease_to_job_.erase(it);
+    ++slot.failures;
+    if (std::find(slot.failed_on.begin(), slot.failed_on.end(), worker) ==
+        slot.failed_on.end())
+        slot.failed_on.push_back(worker);
+    ++worker_failures_[worker];
+    const size_t distinct = slot.failed_on.size();
+    if (distinct >= policy.max_job_failures ||
+        (slot.failures >= policy.max_job_failures &&
+         !another_could_take(slot, "", alive, policy))) {
+        const PixelRect& r = slot.job.rect;
+        // Appended piece by piece: GCC 12 warns (falsely, -Wrestrict) on `"literal" +
+        // std::to_string(...)`, which inserts at the front of a temporary.
+        std::string why = "job ";
+        why += std::to_string(r.x) + "," + std::to_string(r.y) + " ";
+        why += std::to_string(r.width) + "x" + std::to_string(r.height) + " failed";
+        if (slot.failures != distinct) {
+            why += " ";
+            why += std::to_string(slot.failures) + " times";
+        }
+        why += " on ";
+        why += std::to_string(distinct);
+        why += distinct == 1 ? " worker: " : " workers: ";
+        why += one_line(reason);
+        fail(why);
+        return true;
+    }
+    // Back to the front: the next worker that may take it does.
+    pending_.push_front(j);
+    return true;
+}
+
+uint32_t RenderSession::failures_of(const std::string& worker) const {
+    const auto it = worker_failures_.find(worker);
+    return it == worker_failures_.end() ? 0 : it->second;
 }
 
 size_t RenderSession::expire(Clock::time_point now) {

@@ -6,8 +6,10 @@
 #include <chrono>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -29,6 +31,18 @@ struct RoundSummary {
     double error_vs_reference = -1;  // the seed's E against the reference, if any
 };
 
+// How a render treats jobs its workers cannot trace (docs/FARM.md, "A job no worker can
+// trace"): soft-fail, then another worker, then fail the render with the reason.
+struct FailurePolicy {
+    // A job that failed on this many distinct workers fails its render; so does a job
+    // that failed this many times in all when no live worker it has not failed on is
+    // left.
+    uint32_t max_job_failures = 3;
+    // A worker with this many failures on one render gets no more of its jobs while a
+    // live worker with fewer can take them.
+    uint32_t blocklist_after = 2;
+};
+
 class RenderSession {
 public:
     using Clock = std::chrono::steady_clock;
@@ -42,12 +56,27 @@ public:
     // Plans the first (or next, after restore) round; the render is then Running or Done.
     void start();
 
-    // Hands out the next pending job under `lease_id`, or nullopt when none is pending.
+    // Hands out the next pending job `worker` may take under `lease_id`, or nullopt when
+    // none is. `alive` are the workers that could take a job now (the caller's own
+    // name may be among them): a job that failed on `worker` goes to one of them instead,
+    // and a blocklisted `worker` gets nothing while one of them is not. Empty: no choice.
     std::optional<SampleJob> issue(uint64_t lease_id, const std::string& worker,
-                                   Clock::time_point deadline);
+                                   Clock::time_point deadline,
+                                   const std::set<std::string>& alive = {},
+                                   const FailurePolicy& policy = {});
     CompleteOutcome complete(uint64_t lease_id, const SampleJobResult& result);
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
+    // `worker` could not trace its lease, for `reason`: the failure counts against the
+    // job and the worker, and the job goes back to the queue, or the render fails with
+    // the reason when the policy says so. False (nothing changes) when the lease is not
+    // the worker's.
+    bool fail_job(uint64_t lease_id, const std::string& worker, const std::string& reason,
+                  const std::set<std::string>& alive, const FailurePolicy& policy);
+    // Whether `lease_id` is out now (issued, not yet merged, expired or given back).
+    bool holds(uint64_t lease_id) const { return lease_to_job_.count(lease_id) > 0; }
+    // Failures of `worker` on this render's jobs.
+    uint32_t failures_of(const std::string& worker) const;
     // Returns leases whose deadline passed to the pending queue; how many.
     size_t expire(Clock::time_point now);
     void cancel();
@@ -85,11 +114,19 @@ private:
         SampleJob job;
         std::string worker;
         Clock::time_point deadline;
+        std::vector<std::string> failed_on;  // distinct workers it failed on, this round
+        uint32_t failures = 0;               // failures in all
     };
 
     void plan_next_round();
     void finish(RenderState state);
     std::string check_result(const JobSlot& slot, const SampleJobResult& result) const;
+    bool blocklisted(const std::string& worker, const FailurePolicy& policy) const;
+    // Whether someone in `alive` but `worker` may take `slot`: not blocklisted and not
+    // among those it failed on.
+    bool another_could_take(const JobSlot& slot, const std::string& worker,
+                            const std::set<std::string>& alive,
+                            const FailurePolicy& policy) const;
 
     std::string id_;
     RenderSpec spec_;
@@ -106,6 +143,7 @@ private:
     std::deque<size_t> pending_;
     std::unordered_map<uint64_t, size_t> lease_to_job_;
     size_t merged_jobs_ = 0;
+    std::map<std::string, uint32_t> worker_failures_;  // the blocklist's counts
     uint32_t rounds_done_ = 0;
     RoundSummary last_round_;
 

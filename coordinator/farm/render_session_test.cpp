@@ -118,5 +118,112 @@ TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne)
     EXPECT_EQ(run(-1), run(1));
 }
 
+// Issue 12, item 5: a job a worker cannot trace goes to another worker; failures count
+// per job and per worker, and a job nobody can trace fails the render with the reason.
+class FailingJobsTest : public RenderSessionTest {
+protected:
+    static std::string where(const SampleJob& job) {
+        return "job " + std::to_string(job.rect.x) + "," + std::to_string(job.rect.y) +
+               " " + std::to_string(job.rect.width) + "x" +
+               std::to_string(job.rect.height);
+    }
+    FailurePolicy policy;  // 3 distinct workers fail a render; 2 failures blocklist
+};
+
+TEST_F(FailingJobsTest, AFailedJobGoesToAnotherWorkerNotBackToTheSame) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const std::set<std::string> alive{"a", "b"};
+    const auto job = s.issue(1, "a", far, alive, policy);
+    ASSERT_TRUE(job);
+    EXPECT_FALSE(s.fail_job(1, "b", "not b's lease", alive, policy));
+    EXPECT_TRUE(s.fail_job(1, "a", "cannot open mesh.obj", alive, policy));
+    EXPECT_FALSE(s.holds(1));
+    EXPECT_EQ(s.state(), RenderState::Running);
+    EXPECT_EQ(s.failures_of("a"), 1u);
+    const auto other = s.issue(2, "a", far, alive, policy);
+    ASSERT_TRUE(other);
+    EXPECT_FALSE(other->rect == job->rect);  // a gets another job ...
+    const auto again = s.issue(3, "b", far, alive, policy);
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->rect, job->rect);  // ... and b the one that failed on a
+}
+
+TEST_F(FailingJobsTest, AJobThatFailedOnKDistinctWorkersFailsTheRenderWithTheReason) {
+    RenderSession s("r", spec, 0);
+    int finished = 0;
+    s.on_finished = [&](RenderSession&) { ++finished; };
+    s.start();
+    const std::set<std::string> alive{"a", "b", "c", "d"};
+    std::optional<SampleJob> first;
+    uint64_t lease = 1;
+    for (const char* w : {"a", "b", "c"}) {
+        const auto job = s.issue(lease, w, far, alive, policy);
+        ASSERT_TRUE(job);
+        if (!first) first = job;
+        EXPECT_EQ(job->rect, first->rect) << w;  // the failed job first, to a new worker
+        EXPECT_TRUE(s.fail_job(lease++, w, "cannot open\nmesh.obj", alive, policy));
+    }
+    EXPECT_EQ(s.state(), RenderState::Failed);
+    EXPECT_EQ(s.error(), where(*first) + " failed on 3 workers: cannot open mesh.obj");
+    EXPECT_EQ(finished, 1);
+    EXPECT_FALSE(s.issue(lease, "d", far, alive, policy));
+}
+
+TEST_F(FailingJobsTest, AWorkerThatKeepsFailingIsKeptOffTheRender) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const std::set<std::string> alive{"bad", "good"};
+    for (uint64_t lease = 1; lease <= 2; ++lease) {
+        ASSERT_TRUE(s.issue(lease, "bad", far, alive, policy));
+        ASSERT_TRUE(s.fail_job(lease, "bad", "no Embree here", alive, policy));
+    }
+    EXPECT_EQ(s.failures_of("bad"), 2u);
+    EXPECT_FALSE(s.issue(3, "bad", far, alive, policy));  // blocklisted while good lives
+    EXPECT_TRUE(s.issue(4, "good", far, alive, policy));
+    // With nobody else left, it is tried again rather than the render stalling.
+    EXPECT_TRUE(s.issue(5, "bad", far, {"bad"}, policy));
+    EXPECT_EQ(s.state(), RenderState::Running);
+}
+
+TEST_F(FailingJobsTest, ALoneWorkerFailsTheRenderAfterKFailuresInAll) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const std::set<std::string> alive{"only"};
+    std::optional<SampleJob> first;
+    for (uint64_t lease = 1; lease <= 3; ++lease) {
+        const auto job = s.issue(lease, "only", far, alive, policy);
+        ASSERT_TRUE(job) << lease;
+        if (!first) first = job;
+        EXPECT_EQ(job->rect, first->rect);
+        ASSERT_TRUE(s.fail_job(lease, "only", "boom", alive, policy));
+    }
+    EXPECT_EQ(s.state(), RenderState::Failed);
+    EXPECT_EQ(s.error(), where(*first) + " failed 3 times on 1 worker: boom");
+}
+
+TEST_F(FailingJobsTest, TwoWorkersFailTheRenderOnceNeitherHasAnyoneElseToTry) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const std::set<std::string> alive{"a", "b"};
+    uint64_t lease = 1;
+    for (const char* w : {"a", "b", "a"}) {
+        ASSERT_TRUE(s.issue(lease, w, far, alive, policy)) << w;
+        ASSERT_TRUE(s.fail_job(lease++, w, "boom", alive, policy));
+    }
+    EXPECT_EQ(s.state(), RenderState::Failed);
+    EXPECT_NE(s.error().find("failed 3 times on 2 workers: boom"), std::string::npos)
+        << s.error();
+}
+
+TEST_F(FailingJobsTest, KIsThePolicys) {
+    policy.max_job_failures = 1;
+    RenderSession s("r", spec, 0);
+    s.start();
+    ASSERT_TRUE(s.issue(1, "a", far, {"a", "b"}, policy));
+    ASSERT_TRUE(s.fail_job(1, "a", "boom", {"a", "b"}, policy));
+    EXPECT_EQ(s.state(), RenderState::Failed);
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -9,6 +9,7 @@ import concurrent.futures
 import filecmp
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -30,8 +31,9 @@ def free_port():
         return s.getsockname()[1]
 
 
-def spawn(*args, log):
-    p = subprocess.Popen([ALIQUOT, *args], stdout=open(log, "w"), stderr=subprocess.STDOUT)
+def spawn(*args, log, cwd=None):
+    p = subprocess.Popen([ALIQUOT, *args], stdout=open(log, "w"), stderr=subprocess.STDOUT,
+                         cwd=cwd)
     PROCS.append(p)
     return p
 
@@ -54,14 +56,14 @@ class Farm:
         self.coordinator = None
         self.workers = {}
 
-    def start_coordinator(self, *extra):
+    def start_coordinator(self, *extra, data="data", cwd=None):
         self.coordinator = spawn("coordinator", "--grpc", self.addr, "--data",
-                                 os.path.join(self.dir, "data"),
+                                 os.path.join(self.dir, data),
                                  "--lease-seconds", str(self.lease_seconds),
                                  "--lost-seconds", str(self.lost_seconds), *extra,
                                  *(["--http", f"127.0.0.1:{self.http_port}"]
                                    if self.http_port else []),
-                                 log=os.path.join(self.dir, "coordinator.log"))
+                                 log=os.path.join(self.dir, "coordinator.log"), cwd=cwd)
         deadline = time.time() + 20
         while time.time() < deadline:
             if run("status", "--coordinator", self.addr, check=False).returncode == 0:
@@ -69,10 +71,18 @@ class Farm:
             time.sleep(0.1)
         raise AssertionError("coordinator did not start")
 
-    def start_worker(self, name, threads=1):
+    def start_worker(self, name, threads=1, cwd=None):
         self.workers[name] = spawn("worker", "--coordinator", self.addr, "--threads",
                                    str(threads), "--name", name,
-                                   log=os.path.join(self.dir, f"worker-{name}.log"))
+                                   log=os.path.join(self.dir, f"worker-{name}.log"), cwd=cwd)
+
+    def log_lines(self, name):
+        with open(os.path.join(self.dir, f"worker-{name}.log")) as f:
+            return len(f.readlines())
+
+    def workers_now(self):
+        return {w["name"]: w for w in
+                json.loads(run("workers", "--json", "--coordinator", self.addr).stdout)}
 
     def submit(self, *render_args, out=None):
         args = ["submit", "--coordinator", self.addr, "--json", *render_args]
@@ -319,6 +329,99 @@ def test_storage_warning_reaches_status_and_http():
         farm.stop()
 
 
+def content_hash(text):
+    """coordinator/farm/render_spec.cpp's content_hash: the scene's content address."""
+    mask = (1 << 64) - 1
+
+    def mix64(z):
+        z = ((z ^ (z >> 30)) * 0xbf58476d1ce4e5b9) & mask
+        z = ((z ^ (z >> 27)) * 0x94d049bb133111eb) & mask
+        return z ^ (z >> 31)
+
+    data = text.encode()
+    a = 0x243f6a8885a308d3 ^ len(data)
+    b = (0x13198a2e03707344 + len(data)) & mask
+    i = 0
+    while i + 8 <= len(data):
+        w = int.from_bytes(data[i:i + 8], "little")
+        a = mix64(a ^ w)
+        b = mix64((b + w * 0x9e3779b97f4a7c15) & mask)
+        i += 8
+    tail = int.from_bytes(data[i:], "little")
+    a = mix64(a ^ tail ^ 0xa4093822299f31d0)
+    b = mix64((b + tail + 0x082efa98ec4e6c89) & mask)
+    return f"{a:016x}{b:016x}"
+
+
+def test_a_job_no_worker_can_trace_fails_the_render():
+    # Issue 12, item 5: a scene whose mesh file only exists beside the coordinator. The CLI
+    # inlines meshes, so the render is made such in the store (as a scene recorded by an
+    # older coordinator would be): its scene gains a mesh by relative path, which a worker
+    # started in another directory cannot open. Before, every worker abandoned and
+    # re-leased the job at once, thousands of log lines a second, the render running at 0
+    # samples forever.
+    farm = Farm("fail-everywhere")
+    beside = os.path.join(farm.dir, "coordinator-cwd")
+    elsewhere = os.path.join(farm.dir, "worker-cwd")
+    os.makedirs(beside)
+    os.makedirs(elsewhere)
+    with open(os.path.join(beside, "tri.obj"), "w") as f:
+        f.write("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n")
+    try:
+        farm.start_coordinator(cwd=beside)
+        render_id = farm.submit(*SMALL)["id"]
+        farm.coordinator.send_signal(signal.SIGKILL)
+        farm.coordinator.wait()
+        db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
+        old_hash, = db.execute("SELECT scene_hash FROM renders WHERE id = ?",
+                               (render_id,)).fetchone()
+        text, = db.execute("SELECT json FROM scenes WHERE hash = ?", (old_hash,)).fetchone()
+        assert content_hash(text) == old_hash, "content_hash differs from the coordinator's"
+        scene = json.loads(text)
+        scene["shapes"].append({"type": "mesh", "material": next(iter(scene["materials"])),
+                                "file": "tri.obj"})
+        new_text = json.dumps(scene)
+        new_hash = content_hash(new_text)
+        db.execute("INSERT INTO scenes (hash, name, json, created_at) "
+                   "SELECT ?, name, ?, created_at FROM scenes WHERE hash = ?",
+                   (new_hash, new_text, old_hash))
+        db.execute("UPDATE renders SET scene_hash = ? WHERE id = ?", (new_hash, render_id))
+        db.commit()
+        db.close()
+
+        farm.start_coordinator(cwd=beside)
+        for name in ("w0", "w1", "w2"):
+            farm.start_worker(name, cwd=elsewhere)
+        start = time.time()
+        final = farm.wait_until(render_id, lambda s: s["state"] != "running", timeout=60)
+        took = time.time() - start
+        assert final["state"] == "failed", final
+        assert re.match(r"job \d+,\d+ \d+x\d+ failed( \d+ times)? on [23] workers: .*tri\.obj",
+                        final["error"]), final["error"]
+        assert final["samples_done"] == 0, final
+        print(f"     failed in {took:.1f}s: {final['error']}", flush=True)
+        assert took < 20, f"the render took {took:.1f}s to fail"
+        # Bounded work and logs: a few lines per worker, and none once the render failed.
+        lines = {n: farm.log_lines(n) for n in farm.workers}
+        assert all(n <= 10 for n in lines.values()), lines
+        time.sleep(2)
+        assert {n: farm.log_lines(n) for n in farm.workers} == lines, "workers still logging"
+        assert all(p.poll() is None for p in farm.workers.values()), "a worker died"
+        text = run("status", render_id, "--coordinator", farm.addr).stdout
+        assert "failed" in text and "tri.obj" in text, text
+        db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
+        state, error = db.execute("SELECT state, error FROM renders WHERE id = ?",
+                                  (render_id,)).fetchone()
+        db.close()
+        assert state == "failed" and error == final["error"], (state, error)
+        # The workers still serve a render they can trace.
+        out = os.path.join(farm.dir, "after.exr")
+        info = farm.submit(*SMALL, out=out)
+        assert info["state"] == "done" and same(out, embedded(SMALL)), info
+    finally:
+        farm.stop()
+
+
 def rss_mb(pid):
     with open(f"/proc/{pid}/status") as f:
         for line in f:
@@ -368,6 +471,35 @@ def test_a_submission_past_the_memory_limit_is_one_line():
         assert "not enough memory" in lines[0] and "64.0 MiB" in lines[0], r.stderr
         # A small one still fits.
         farm.submit(*SMALL)
+    finally:
+        farm.stop()
+
+
+def test_a_worker_registers_again_after_a_coordinator_restart():
+    # Issue 12, item 9: after a coordinator restart the worker never registered again
+    # (`workers` showed threads: 0), and took ~10 s to come back after a SIGTERM.
+    farm = Farm("re-register")
+    try:
+        farm.start_coordinator()
+        farm.start_worker("w0", threads=2)
+        deadline = time.time() + 20
+        while farm.workers_now().get("w0", {}).get("threads", 0) != 2:
+            assert time.time() < deadline, farm.workers_now()
+            time.sleep(0.1)
+        farm.coordinator.send_signal(signal.SIGTERM)
+        farm.coordinator.wait(timeout=20)
+        time.sleep(4)  # the worker retries meanwhile; its waits must not grow long
+        farm.start_coordinator(data="data-2")
+        up = time.time()
+        while farm.workers_now().get("w0", {}).get("threads", 0) != 2:
+            assert time.time() - up < 10, f"worker not back with its threads: {farm.workers_now()}"
+            time.sleep(0.05)
+        back = time.time() - up
+        print(f"     worker back with its threads {back:.2f}s after the coordinator", flush=True)
+        out = os.path.join(farm.dir, "farm.exr")
+        info = farm.submit(*SMALL, out=out)
+        assert info["state"] == "done", info
+        assert same(out, embedded(SMALL)), "render after the restart differs from embedded"
     finally:
         farm.stop()
 

@@ -1,11 +1,12 @@
-// Lease and WorkerLink: what a worker holds while it traces a job, and the five calls it
-// makes to a coordinator. The link is gRPC for a remote worker and a direct call for the
+// Lease and WorkerLink: what a worker holds while it traces a job, and the calls it makes
+// to a coordinator. The link is gRPC for a remote worker and a direct call for the
 // embedded render's local threads; the worker loop cannot tell them apart.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "sample_job.h"
@@ -36,6 +37,13 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+// Thrown by a link's lease() when the coordinator does not know the worker (it restarted
+// since the worker registered): the worker registers again, then asks again.
+class WorkerUnknown : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
 class WorkerLink {
 public:
     virtual ~WorkerLink() = default;
@@ -47,7 +55,13 @@ public:
                                      const SampleJobResult& result) = 0;
     virtual std::optional<std::string> fetch_scene(const std::string& hash) = 0;
     virtual bool renew(const std::string& worker, uint64_t lease_id) = 0;
+    // Gives a lease back untraced (the worker is stopping): re-issued at once, no fault.
     virtual bool abandon(const std::string& worker, uint64_t lease_id) = 0;
+    // The worker cannot trace the lease (its scene does not load, tracing threw), for
+    // `reason`: the job goes to another worker, and the failure counts against the job
+    // and the worker (docs/FARM.md). False when the lease is no longer the worker's.
+    virtual bool fail(const std::string& worker, uint64_t lease_id,
+                      const std::string& reason) = 0;
 };
 
 }  // namespace aliquot

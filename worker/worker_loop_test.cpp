@@ -1,0 +1,152 @@
+// WorkerLoop against a fake coordinator: what it reports when it cannot trace a job, how
+// it waits before asking again, and that it registers again with a coordinator that
+// forgot it. No Embree is needed: the jobs here fail before any ray is traced.
+#include "worker_loop.h"
+
+#include <gtest/gtest.h>
+
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace aliquot {
+namespace {
+
+using Millis = std::chrono::milliseconds;
+
+class FakeLink : public WorkerLink {
+public:
+    enum class Mode { BrokenScene, NothingAtOnce, ForgetsWorker };
+    explicit FakeLink(Mode mode) : mode_(mode) {}
+
+    uint32_t register_worker(const std::string&, uint32_t threads) override {
+        std::lock_guard lock(mutex_);
+        registered_threads.push_back(threads);
+        return 30000;
+    }
+    std::optional<LeaseGrant> lease(const std::string&, Millis wait) override {
+        {
+            std::lock_guard lock(mutex_);
+            ++leases;
+            if (mode_ == Mode::BrokenScene) {
+                LeaseGrant g;
+                g.lease_id = next_lease_++;
+                g.render_id = "r-000001";
+                g.scene_hash = "h";
+                g.geometry = {4, 4, 1};
+                g.job.rect = {0, 0, 4, 4};
+                g.job.counts.assign(16, 1);
+                g.job.first_sample.assign(16, 0);
+                return g;
+            }
+            if (mode_ == Mode::NothingAtOnce) return std::nullopt;
+            // ForgetsWorker: a coordinator restarted after the first registration.
+            if (registered_threads.size() < 2)
+                throw WorkerUnknown("coordinator does not know this worker");
+        }
+        std::this_thread::sleep_for(wait);  // a long-poll with no work
+        return std::nullopt;
+    }
+    CompleteOutcome complete(const std::string&, uint64_t,
+                             const SampleJobResult&) override {
+        return {CompleteStatus::Merged, {}};
+    }
+    std::optional<std::string> fetch_scene(const std::string&) override {
+        return std::string("{\"camera\": ");  // does not parse on this worker
+    }
+    bool renew(const std::string&, uint64_t) override { return true; }
+    bool abandon(const std::string&, uint64_t) override {
+        std::lock_guard lock(mutex_);
+        ++abandons;
+        return true;
+    }
+    bool fail(const std::string& worker, uint64_t lease_id,
+              const std::string& reason) override {
+        std::lock_guard lock(mutex_);
+        failures.push_back({worker, lease_id, reason, std::chrono::steady_clock::now()});
+        return true;
+    }
+
+    struct Failure {
+        std::string worker;
+        uint64_t lease_id;
+        std::string reason;
+        std::chrono::steady_clock::time_point when;
+    };
+    std::mutex mutex_;
+    std::vector<uint32_t> registered_threads;
+    std::vector<Failure> failures;
+    int leases = 0, abandons = 0;
+
+private:
+    Mode mode_;
+    uint64_t next_lease_ = 1;
+};
+
+// Runs a loop on `link` for `duration`, then stops it.
+void run_for(FakeLink& link, WorkerOptions options, Millis duration) {
+    WorkerLoop loop(link, std::move(options));
+    std::thread runner([&] { loop.run(); });
+    std::this_thread::sleep_for(duration);
+    loop.stop();
+    runner.join();
+}
+
+WorkerOptions options(int threads) {
+    WorkerOptions o;
+    o.name = "w";
+    o.threads = threads;
+    o.quiet = true;
+    o.lease_wait = Millis(100);
+    o.backoff_initial = Millis(100);
+    o.reconnect_max = Millis(400);
+    o.failure_max = Millis(400);
+    return o;
+}
+
+// Issue 12, item 5: the worker abandoned and re-leased such a job at once, thousands of
+// times a second.
+TEST(WorkerLoopTest, ReportsAJobItCannotTraceWithTheReasonAndBacksOff) {
+    FakeLink link(FakeLink::Mode::BrokenScene);
+    run_for(link, options(1), Millis(1500));
+    std::lock_guard lock(link.mutex_);
+    EXPECT_EQ(link.abandons, 0);
+    ASSERT_GE(link.failures.size(), 3u);
+    // Waits of at least 50, 100, 200, 200, ... ms: at most about ten in 1.5 s.
+    EXPECT_LE(link.failures.size(), 12u);
+    for (const FakeLink::Failure& f : link.failures) {
+        EXPECT_EQ(f.worker, "w");
+        EXPECT_NE(f.reason.find("scene:h"), std::string::npos) << f.reason;
+    }
+    EXPECT_NE(link.failures[0].lease_id, link.failures[1].lease_id);
+    // The waits grow: the third gap is longer than the first's shortest possible.
+    const auto gap = [&](size_t i) {
+        return link.failures[i + 1].when - link.failures[i].when;
+    };
+    EXPECT_GE(gap(0), Millis(45));
+    EXPECT_GE(gap(2), Millis(95));
+}
+
+// A coordinator shutting down answers a long-poll at once with nothing: the worker did
+// not wait before asking again.
+TEST(WorkerLoopTest, AnEmptyAnswerThatCameAtOnceIsNotAskedAgainAtOnce) {
+    FakeLink link(FakeLink::Mode::NothingAtOnce);
+    run_for(link, options(2), Millis(1000));
+    std::lock_guard lock(link.mutex_);
+    EXPECT_GE(link.leases, 2);
+    EXPECT_LE(link.leases, 2 * 10);
+}
+
+// Issue 12, item 9: a restarted coordinator did not know the worker, which never
+// registered again and showed 0 threads.
+TEST(WorkerLoopTest, RegistersAgainWithItsThreadsWhenTheCoordinatorForgotIt) {
+    FakeLink link(FakeLink::Mode::ForgetsWorker);
+    run_for(link, options(2), Millis(500));
+    std::lock_guard lock(link.mutex_);
+    // Once at start, once again for both threads told, not once per thread.
+    EXPECT_EQ(link.registered_threads, (std::vector<uint32_t>{2, 2}));
+    EXPECT_GE(link.leases, 3);
+}
+
+}  // namespace
+}  // namespace aliquot
