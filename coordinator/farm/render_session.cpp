@@ -143,12 +143,19 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id,
         return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
     JobSlot& slot = jobs_[it->second];
     lease_to_job_.erase(it);
-    if (std::string why = check_result(slot, result); !why.empty()) {
+    std::string why = check_result(slot, result);
+    if (why.empty()) {
+        try {
+            merged_.merge(result);  // refuses, whole, sums that would stop being finite
+        } catch (const MergeError& e) {
+            why = e.what();
+        }
+    }
+    if (!why.empty()) {
         // The job is traced again by whoever asks next; nothing was merged.
         pending_.push_front(size_t(&slot - jobs_.data()));
         return {CompleteStatus::Rejected, why};
     }
-    merged_.merge(result);
     if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
 
     ++rounds_done_;

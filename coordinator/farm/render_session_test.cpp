@@ -66,6 +66,26 @@ TEST_F(RenderSessionTest, ReissuesAnExpiredLeaseAndIgnoresItsLateResult) {
     EXPECT_EQ(s.merged().total_samples(), job->rect.size());  // merged once, not twice
 }
 
+// Found by fuzz/job_result_fuzz: a result whose merged sums would not stay finite threw
+// out of complete() after its lease was forgotten, so the job was never traced again.
+TEST_F(RenderSessionTest, AResultThatWouldOverflowTheSumsIsRejectedAndTheJobReissued) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    auto job = s.issue(1, "w", far);
+    ASSERT_TRUE(job);
+    SampleJobResult huge = fake_result(*job);
+    huge.pixels[0].even[0] = 1.7e308;
+    const CompleteOutcome out = s.complete(1, huge);
+    EXPECT_EQ(out.status, CompleteStatus::Rejected);
+    EXPECT_NE(out.message.find("non-finite or larger than 1e100"), std::string::npos)
+        << out.message;
+    EXPECT_EQ(s.merged().total_samples(), 0u);
+    auto again = s.issue(2, "w", far);
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->rect, job->rect);
+    EXPECT_EQ(s.complete(2, fake_result(*again)).status, CompleteStatus::Merged);
+}
+
 TEST_F(RenderSessionTest, RenewKeepsALeaseAliveOnlyForItsOwner) {
     RenderSession s("r", spec, 0);
     s.start();
