@@ -24,8 +24,9 @@ TMP=$(mktemp -d "${TMPDIR:-/tmp}/aliquot-compose.XXXXXX")
 PROJECT="aliquot-test-$$-$RANDOM"
 IMAGE=aliquot:compose-test
 COMPOSE_FILE_ARGS=(-f deploy/docker-compose.yml)
-# A render long enough (seconds on 2 cores) that a worker can die in the middle of it.
-RENDER=(--scene cornell-box --resolution 96x96 --spp 512 --seed 11)
+# A render long enough that a worker can die in the middle of it: 33M samples, about ten
+# seconds on 2 cores (96x96 at 512 spp ended, once, before the test could pick a victim).
+RENDER=(--scene cornell-box --resolution 128x128 --spp 2048 --seed 11)
 
 SUDO=()
 [[ $(id -u) -eq 0 ]] || SUDO=(sudo --preserve-env)  # the ALIQUOT_* settings reach compose
