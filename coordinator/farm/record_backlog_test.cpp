@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <future>
 #include <stdexcept>
 #include <vector>
 
@@ -58,6 +59,29 @@ TEST(RecordBacklog, WritesRunAtOnceWhenNothingWaits) {
     EXPECT_EQ(n, 1);
     EXPECT_EQ(backlog.waiting(), 0u);
     EXPECT_TRUE(backlog.warning().empty());
+}
+
+// Issue 12, reproduction 8: a checkpoint and an EXR were written under the coordinator's
+// lock, and every Lease waited for them. With the writer thread, submit() only queues: it
+// returns while the write itself is still blocked.
+TEST(RecordBacklog, WithAWriterThreadSubmitReturnsWhileTheWriteIsStillRunning) {
+    RecordBacklog backlog;
+    backlog.start_writer();
+    std::promise<void> release;
+    std::shared_future<void> released = release.get_future().share();
+    std::promise<void> started;
+    bool written = false;
+    backlog.submit("a slow checkpoint", [&] {
+        started.set_value();
+        released.wait();
+        written = true;
+    });
+    started.get_future().wait();  // the write runs, on another thread, and is blocked
+    EXPECT_FALSE(written);
+    EXPECT_EQ(backlog.waiting(), 1u);
+    release.set_value();
+    EXPECT_TRUE(backlog.wait_idle(std::chrono::seconds(30)));
+    EXPECT_TRUE(written);
 }
 
 }  // namespace
