@@ -1,10 +1,6 @@
 #include "grpc_server.h"
 
 #include <grpcpp/grpcpp.h>
-#include <unistd.h>
-
-#include <fstream>
-#include <sstream>
 
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
@@ -19,41 +15,6 @@ namespace {
 using grpc::ServerContext;
 using grpc::Status;
 using grpc::StatusCode;
-
-// EXR bytes through a private temporary file: OpenEXR's in-memory streams are more code
-// than this path is worth.
-std::filesystem::path temp_path(const char* tag) {
-    static std::atomic<uint64_t> counter{0};
-    return std::filesystem::temp_directory_path() /
-           ("aliquot-" + std::to_string(getpid()) + "-" + tag + "-" +
-            std::to_string(counter++) + ".exr");
-}
-
-Image image_from_bytes(const std::string& bytes) {
-    const auto path = temp_path("in");
-    {
-        std::ofstream out(path, std::ios::binary);
-        out.write(bytes.data(), std::streamsize(bytes.size()));
-    }
-    try {
-        Image img = read_exr(path);
-        std::filesystem::remove(path);
-        return img;
-    } catch (...) {
-        std::filesystem::remove(path);
-        throw;
-    }
-}
-
-std::string bytes_from_image(const Image& image) {
-    const auto path = temp_path("out");
-    write_exr(path, image);
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    std::filesystem::remove(path);
-    return ss.str();
-}
 
 class ClientServiceImpl final : public v1::ClientService::Service {
 public:
@@ -71,7 +32,8 @@ public:
             spec.strategy = nlohmann::json::parse(
                 req->strategy_json().empty() ? "{}" : req->strategy_json());
             if (!req->reference_exr().empty())
-                spec.reference = image_from_bytes(req->reference_exr());
+                spec.reference =
+                    decode_exr(req->reference_exr(), "the submitted reference");
             const std::string id = c_.submit(std::move(spec));
             to_proto(*c_.info(id), *reply);
             return Status::OK;
@@ -135,7 +97,7 @@ public:
                       grpc::ServerWriter<v1::FileChunk>* writer) override {
         const auto image = c_.image(req->id(), req->aovs());
         if (!image) return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
-        const std::string bytes = bytes_from_image(*image);
+        const std::string bytes = encode_exr(*image);
         constexpr size_t kChunk = 1 << 20;
         for (size_t off = 0; off < bytes.size(); off += kChunk) {
             v1::FileChunk chunk;

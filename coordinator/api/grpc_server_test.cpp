@@ -5,9 +5,14 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "aliquot.grpc.pb.h"
+#include "exr_io.h"
 #include "scene_loader.h"
 #include "trace_job.h"
 #include "wire.h"
@@ -180,6 +185,47 @@ TEST(ClientServiceMemory, ASubmissionPastTheMemoryBudgetIsResourceExhausted) {
 }
 
 // Issue 12, item 9: a worker a restarted coordinator does not know is told to register.
+// Issue 13: the submitted reference crossed through /tmp/aliquot-PID-in-N.exr, and a
+// local user's symlink there was overwritten with the uploaded bytes. Now it never
+// touches a file.
+TEST(ClientServiceReference, ASubmittedReferenceIsWrittenToNoPredictableFile) {
+    namespace fs = std::filesystem;
+    const fs::path victim = fs::temp_directory_path() /
+                            ("aliquot_victim_" + std::to_string(getpid()) + ".txt");
+    std::ofstream(victim) << "a local user's file";
+    std::vector<fs::path> traps;
+    for (const char* tag : {"in", "out"})
+        for (int n = 0; n < 4; ++n) {
+            traps.push_back(fs::temp_directory_path() /
+                            ("aliquot-" + std::to_string(getpid()) + "-" + tag + "-" +
+                             std::to_string(n) + ".exr"));
+            fs::remove(traps.back());
+            fs::create_symlink(victim, traps.back());
+        }
+    {
+        Coordinator coordinator(CoordinatorOptions{});
+        GrpcServer server(coordinator, "127.0.0.1:0");
+        auto stub = v1::ClientService::NewStub(
+            grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
+                                grpc::InsecureChannelCredentials()));
+        grpc::ClientContext ctx;
+        v1::SubmitRequest req;
+        req.set_scene_name("cornell-box");
+        req.set_scene_json(self_contained_scene_json("cornell-box"));
+        req.set_width(8);
+        req.set_height(8);
+        req.set_strategy_json(R"({"method":"uniform","spp":1})");
+        req.set_reference_exr(encode_exr(Image(8, 8)));
+        v1::RenderInfo reply;
+        EXPECT_TRUE(stub->Submit(&ctx, req, &reply).ok());
+    }
+    std::ostringstream text;
+    text << std::ifstream(victim).rdbuf();
+    EXPECT_EQ(text.str(), "a local user's file");
+    for (const fs::path& t : traps) fs::remove(t);
+    fs::remove(victim);
+}
+
 TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
     v1::LeaseRequest req;
     req.set_worker("stranger");
