@@ -112,126 +112,9 @@ void Coordinator::changed() {
 void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     RenderSession* s = session.get();
     s->on_round = [this](RenderSession& r, const RoundSummary& round) {
-        round_history_[r.id()].push_back(
-            round);  // for rounds(): see the end of this file
-        if (!store_) return;
-        try {
-            RoundRecord rec;
-            rec.render_id = r.id();
-            rec.idx = round.index;
-            rec.samples_in_round = int64_t(round.samples_in_round);
-            rec.samples_total = int64_t(round.samples_total);
-            rec.seconds = round.seconds;
-            rec.error_estimate = round.error_estimate;
-            if (round.error_vs_reference >= 0)
-                rec.error_vs_reference = round.error_vs_reference;
-            // Buckets are stored when their layout changes, not every round: Dammertz
-            // runs thousands of rounds over hundreds of buckets, and the database would
-            // grow by megabytes a render. A round without buckets_json keeps the previous
-            // layout.
-            nlohmann::json buckets = nlohmann::json::array(),
-                           shape = nlohmann::json::array();
-            for (const Bucket& b : r.strategy().buckets()) {
-                buckets.push_back({b.rect.x, b.rect.y, b.rect.width, b.rect.height,
-                                   b.error, b.converged});
-                shape.push_back(
-                    {b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.converged});
-            }
-            std::string& last_shape = bucket_shapes_[r.id()];
-            if (!buckets.empty() && shape.dump() != last_shape) {
-                rec.buckets_json = buckets.dump();
-                last_shape = shape.dump();
-            }
-            rec.created_at = unix_millis_now();
-            // The round is recorded before the checkpoint that includes it: a crash
-            // between the two re-runs the round, and recording it again is a no-op.
-            backlog_.submit(
-                "record round " + std::to_string(round.index) + " of " + r.id(),
-                [this, rec] { store_->add_round(rec); });
-            CheckpointTiming& timing = checkpoint_timing_[r.id()];
-            if (!timing.in_flight &&
-                checkpoint_due(std::chrono::duration<double>(
-                                   std::chrono::steady_clock::now() - timing.ended)
-                                   .count(),
-                               timing.cost_seconds)) {
-                // A copy of the buffers, taken here (far cheaper than writing them), is
-                // written by the backlog's thread after the round's record, outside the
-                // lock. One copy per render waits at a time: a due checkpoint meanwhile
-                // is skipped, and the next round's tries again.
-                struct Pending {
-                    Checkpoint cp;
-                    bool saved = false;
-                };
-                auto pending = std::make_shared<Pending>(
-                    Pending{{r.merged(), r.strategy().save_state(), r.rounds_done(),
-                             round.seconds},
-                            false});
-                timing.in_flight = true;
-                backlog_.submit(
-                    "record the progress of " + r.id(),
-                    [this, id = r.id(), samples = int64_t(round.samples_total), pending] {
-                        const auto start = std::chrono::steady_clock::now();
-                        if (!pending->saved) {
-                            try {
-                                save_checkpoint(render_dir(id) / "checkpoint.bin",
-                                                pending->cp);
-                                pending->saved = true;
-                            } catch (const std::exception& e) {
-                                // The render goes on; the next round's checkpoint tries
-                                // again.
-                                log_error("cannot checkpoint " + id + ": " + e.what());
-                            }
-                        }
-                        const auto end = std::chrono::steady_clock::now();
-                        {
-                            std::lock_guard lock(mutex_);
-                            if (auto it = checkpoint_timing_.find(id);
-                                it != checkpoint_timing_.end()) {
-                                it->second.in_flight = false;
-                                if (pending->saved) {
-                                    it->second.ended = end;
-                                    it->second.cost_seconds =
-                                        std::chrono::duration<double>(end - start)
-                                            .count();
-                                }
-                            }
-                        }
-                        // Throws on a full disk: retried, without writing the file again.
-                        if (pending->saved)
-                            store_->update_render_progress(
-                                id, samples, pending->cp.strategy_state.dump());
-                    });
-            }
-        } catch (const std::exception& e) {
-            // The render goes on; the next round's checkpoint tries again.
-            log_error("cannot checkpoint round " + std::to_string(round.index) + " of " +
-                      r.id() + ": " + e.what());
-        }
+        record_round(r, round);
     };
-    s->on_finished = [this](RenderSession& r) {
-        checkpoint_timing_.erase(r.id());
-        if (!store_) return;  // the embedded render keeps its session: no disk to read
-        // The session stays in memory until this is written, so a retry finds its
-        // buffers; then this write drops it. A finished session changes no more, so the
-        // backlog's thread reads it without the lock; only this write removes it.
-        backlog_.submit("record the end of " + r.id(), [this, id = r.id(), done = &r] {
-            write_exr(render_dir(id) / "image.exr", done->merged().image(true));
-            // What info() reads back once the session is gone: the final samples, and
-            // in the outcome the rays and seconds the store has no column for.
-            store_->update_render_progress(id, int64_t(done->merged().total_samples()),
-                                           done->strategy().save_state().dump());
-            nlohmann::json outcome = done->strategy().outcome();
-            if (outcome.is_object())
-                outcome[kFinalKey] = {{"rays", done->merged().total_rays()},
-                                      {"seconds", done->seconds()}};
-            store_->finish_render(id, done->state(), outcome.dump(), unix_millis_now());
-            if (!done->error().empty())
-                store_->update_render_state(id, done->state(), done->error(),
-                                            unix_millis_now());
-            std::lock_guard lock(mutex_);
-            evict(id);
-        });
-    };
+    s->on_finished = [this](RenderSession& r) { record_end(r); };
     order_.push_back(s->id());
     sessions_[s->id()] = std::move(session);
     s->start();
@@ -240,6 +123,128 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
             store_->update_render_state(id, RenderState::Running, "", unix_millis_now());
         });
     changed();
+}
+
+void Coordinator::record_round(RenderSession& r, const RoundSummary& round) {
+    round_history_[r.id()].push_back(round);  // for rounds(): see the end of this file
+    if (!store_) return;
+    try {
+        RoundRecord rec;
+        rec.render_id = r.id();
+        rec.idx = round.index;
+        rec.samples_in_round = int64_t(round.samples_in_round);
+        rec.samples_total = int64_t(round.samples_total);
+        rec.seconds = round.seconds;
+        rec.error_estimate = round.error_estimate;
+        if (round.error_vs_reference >= 0)
+            rec.error_vs_reference = round.error_vs_reference;
+        // Buckets are stored when their layout changes, not every round: Dammertz
+        // runs thousands of rounds over hundreds of buckets, and the database would
+        // grow by megabytes a render. A round without buckets_json keeps the previous
+        // layout.
+        nlohmann::json buckets = nlohmann::json::array(), shape = nlohmann::json::array();
+        for (const Bucket& b : r.strategy().buckets()) {
+            buckets.push_back(
+                {b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.error, b.converged});
+            shape.push_back(
+                {b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.converged});
+        }
+        std::string& last_shape = bucket_shapes_[r.id()];
+        if (!buckets.empty() && shape.dump() != last_shape) {
+            rec.buckets_json = buckets.dump();
+            last_shape = shape.dump();
+        }
+        rec.created_at = unix_millis_now();
+        // The round is recorded before the checkpoint that includes it: a crash
+        // between the two re-runs the round, and recording it again is a no-op.
+        backlog_.submit("record round " + std::to_string(round.index) + " of " + r.id(),
+                        [this, rec] { store_->add_round(rec); });
+        queue_checkpoint(r, round);
+    } catch (const std::exception& e) {
+        // The render goes on; the next round's checkpoint tries again.
+        log_error("cannot checkpoint round " + std::to_string(round.index) + " of " +
+                  r.id() + ": " + e.what());
+    }
+}
+
+// Called under the lock, after the round's record is queued; may throw (the caller logs).
+void Coordinator::queue_checkpoint(RenderSession& r, const RoundSummary& round) {
+    CheckpointTiming& timing = checkpoint_timing_[r.id()];
+    if (!timing.in_flight &&
+        checkpoint_due(
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - timing.ended)
+                .count(),
+            timing.cost_seconds)) {
+        // A copy of the buffers, taken here (far cheaper than writing them), is
+        // written by the backlog's thread after the round's record, outside the
+        // lock. One copy per render waits at a time: a due checkpoint meanwhile
+        // is skipped, and the next round's tries again.
+        struct Pending {
+            Checkpoint cp;
+            bool saved = false;
+        };
+        auto pending = std::make_shared<Pending>(Pending{
+            {r.merged(), r.strategy().save_state(), r.rounds_done(), round.seconds},
+            false});
+        timing.in_flight = true;
+        backlog_.submit(
+            "record the progress of " + r.id(),
+            [this, id = r.id(), samples = int64_t(round.samples_total), pending] {
+                const auto start = std::chrono::steady_clock::now();
+                if (!pending->saved) {
+                    try {
+                        save_checkpoint(render_dir(id) / "checkpoint.bin", pending->cp);
+                        pending->saved = true;
+                    } catch (const std::exception& e) {
+                        // The render goes on; the next round's checkpoint tries
+                        // again.
+                        log_error("cannot checkpoint " + id + ": " + e.what());
+                    }
+                }
+                const auto end = std::chrono::steady_clock::now();
+                {
+                    std::lock_guard lock(mutex_);
+                    if (auto it = checkpoint_timing_.find(id);
+                        it != checkpoint_timing_.end()) {
+                        it->second.in_flight = false;
+                        if (pending->saved) {
+                            it->second.ended = end;
+                            it->second.cost_seconds =
+                                std::chrono::duration<double>(end - start).count();
+                        }
+                    }
+                }
+                // Throws on a full disk: retried, without writing the file again.
+                if (pending->saved)
+                    store_->update_render_progress(id, samples,
+                                                   pending->cp.strategy_state.dump());
+            });
+    }
+}
+
+void Coordinator::record_end(RenderSession& r) {
+    checkpoint_timing_.erase(r.id());
+    if (!store_) return;  // the embedded render keeps its session: no disk to read
+    // The session stays in memory until this is written, so a retry finds its
+    // buffers; then this write drops it. A finished session changes no more, so the
+    // backlog's thread reads it without the lock; only this write removes it.
+    backlog_.submit("record the end of " + r.id(), [this, id = r.id(), done = &r] {
+        write_exr(render_dir(id) / "image.exr", done->merged().image(true));
+        // What info() reads back once the session is gone: the final samples, and
+        // in the outcome the rays and seconds the store has no column for.
+        store_->update_render_progress(id, int64_t(done->merged().total_samples()),
+                                       done->strategy().save_state().dump());
+        nlohmann::json outcome = done->strategy().outcome();
+        if (outcome.is_object())
+            outcome[kFinalKey] = {{"rays", done->merged().total_rays()},
+                                  {"seconds", done->seconds()}};
+        store_->finish_render(id, done->state(), outcome.dump(), unix_millis_now());
+        if (!done->error().empty())
+            store_->update_render_state(id, done->state(), done->error(),
+                                        unix_millis_now());
+        std::lock_guard lock(mutex_);
+        evict(id);
+    });
 }
 
 std::string Coordinator::claim_render_id() {

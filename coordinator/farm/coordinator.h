@@ -138,6 +138,10 @@ private:
     };
 
     void resume_unfinished();
+    // A session's round and end, queued on the backlog (attach wires them).
+    void record_round(RenderSession& r, const RoundSummary& round);
+    void queue_checkpoint(RenderSession& r, const RoundSummary& round);
+    void record_end(RenderSession& r);
     uint64_t first_free_render_number() const;
     std::string claim_render_id();
     void attach(std::unique_ptr<RenderSession> session);
