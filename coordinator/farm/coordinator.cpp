@@ -1,5 +1,6 @@
 #include "coordinator.h"
 
+#include <malloc.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -854,6 +855,10 @@ void Coordinator::evict(const std::string& id) {
     round_history_.erase(id);
     bucket_shapes_.erase(id);
     checkpoint_timing_.erase(id);
+    // glibc keeps freed pages of its arenas for reuse; a finished render's buffers are
+    // tens of megabytes, and given back they let the coordinator's size follow its live
+    // renders rather than its busiest moment.
+    malloc_trim(0);
     changed();
 }
 
