@@ -17,6 +17,7 @@
 #include <fstream>
 #include <thread>
 
+#include "http_api.h"
 #include "png_encoder.h"
 
 namespace aliquot {
@@ -102,7 +103,9 @@ RawStream open_stream(int port, const std::string& path = "/api/events") {
     addr.sin_port = htons(uint16_t(port));
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     if (::connect(s.fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return s;
-    const std::string request = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    const std::string request = "GET " + path +
+                                " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                                "\r\n\r\n";
     if (::send(s.fd, request.data(), request.size(), MSG_NOSIGNAL) < 0) return s;
     char buffer[4096];
     std::string got;
@@ -252,7 +255,10 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
     const std::vector<Case> cases = {
         {"GET", "/api/renders/r-999999", "", 404},
         {"GET", "/api/renders/" + std::string(500, 'x'), "", 404},
-        {"POST", "/api/renders/r-999999/cancel", "", 404},
+        {"POST", "/api/renders/r-999999/cancel", "{}", 404},
+        {"POST", "/api/renders/" + id + "/cancel", "", 400},
+        {"POST", "/api/renders/" + id + "/cancel", "[]", 400},
+        {"POST", "/api/renders/" + id + "/cancel", R"({"now":true})", 400},
         {"GET", "/api/renders/r-999999/rounds", "", 404},
         {"GET", "/api/renders/r-999999/preview.png", "", 404},
         {"GET", "/api/renders/r-999999/maps?kind=spp", "", 404},
@@ -372,12 +378,114 @@ TEST_F(HttpServerTest, RoundsPreviewMapsAndBucketsFollowTheRender) {
 TEST_F(HttpServerTest, CancelStopsARender) {
     const std::string id = submit({{"resolution", "16x16"}, {"strategy", {{"spp", 64}}}});
     fake_jobs(*coordinator_, "w1", 1);
-    const json r = post_json("/api/renders/" + id + "/cancel", "", 200);
+    const json r = post_json("/api/renders/" + id + "/cancel", "{}", 200);
     EXPECT_EQ(r["state"], "cancelled");
     EXPECT_EQ(get_json("/api/renders/" + id)["state"], "cancelled");
     EXPECT_EQ(fake_jobs(*coordinator_, "w1"), 0u);
     // Cancelling again is harmless.
-    EXPECT_EQ(post_json("/api/renders/" + id + "/cancel", "", 200)["state"], "cancelled");
+    EXPECT_EQ(post_json("/api/renders/" + id + "/cancel", "{}", 200)["state"],
+              "cancelled");
+}
+
+// Issue 13: what another site's page can make a browser send is refused before any
+// handler, file or body, with a JSON error.
+TEST_F(HttpServerTest, CrossSiteRequestsAreRefused) {
+    const std::string port = std::to_string(server_->port());
+    const std::string body = R"({"resolution":"8x8","strategy":{"spp":2}})";
+    const auto expect = [&](const httplib::Result& res, int status,
+                            const std::string& what) {
+        ASSERT_TRUE(res) << what;
+        EXPECT_EQ(res->status, status) << what << ": " << res->body;
+        if (status >= 400) {
+            const json j = json::parse(res->body, nullptr, false);
+            EXPECT_TRUE(j.is_object() && j["error"].is_string())
+                << what << ": " << res->body;
+        }
+    };
+    // A "simple" cross-site form post: text/plain, no preflight.
+    expect(client_->Post("/api/renders", {{"Origin", "http://evil.example"}}, body,
+                         "text/plain"),
+           403, "text/plain from another origin");
+    expect(client_->Post("/api/renders", body, "text/plain"), 415, "text/plain");
+    expect(client_->Post("/api/renders", body, "application/x-www-form-urlencoded"), 415,
+           "form");
+    expect(client_->Post("/api/renders", {{"Origin", "http://evil.example"}}, body,
+                         "application/json"),
+           403, "JSON from another origin");
+    expect(client_->Post("/api/renders", {{"Origin", "null"}}, body, "application/json"),
+           403, "opaque origin");
+    expect(client_->Post("/api/renders", {{"Origin", "http://127.0.0.1:1"}}, body,
+                         "application/json"),
+           403, "another port");
+    expect(client_->Put("/api/renders", body, "text/plain"), 415, "PUT");
+    expect(client_->Delete("/api/renders/r-000001"), 415, "DELETE without a type");
+    EXPECT_EQ(get_json("/api/renders")["renders"].size(), 0u);
+    // Cancel: empty body, wrong type, foreign origin.
+    const std::string id = submit(json::parse(body));
+    expect(client_->Post(("/api/renders/" + id + "/cancel").c_str(), "", "text/plain"),
+           415, "cancel as text");
+    expect(client_->Post(("/api/renders/" + id + "/cancel").c_str(),
+                         {{"Origin", "http://evil.example"}}, "{}", "application/json"),
+           403, "cancel from another origin");
+    EXPECT_NE(get_json("/api/renders/" + id)["state"], "cancelled");
+    // The dashboard's own requests: same origin, JSON, charset allowed.
+    expect(client_->Post("/api/renders", {{"Origin", "http://127.0.0.1:" + port}}, body,
+                         "application/json; charset=utf-8"),
+           201, "same origin");
+    expect(
+        client_->Post(("/api/renders/" + id + "/cancel").c_str(),
+                      {{"Origin", "http://127.0.0.1:" + port}}, "{}", "application/json"),
+        200, "same-origin cancel");
+    // DNS rebinding: a foreign name in Host gets nothing, files included; /healthz
+    // answers probes whatever their Host.
+    for (const std::string path : {"/api/renders", "/", "/api/workers", "/api/events"})
+        expect(client_->Get(path.c_str(), {{"Host", "evil.example:" + port}}), 403, path);
+    expect(client_->Post("/api/renders", {{"Host", "evil.example:" + port}}, body,
+                         "application/json"),
+           403, "POST with a foreign Host");
+    expect(client_->Get("/api/renders", {{"Host", "127.0.0.2:" + port}}), 403,
+           "another address");
+    expect(client_->Get("/healthz", {{"Host", "10.0.0.7:8080"}}), 200, "probe");
+    for (const std::string host : {"localhost:" + port, "LOCALHOST.:" + port,
+                                   "[::1]:" + port, "127.0.0.1:" + port})
+        expect(client_->Get("/api/renders", {{"Host", host}}), 200, host);
+}
+
+TEST(HttpServerHosts, AllowListAndListenAddressDecideTheHost) {
+    using http_api::HostPolicy;
+    const HostPolicy loop("127.0.0.1", 8080, {});
+    EXPECT_TRUE(loop.allows("127.0.0.1:8080"));
+    EXPECT_TRUE(loop.allows("localhost:8080"));
+    EXPECT_TRUE(loop.allows("localhost:18080"));  // forwarded ports
+    EXPECT_TRUE(loop.allows("localhost"));
+    EXPECT_FALSE(loop.allows("10.0.0.1:8080"));
+    EXPECT_FALSE(loop.allows("coordinator:8080"));
+    EXPECT_FALSE(loop.allows(""));
+    EXPECT_FALSE(loop.allows("localhost:8080/x"));
+    EXPECT_FALSE(loop.allows("localhost:99999"));
+    const HostPolicy any("0.0.0.0", 8080, {"coordinator:8080", "Aliquot-Coordinator"});
+    EXPECT_TRUE(any.allows("coordinator:8080"));
+    EXPECT_FALSE(any.allows("coordinator:9090"));
+    EXPECT_FALSE(any.allows("coordinator"));  // port 80
+    EXPECT_TRUE(any.allows("aliquot-coordinator"));
+    EXPECT_TRUE(any.allows("aliquot-coordinator:31000"));
+    EXPECT_TRUE(any.allows("192.168.1.20:18080"));  // a published port may differ
+    EXPECT_TRUE(any.allows("[fe80::1]:8080"));
+    EXPECT_FALSE(any.allows("evil.example:8080"));
+    EXPECT_FALSE(any.allows("127.0.0.1.evil.example:8080"));
+    const HostPolicy named("10.1.2.3", 8080, {});
+    EXPECT_TRUE(named.allows("10.1.2.3:8080"));
+    EXPECT_FALSE(named.allows("10.1.2.4:8080"));
+    EXPECT_FALSE(named.allows("localhost:8080"));
+    EXPECT_THROW(HostPolicy("0.0.0.0", 1, {"http://x"}), std::invalid_argument);
+    EXPECT_THROW(HostPolicy("0.0.0.0", 1, {""}), std::invalid_argument);
+    EXPECT_THROW(HostPolicy("0.0.0.0", 1, {"a b"}), std::invalid_argument);
+    EXPECT_TRUE(http_api::is_json_content_type("Application/JSON ; charset=utf-8"));
+    EXPECT_FALSE(http_api::is_json_content_type("application/jsonp"));
+    EXPECT_FALSE(http_api::is_json_content_type(""));
+    EXPECT_TRUE(http_api::origin_matches_host("http://Example.org", "example.org:80"));
+    EXPECT_FALSE(http_api::origin_matches_host("https://example.org", "example.org"));
+    EXPECT_FALSE(http_api::origin_matches_host("http://example.org.evil", "example.org"));
 }
 
 TEST_F(HttpServerTest, WorkersShowStateAndLeases) {
