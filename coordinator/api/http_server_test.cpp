@@ -17,8 +17,14 @@
 #include <fstream>
 #include <thread>
 
+#include <grpcpp/grpcpp.h>
+#include <sys/stat.h>
+
+#include "aliquot.grpc.pb.h"
+#include "grpc_server.h"
 #include "http_api.h"
 #include "png_encoder.h"
+#include "scene_loader.h"
 
 namespace aliquot {
 namespace {
@@ -486,6 +492,61 @@ TEST(HttpServerHosts, AllowListAndListenAddressDecideTheHost) {
     EXPECT_TRUE(http_api::origin_matches_host("http://Example.org", "example.org:80"));
     EXPECT_FALSE(http_api::origin_matches_host("https://example.org", "example.org"));
     EXPECT_FALSE(http_api::origin_matches_host("http://example.org.evil", "example.org"));
+}
+
+// Issue 13: a submitted scene that names a mesh file is refused over gRPC without the
+// coordinator opening anything (a FIFO would block, /dev/zero never ends), and the error
+// carries no content; over HTTP only built-in scene names are accepted at all.
+TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-submitted-scene-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path fifo = dir / "fifo.obj";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::ofstream(dir / "secret.obj") << "v 1 the_admin_password 0\n";
+
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcServer grpc_server(coordinator, "127.0.0.1:0");
+    HttpServer http_server(coordinator, "127.0.0.1:0");
+    auto stub = v1::ClientService::NewStub(
+        grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_server.port()),
+                            grpc::InsecureChannelCredentials()));
+    json scene = json::parse(self_contained_scene_json("cornell-box"));
+    for (const std::string file :
+         {fifo.string(), std::string("/dev/zero.obj"), (dir / "secret.obj").string(),
+          std::string("../../x.obj")}) {
+        scene["shapes"][0] = {{"type", "mesh"}, {"material", "white"}, {"file", file}};
+        v1::SubmitRequest req;
+        req.set_scene_json(scene.dump());
+        req.set_scene_name("attack");
+        req.set_width(8);
+        req.set_height(8);
+        req.set_strategy_json(R"({"spp":1})");
+        v1::RenderInfo reply;
+        grpc::ClientContext ctx;
+        ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+        const grpc::Status status = stub->Submit(&ctx, req, &reply);
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+            << file << ": " << status.error_message();
+        EXPECT_EQ(status.error_message(),
+                  "attack: /shapes/0/file: mesh files are resolved by the client; a "
+                  "submitted scene carries its meshes inline (\"positions\" and "
+                  "\"triangles\")");
+    }
+    httplib::Client client("127.0.0.1", http_server.port());
+    client.set_read_timeout(5, 0);
+    for (const std::string name : {fifo.string(), (dir / "secret.obj").string()}) {
+        auto res =
+            client.Post("/api/renders", json{{"scene", name}}.dump(), "application/json");
+        ASSERT_TRUE(res) << name;
+        EXPECT_EQ(res->status, 400) << res->body;
+        EXPECT_EQ(res->body.find("admin_password"), std::string::npos) << res->body;
+    }
+    EXPECT_TRUE(coordinator.list(10).empty());
+    http_server.shutdown();
+    grpc_server.shutdown();
+    fs::remove_all(dir);
 }
 
 TEST_F(HttpServerTest, WorkersShowStateAndLeases) {
