@@ -359,7 +359,8 @@ def test_a_job_no_worker_can_trace_fails_the_render():
     # older coordinator would be): its scene gains a mesh by relative path, which a worker
     # started in another directory cannot open. Before, every worker abandoned and
     # re-leased the job at once, thousands of log lines a second, the render running at 0
-    # samples forever.
+    # samples forever. Since issue 13 no worker opens a mesh file at all: each refuses the
+    # scene's "file" by its JSON pointer, and the render fails the same way.
     farm = Farm("fail-everywhere")
     beside = os.path.join(farm.dir, "coordinator-cwd")
     elsewhere = os.path.join(farm.dir, "worker-cwd")
@@ -396,7 +397,8 @@ def test_a_job_no_worker_can_trace_fails_the_render():
         final = farm.wait_until(render_id, lambda s: s["state"] != "running", timeout=60)
         took = time.time() - start
         assert final["state"] == "failed", final
-        assert re.match(r"job \d+,\d+ \d+x\d+ failed( \d+ times)? on [23] workers: .*tri\.obj",
+        assert re.match(r"job \d+,\d+ \d+x\d+ failed( \d+ times)? on [23] workers: "
+                        r".*/shapes/\d+/file: mesh files are resolved by the client",
                         final["error"]), final["error"]
         assert final["samples_done"] == 0, final
         print(f"     failed in {took:.1f}s: {final['error']}", flush=True)
@@ -408,7 +410,7 @@ def test_a_job_no_worker_can_trace_fails_the_render():
         assert {n: farm.log_lines(n) for n in farm.workers} == lines, "workers still logging"
         assert all(p.poll() is None for p in farm.workers.values()), "a worker died"
         text = run("status", render_id, "--coordinator", farm.addr).stdout
-        assert "failed" in text and "tri.obj" in text, text
+        assert "failed" in text and "resolved by the client" in text, text
         db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
         state, error = db.execute("SELECT state, error FROM renders WHERE id = ?",
                                   (render_id,)).fetchone()
