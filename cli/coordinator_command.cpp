@@ -76,6 +76,7 @@ struct CoordinatorCommand {
     std::string web_dir;       // empty: default_web_dir()
     std::vector<std::string>
         study_dirs;  // more places `aliquot study --out` wrote reports
+    std::vector<std::string> allowed_hosts;  // --allow-host
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
@@ -118,6 +119,7 @@ struct CoordinatorCommand {
             // Study reports: the data directory's, then the --studies directories or, by
             // default from a build tree, the source tree's docs/studies and out/ (where
             // `aliquot study` writes unless told otherwise).
+            http_options.allowed_hosts = allowed_hosts;
             http_options.study_dirs = {{"data", fs::path(data_dir) / "studies"}};
             const fs::path repo = executable_dir() / ".." / "..";
             if (!study_dirs.empty()) {
@@ -159,6 +161,10 @@ void register_coordinator(CLI::App& app) {
         "--studies", c->study_dirs,
         "a directory of study reports to list besides DATA/studies, instead of the "
         "source tree's docs/studies and out/ (repeatable)");
+    cmd->add_option("--allow-host", c->allowed_hosts,
+                    "a Host name the HTTP API answers besides its listen address, e.g. a "
+                    "compose or Kubernetes service name: NAME (any port) or NAME:PORT "
+                    "(repeatable; docs/SECURITY.md)");
     cmd->add_option("--web", c->web_dir,
                     "built dashboard directory (default: web/dist of the source tree)");
     cmd->add_option("--data", c->data_dir, "directory for SQLite, checkpoints, images")

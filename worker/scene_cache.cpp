@@ -16,7 +16,7 @@ std::shared_ptr<const LoadedScene> SceneCache::get(const std::string& hash,
     const std::optional<std::string> json = fetch(hash);
     if (!json) throw std::runtime_error("coordinator does not know scene " + hash);
     auto loaded = std::make_shared<LoadedScene>();
-    loaded->scene = parse_scene(*json, "scene:" + hash, ".");
+    loaded->scene = parse_submitted_scene(*json, "scene:" + hash);
     loaded->tracer = std::make_unique<PathTracer>(loaded->scene);
     std::lock_guard lock(mutex_);
     return scenes_.try_emplace(hash, std::move(loaded)).first->second;

@@ -1,5 +1,6 @@
 #include "http_api.h"
 
+#include <arpa/inet.h>
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -274,6 +275,148 @@ std::string base64(const std::string& in) {
         out += '=';
     }
     return out;
+}
+
+// ---- cross-site requests ----
+
+namespace {
+
+std::string lower(std::string s) {
+    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+struct HostPort {
+    std::string name;  // lower case, IPv6 in brackets, no trailing dot
+    int port = -1;     // -1: none given
+};
+
+bool valid_name_char(char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '.' ||
+           c == '_';
+}
+
+// "name", "name:port", "[v6]", "[v6]:port"; nullopt for anything else.
+std::optional<HostPort> split_host(const std::string& text) {
+    const std::string h = lower(text);
+    HostPort out;
+    std::string rest;
+    if (!h.empty() && h[0] == '[') {
+        const size_t close = h.find(']');
+        if (close == std::string::npos) return std::nullopt;
+        out.name = h.substr(0, close + 1);
+        for (size_t i = 1; i < close; ++i)
+            if (!std::isxdigit(static_cast<unsigned char>(h[i])) && h[i] != ':' &&
+                h[i] != '.')
+                return std::nullopt;
+        rest = h.substr(close + 1);
+    } else {
+        const size_t colon = h.find(':');
+        out.name = h.substr(0, colon);
+        if (colon != std::string::npos) rest = h.substr(colon);
+        if (!out.name.empty() && out.name.back() == '.') out.name.pop_back();
+        for (char c : out.name)
+            if (!valid_name_char(c)) return std::nullopt;
+    }
+    if (out.name.empty() || out.name == "[]") return std::nullopt;
+    if (!rest.empty()) {
+        if (rest[0] != ':' || rest.size() < 2 || rest.size() > 6) return std::nullopt;
+        int port = 0;
+        for (size_t i = 1; i < rest.size(); ++i) {
+            if (!std::isdigit(static_cast<unsigned char>(rest[i]))) return std::nullopt;
+            port = port * 10 + (rest[i] - '0');
+        }
+        if (port > 65535) return std::nullopt;
+        out.port = port;
+    }
+    return out;
+}
+
+bool is_ip_literal(const std::string& name) {
+    if (name.size() >= 2 && name.front() == '[') {
+        in6_addr a6;
+        return inet_pton(AF_INET6, name.substr(1, name.size() - 2).c_str(), &a6) == 1;
+    }
+    in_addr a4;
+    return inet_pton(AF_INET, name.c_str(), &a4) == 1;
+}
+
+}  // namespace
+
+HostPolicy::HostPolicy(const std::string& listen_host, int port,
+                       const std::vector<std::string>& allowed) {
+    std::string host = lower(listen_host);
+    if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+        host = host.substr(1, host.size() - 2);
+    const bool wildcard = host.empty() || host == "0.0.0.0" || host == "::";
+    const bool loopback =
+        host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+    if (!wildcard)
+        entries_.push_back(
+            {host.find(':') != std::string::npos ? "[" + host + "]" : host, port});
+    if (wildcard || loopback)
+        for (const char* name : {"localhost", "127.0.0.1", "[::1]"})
+            entries_.push_back({name, -1});
+    any_ip_literal_ = wildcard;
+    for (const std::string& entry : allowed) {
+        const auto hp = split_host(entry);
+        if (!hp || entry.find_first_of("/ \t") != std::string::npos)
+            throw std::invalid_argument(
+                "allowed host: expected NAME or NAME:PORT, got \"" + entry + "\"");
+        entries_.push_back({hp->name, hp->port});
+    }
+}
+
+bool HostPolicy::allows(const std::string& host_header) const {
+    const auto hp = split_host(host_header);
+    if (!hp) return false;
+    if (any_ip_literal_ && is_ip_literal(hp->name)) return true;
+    const int port = hp->port < 0 ? 80 : hp->port;  // no port: HTTP's default
+    for (const Entry& e : entries_)
+        if (e.name == hp->name && (e.port < 0 || e.port == port)) return true;
+    return false;
+}
+
+std::string HostPolicy::describe() const {
+    // Built with append: GCC 12 warns falsely (-Wrestrict) on "literal" + std::string.
+    std::string out;
+    for (const Entry& e : entries_) {
+        if (!out.empty()) out.append(", ");
+        out.append(e.name);
+        if (e.port < 0)
+            out.append(" (any port)");
+        else
+            out.append(":").append(std::to_string(e.port));
+    }
+    if (any_ip_literal_) out.append(out.empty() ? "" : ", ").append("any IP address");
+    return out;
+}
+
+bool is_json_content_type(const std::string& content_type) {
+    std::string type = lower(content_type.substr(0, content_type.find(';')));
+    const auto not_space = [](char c) { return c != ' ' && c != '\t'; };
+    type.erase(type.begin(), std::find_if(type.begin(), type.end(), not_space));
+    type.erase(std::find_if(type.rbegin(), type.rend(), not_space).base(), type.end());
+    return type == "application/json";
+}
+
+bool origin_matches_host(const std::string& origin, const std::string& host) {
+    const auto drop_default_port = [](std::string s) {
+        if (s.size() > 3 && s.compare(s.size() - 3, 3, ":80") == 0)
+            s.resize(s.size() - 3);
+        return s;
+    };
+    if (host.empty()) return false;
+    return drop_default_port(lower(origin)) == "http://" + drop_default_port(lower(host));
+}
+
+void parse_cancel_request(const std::string& body) {
+    const json doc = json::parse(body, nullptr, false);
+    if (doc.is_discarded() || !doc.is_object())
+        throw ApiError(400, "expected a JSON object as the body: {}");
+    if (!doc.empty())
+        throw ApiError(400, "unknown field '" + doc.begin().key().substr(0, 64) +
+                                "'; cancel takes none");
 }
 
 }  // namespace aliquot::http_api

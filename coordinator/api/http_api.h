@@ -60,4 +60,46 @@ double number_param(const std::string& name, const std::string& text, double lo,
 
 std::string base64(const std::string& bytes);
 
+// ---- cross-site requests (docs/SECURITY.md) ----
+
+// Which Host headers the server answers, against DNS rebinding: a page on an attacker's
+// name that resolves to this server sends that name as Host and is refused.
+//   - the listen address itself, host:port (IPv6 as [addr]:port);
+//   - localhost, 127.0.0.1 and [::1] on any port, when listening on loopback or on every
+//     interface (0.0.0.0, ::, or no host): a foreign page cannot be served under these
+//     names, and a forwarded or published port (kubectl port-forward, docker -p) may
+//     differ from the one listened on;
+//   - when listening on every interface, any IP literal on any port: a rebinding needs a
+//     DNS name, and a published or forwarded port may differ from the one listened on;
+//   - each allowed entry: "NAME" (that name on any port) or "NAME:PORT" (that port only).
+// Names compare case-insensitively, with a trailing dot ignored.
+class HostPolicy {
+public:
+    // Throws std::invalid_argument for an allowed entry that is not NAME or NAME:PORT.
+    HostPolicy(const std::string& listen_host, int port,
+               const std::vector<std::string>& allowed);
+    bool allows(const std::string& host_header) const;
+    // What is allowed, for the refusal's message.
+    std::string describe() const;
+
+private:
+    struct Entry {
+        std::string name;
+        int port;  // -1: any
+    };
+    std::vector<Entry> entries_;
+    bool any_ip_literal_ = false;
+};
+
+// Whether a Content-Type header names application/json (parameters such as charset
+// allowed, case-insensitive).
+bool is_json_content_type(const std::string& content_type);
+
+// Whether an Origin header names the site the request's Host header names, served over
+// plain HTTP: "http://" + host, ignoring case and a default :80.
+bool origin_matches_host(const std::string& origin, const std::string& host);
+
+// The body of POST /api/renders/{id}/cancel: a JSON object with no fields, "{}".
+void parse_cancel_request(const std::string& body);
+
 }  // namespace aliquot::http_api

@@ -131,6 +131,7 @@ struct HttpServer::Impl {
     Coordinator& coordinator;
     HttpOptions options;
     httplib::Server server;
+    std::optional<http_api::HostPolicy> hosts;  // set in start(), once the port is known
     EventHub hub;
     std::thread listener, broadcaster;
     int port = 0;
@@ -463,7 +464,47 @@ struct HttpServer::Impl {
         };
     }
 
+    // Before any route, file or body: refuses requests another site's page could make
+    // (docs/SECURITY.md, "Cross-site requests"). A refused request's body is never read,
+    // so its connection is closed.
+    httplib::Server::HandlerResponse refuse(httplib::Response& res, int status,
+                                            const std::string& message) {
+        res.set_header("Connection", "close");
+        send_error(res, status, message);
+        return httplib::Server::HandlerResponse::Handled;
+    }
+    httplib::Server::HandlerResponse cross_site_check(const httplib::Request& req,
+                                                      httplib::Response& res) {
+        // Probes (Docker, Kubernetes) name the container or pod by its IP or not at all;
+        // /healthz answers {"ok": true} only, which tells a rebinding page nothing.
+        if (req.path == "/healthz") return httplib::Server::HandlerResponse::Unhandled;
+        const std::string host = req.get_header_value("Host");
+        if (!hosts->allows(host))
+            return refuse(res, 403,
+                          "Host header \"" + host.substr(0, 100) +
+                              "\" is not this server's (allowed: " + hosts->describe() +
+                              "; add names with --allow-host)");
+        const bool mutating =
+            req.method != "GET" && req.method != "HEAD" && req.method != "OPTIONS";
+        if (mutating && req.has_header("Origin") &&
+            !http_api::origin_matches_host(req.get_header_value("Origin"), host))
+            return refuse(res, 403,
+                          "cross-origin request refused: Origin \"" +
+                              req.get_header_value("Origin").substr(0, 100) +
+                              "\" is not http://" + host);
+        if (mutating &&
+            !http_api::is_json_content_type(req.get_header_value("Content-Type")))
+            return refuse(
+                res, 415,
+                "a " + req.method + " request must have Content-Type: application/json");
+        return httplib::Server::HandlerResponse::Unhandled;
+    }
+
     void routes() {
+        server.set_pre_routing_handler(
+            [this](const httplib::Request& req, httplib::Response& res) {
+                return cross_site_check(req, res);
+            });
         render_routes();
         image_routes();
         other_routes();
@@ -498,6 +539,7 @@ struct HttpServer::Impl {
                    }));
         server.Post(R"(/api/renders/([^/]+)/cancel)",
                     guarded([this](const httplib::Request& req, auto& res) {
+                        http_api::parse_cancel_request(req.body);
                         render_or_404(req.matches[1]);
                         const auto info = coordinator.cancel(req.matches[1]);
                         if (!info)
@@ -678,6 +720,8 @@ struct HttpServer::Impl {
         server.new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
         server.set_payload_max_length(1 << 20);
         server.set_keep_alive_timeout(5);
+        http_api::HostPolicy(host, wanted,
+                             options.allowed_hosts);  // throws on a bad entry
         routes();
         if (wanted == 0) {
             port = server.bind_to_any_port(host);
@@ -687,6 +731,7 @@ struct HttpServer::Impl {
                 throw std::runtime_error("http: cannot listen on " + address);
             port = wanted;
         }
+        hosts.emplace(host, port, options.allowed_hosts);
         snapshot(false);  // later updates say what changed since now
         seen_storage_warning = coordinator.storage_warning();
         listener = std::thread([this] { server.listen_after_bind(); });

@@ -33,6 +33,10 @@ struct HttpOptions {
     // How often an idle event stream looks whether its client has left: a departed
     // client's thread is free again within about this long.
     std::chrono::milliseconds client_check_interval{250};
+    // Host names besides the listen address that requests may name in their Host header
+    // (a compose or Kubernetes service name): "NAME" on any port or "NAME:PORT". Every
+    // other Host is refused with 403 (docs/SECURITY.md, "Cross-site requests").
+    std::vector<std::string> allowed_hosts;
 };
 
 class HttpServer {

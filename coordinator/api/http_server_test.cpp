@@ -17,7 +17,14 @@
 #include <fstream>
 #include <thread>
 
+#include <grpcpp/grpcpp.h>
+#include <sys/stat.h>
+
+#include "aliquot.grpc.pb.h"
+#include "grpc_server.h"
+#include "http_api.h"
 #include "png_encoder.h"
+#include "scene_loader.h"
 
 namespace aliquot {
 namespace {
@@ -102,7 +109,9 @@ RawStream open_stream(int port, const std::string& path = "/api/events") {
     addr.sin_port = htons(uint16_t(port));
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     if (::connect(s.fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return s;
-    const std::string request = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+    const std::string request = "GET " + path +
+                                " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                                "\r\n\r\n";
     if (::send(s.fd, request.data(), request.size(), MSG_NOSIGNAL) < 0) return s;
     char buffer[4096];
     std::string got;
@@ -252,7 +261,10 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
     const std::vector<Case> cases = {
         {"GET", "/api/renders/r-999999", "", 404},
         {"GET", "/api/renders/" + std::string(500, 'x'), "", 404},
-        {"POST", "/api/renders/r-999999/cancel", "", 404},
+        {"POST", "/api/renders/r-999999/cancel", "{}", 404},
+        {"POST", "/api/renders/" + id + "/cancel", "", 400},
+        {"POST", "/api/renders/" + id + "/cancel", "[]", 400},
+        {"POST", "/api/renders/" + id + "/cancel", R"({"now":true})", 400},
         {"GET", "/api/renders/r-999999/rounds", "", 404},
         {"GET", "/api/renders/r-999999/preview.png", "", 404},
         {"GET", "/api/renders/r-999999/maps?kind=spp", "", 404},
@@ -372,12 +384,169 @@ TEST_F(HttpServerTest, RoundsPreviewMapsAndBucketsFollowTheRender) {
 TEST_F(HttpServerTest, CancelStopsARender) {
     const std::string id = submit({{"resolution", "16x16"}, {"strategy", {{"spp", 64}}}});
     fake_jobs(*coordinator_, "w1", 1);
-    const json r = post_json("/api/renders/" + id + "/cancel", "", 200);
+    const json r = post_json("/api/renders/" + id + "/cancel", "{}", 200);
     EXPECT_EQ(r["state"], "cancelled");
     EXPECT_EQ(get_json("/api/renders/" + id)["state"], "cancelled");
     EXPECT_EQ(fake_jobs(*coordinator_, "w1"), 0u);
     // Cancelling again is harmless.
-    EXPECT_EQ(post_json("/api/renders/" + id + "/cancel", "", 200)["state"], "cancelled");
+    EXPECT_EQ(post_json("/api/renders/" + id + "/cancel", "{}", 200)["state"],
+              "cancelled");
+}
+
+// Issue 13: what another site's page can make a browser send is refused before any
+// handler, file or body, with a JSON error.
+TEST_F(HttpServerTest, CrossSiteRequestsAreRefused) {
+    const std::string port = std::to_string(server_->port());
+    const std::string body = R"({"resolution":"8x8","strategy":{"spp":2}})";
+    const auto expect = [&](const httplib::Result& res, int status,
+                            const std::string& what) {
+        ASSERT_TRUE(res) << what;
+        EXPECT_EQ(res->status, status) << what << ": " << res->body;
+        if (status >= 400) {
+            const json j = json::parse(res->body, nullptr, false);
+            EXPECT_TRUE(j.is_object() && j["error"].is_string())
+                << what << ": " << res->body;
+        }
+    };
+    // A "simple" cross-site form post: text/plain, no preflight.
+    expect(client_->Post("/api/renders", {{"Origin", "http://evil.example"}}, body,
+                         "text/plain"),
+           403, "text/plain from another origin");
+    expect(client_->Post("/api/renders", body, "text/plain"), 415, "text/plain");
+    expect(client_->Post("/api/renders", body, "application/x-www-form-urlencoded"), 415,
+           "form");
+    expect(client_->Post("/api/renders", {{"Origin", "http://evil.example"}}, body,
+                         "application/json"),
+           403, "JSON from another origin");
+    expect(client_->Post("/api/renders", {{"Origin", "null"}}, body, "application/json"),
+           403, "opaque origin");
+    expect(client_->Post("/api/renders", {{"Origin", "http://127.0.0.1:1"}}, body,
+                         "application/json"),
+           403, "another port");
+    expect(client_->Put("/api/renders", body, "text/plain"), 415, "PUT");
+    expect(client_->Delete("/api/renders/r-000001"), 415, "DELETE without a type");
+    EXPECT_EQ(get_json("/api/renders")["renders"].size(), 0u);
+    // Cancel: empty body, wrong type, foreign origin.
+    const std::string id = submit(json::parse(body));
+    expect(client_->Post(("/api/renders/" + id + "/cancel").c_str(), "", "text/plain"),
+           415, "cancel as text");
+    expect(client_->Post(("/api/renders/" + id + "/cancel").c_str(),
+                         {{"Origin", "http://evil.example"}}, "{}", "application/json"),
+           403, "cancel from another origin");
+    EXPECT_NE(get_json("/api/renders/" + id)["state"], "cancelled");
+    // The dashboard's own requests: same origin, JSON, charset allowed.
+    expect(client_->Post("/api/renders", {{"Origin", "http://127.0.0.1:" + port}}, body,
+                         "application/json; charset=utf-8"),
+           201, "same origin");
+    expect(
+        client_->Post(("/api/renders/" + id + "/cancel").c_str(),
+                      {{"Origin", "http://127.0.0.1:" + port}}, "{}", "application/json"),
+        200, "same-origin cancel");
+    // DNS rebinding: a foreign name in Host gets nothing, files included; /healthz
+    // answers probes whatever their Host.
+    for (const std::string path : {"/api/renders", "/", "/api/workers", "/api/events"})
+        expect(client_->Get(path.c_str(), {{"Host", "evil.example:" + port}}), 403, path);
+    expect(client_->Post("/api/renders", {{"Host", "evil.example:" + port}}, body,
+                         "application/json"),
+           403, "POST with a foreign Host");
+    expect(client_->Get("/api/renders", {{"Host", "127.0.0.2:" + port}}), 403,
+           "another address");
+    expect(client_->Get("/healthz", {{"Host", "10.0.0.7:8080"}}), 200, "probe");
+    for (const std::string host : {"localhost:" + port, "LOCALHOST.:" + port,
+                                   "[::1]:" + port, "127.0.0.1:" + port})
+        expect(client_->Get("/api/renders", {{"Host", host}}), 200, host);
+}
+
+TEST(HttpServerHosts, AllowListAndListenAddressDecideTheHost) {
+    using http_api::HostPolicy;
+    const HostPolicy loop("127.0.0.1", 8080, {});
+    EXPECT_TRUE(loop.allows("127.0.0.1:8080"));
+    EXPECT_TRUE(loop.allows("localhost:8080"));
+    EXPECT_TRUE(loop.allows("localhost:18080"));  // forwarded ports
+    EXPECT_TRUE(loop.allows("localhost"));
+    EXPECT_FALSE(loop.allows("10.0.0.1:8080"));
+    EXPECT_FALSE(loop.allows("coordinator:8080"));
+    EXPECT_FALSE(loop.allows(""));
+    EXPECT_FALSE(loop.allows("localhost:8080/x"));
+    EXPECT_FALSE(loop.allows("localhost:99999"));
+    const HostPolicy any("0.0.0.0", 8080, {"coordinator:8080", "Aliquot-Coordinator"});
+    EXPECT_TRUE(any.allows("coordinator:8080"));
+    EXPECT_FALSE(any.allows("coordinator:9090"));
+    EXPECT_FALSE(any.allows("coordinator"));  // port 80
+    EXPECT_TRUE(any.allows("aliquot-coordinator"));
+    EXPECT_TRUE(any.allows("aliquot-coordinator:31000"));
+    EXPECT_TRUE(any.allows("192.168.1.20:18080"));  // a published port may differ
+    EXPECT_TRUE(any.allows("[fe80::1]:8080"));
+    EXPECT_FALSE(any.allows("evil.example:8080"));
+    EXPECT_FALSE(any.allows("127.0.0.1.evil.example:8080"));
+    const HostPolicy named("10.1.2.3", 8080, {});
+    EXPECT_TRUE(named.allows("10.1.2.3:8080"));
+    EXPECT_FALSE(named.allows("10.1.2.4:8080"));
+    EXPECT_FALSE(named.allows("localhost:8080"));
+    EXPECT_THROW(HostPolicy("0.0.0.0", 1, {"http://x"}), std::invalid_argument);
+    EXPECT_THROW(HostPolicy("0.0.0.0", 1, {""}), std::invalid_argument);
+    EXPECT_THROW(HostPolicy("0.0.0.0", 1, {"a b"}), std::invalid_argument);
+    EXPECT_TRUE(http_api::is_json_content_type("Application/JSON ; charset=utf-8"));
+    EXPECT_FALSE(http_api::is_json_content_type("application/jsonp"));
+    EXPECT_FALSE(http_api::is_json_content_type(""));
+    EXPECT_TRUE(http_api::origin_matches_host("http://Example.org", "example.org:80"));
+    EXPECT_FALSE(http_api::origin_matches_host("https://example.org", "example.org"));
+    EXPECT_FALSE(http_api::origin_matches_host("http://example.org.evil", "example.org"));
+}
+
+// Issue 13: a submitted scene that names a mesh file is refused over gRPC without the
+// coordinator opening anything (a FIFO would block, /dev/zero never ends), and the error
+// carries no content; over HTTP only built-in scene names are accepted at all.
+TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-submitted-scene-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path fifo = dir / "fifo.obj";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    std::ofstream(dir / "secret.obj") << "v 1 the_admin_password 0\n";
+
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcServer grpc_server(coordinator, "127.0.0.1:0");
+    HttpServer http_server(coordinator, "127.0.0.1:0");
+    auto stub = v1::ClientService::NewStub(
+        grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_server.port()),
+                            grpc::InsecureChannelCredentials()));
+    json scene = json::parse(self_contained_scene_json("cornell-box"));
+    for (const std::string file :
+         {fifo.string(), std::string("/dev/zero.obj"), (dir / "secret.obj").string(),
+          std::string("../../x.obj")}) {
+        scene["shapes"][0] = {{"type", "mesh"}, {"material", "white"}, {"file", file}};
+        v1::SubmitRequest req;
+        req.set_scene_json(scene.dump());
+        req.set_scene_name("attack");
+        req.set_width(8);
+        req.set_height(8);
+        req.set_strategy_json(R"({"spp":1})");
+        v1::RenderInfo reply;
+        grpc::ClientContext ctx;
+        ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+        const grpc::Status status = stub->Submit(&ctx, req, &reply);
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+            << file << ": " << status.error_message();
+        EXPECT_EQ(status.error_message(),
+                  "attack: /shapes/0/file: mesh files are resolved by the client; a "
+                  "submitted scene carries its meshes inline (\"positions\" and "
+                  "\"triangles\")");
+    }
+    httplib::Client client("127.0.0.1", http_server.port());
+    client.set_read_timeout(5, 0);
+    for (const std::string name : {fifo.string(), (dir / "secret.obj").string()}) {
+        auto res =
+            client.Post("/api/renders", json{{"scene", name}}.dump(), "application/json");
+        ASSERT_TRUE(res) << name;
+        EXPECT_EQ(res->status, 400) << res->body;
+        EXPECT_EQ(res->body.find("admin_password"), std::string::npos) << res->body;
+    }
+    EXPECT_TRUE(coordinator.list(10).empty());
+    http_server.shutdown();
+    grpc_server.shutdown();
+    fs::remove_all(dir);
 }
 
 TEST_F(HttpServerTest, WorkersShowStateAndLeases) {

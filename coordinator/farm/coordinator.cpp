@@ -263,8 +263,8 @@ std::string Coordinator::claim_render_id() {
 std::string Coordinator::submit(RenderSpec spec) {
     validate(spec, options_.max_side);
     // Parse now so a broken scene is the submitter's error, not every worker's.
-    parse_scene(spec.scene_json, spec.scene_name.empty() ? "scene" : spec.scene_name,
-                ".");
+    parse_submitted_scene(spec.scene_json,
+                          spec.scene_name.empty() ? "scene" : spec.scene_name);
     const std::string hash = scene_hash(spec.scene_json);
     std::lock_guard lock(mutex_);
     // Before anything is claimed or written: a refused render leaves no trace.

@@ -7,6 +7,7 @@
 // Usage: node e2e.mjs path/to/aliquot [output-dir]   (run.sh installs what it needs)
 import { spawn } from "node:child_process";
 import fs from "node:fs";
+import http from "node:http";
 import net from "node:net";
 import os from "node:os";
 import path from "node:path";
@@ -143,6 +144,38 @@ await check("coordinator serves the API and the built dashboard", async () => {
   assert(index.includes("<title>Aliquot</title>"), "GET / is not the dashboard");
   worker = start("worker", ["worker", "--coordinator", `127.0.0.1:${grpcPort}`, "--threads", "1", "--name", "e2e-worker"]);
   await waitFor(async () => (await api("/api/workers")).workers.length === 1, { what: "the worker to register" });
+});
+
+// Issue 13: what another site's page could make a browser send is refused.
+function rawRequest(method, pathname, headers, body = "") {
+  return new Promise((resolve, reject) => {
+    const req = http.request({ host: "127.0.0.1", port: httpPort, method, path: pathname, headers }, (res) => {
+      let text = "";
+      res.on("data", (d) => (text += d));
+      res.on("end", () => resolve({ status: res.statusCode, body: text }));
+    });
+    req.on("error", reject);
+    req.end(body);
+  });
+}
+
+await check("cross-site requests are refused with a JSON error", async () => {
+  const spec = JSON.stringify({ scene: "cornell-box", resolution: "8x8", strategy: { spp: 1 } });
+  const cases = [
+    ["text/plain", { "Content-Type": "text/plain" }, 415],
+    ["a foreign Origin", { "Content-Type": "application/json", Origin: "http://evil.example" }, 403],
+    ["a foreign Host", { "Content-Type": "application/json", Host: `evil.example:${httpPort}` }, 403],
+  ];
+  for (const [what, headers, status] of cases) {
+    const res = await rawRequest("POST", "/api/renders", headers, spec);
+    assert(res.status === status, `POST with ${what}: ${res.status} ${res.body}`);
+    assert(typeof JSON.parse(res.body).error === "string", `POST with ${what}: no JSON error`);
+  }
+  const page = await rawRequest("GET", "/", { Host: `rebound.example:${httpPort}` });
+  assert(page.status === 403, `GET / with a foreign Host: ${page.status}`);
+  const probe = await rawRequest("GET", "/healthz", { Host: "10.0.0.7:8080" });
+  assert(probe.status === 200, `/healthz with a pod IP as Host: ${probe.status}`);
+  assert((await api("/api/renders")).renders.length === 0, "a refused request created a render");
 });
 
 // ---- the browser ----

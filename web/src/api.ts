@@ -140,7 +140,8 @@ export async function postJSON<T>(path: string, body?: unknown): Promise<T> {
     await fetch(path, {
       method: "POST",
       headers: { "Content-Type": "application/json" },
-      body: body === undefined ? "" : JSON.stringify(body),
+      // Every POST is JSON, even one without fields (the server refuses other types).
+      body: JSON.stringify(body ?? {}),
     }),
   );
 }

@@ -35,6 +35,8 @@ bool parse_whole(std::string_view word, T& out) {
     return ec == std::errc() && ptr == end;
 }
 
+// Messages name the line and what was expected, never the text found there: a mesh may
+// be any file its path names, and its content must not travel in an error.
 class ObjParser {
 public:
     explicit ObjParser(const std::string& origin) : origin_(origin) {}
@@ -76,21 +78,21 @@ private:
         std::array<double, 3> p{};
         for (int i = 0; i < 3; ++i) {
             if (!parse_whole(words[i + 1], p[i]) || !std::isfinite(p[i]))
-                fail("expected a finite number, got \"" + std::string(words[i + 1]) +
-                     "\"");
+                fail("expected a finite number as coordinate " + std::to_string(i + 1) +
+                     " of the vertex");
         }
         if (mesh_.positions.size() == std::numeric_limits<uint32_t>::max())
             fail("too many vertices");
         mesh_.positions.push_back(p);
     }
 
-    uint32_t vertex_index(std::string_view word) const {
+    uint32_t vertex_index(std::string_view word, size_t corner) const {
         // Texture and normal indices ("i/t", "i//n", "i/t/n") are not needed.
         const std::string_view first = word.substr(0, word.find('/'));
         long long index = 0;
         if (!parse_whole(first, index) || index == 0)
-            fail("expected a vertex index (non-zero integer), got \"" +
-                 std::string(word) + "\"");
+            fail("expected a vertex index (non-zero integer) as corner " +
+                 std::to_string(corner) + " of the face");
         const long long count = static_cast<long long>(mesh_.positions.size());
         const long long resolved =
             index > 0 ? index - 1 : count + index;  // negative: relative
@@ -104,7 +106,7 @@ private:
         if (words.size() < 4) fail("expected a face with at least 3 vertices");
         std::vector<uint32_t> corners;
         for (size_t i = 1; i < words.size(); ++i)
-            corners.push_back(vertex_index(words[i]));
+            corners.push_back(vertex_index(words[i], i));
         for (size_t i = 1; i + 1 < corners.size(); ++i)
             mesh_.triangles.push_back({corners[0], corners[i], corners[i + 1]});
     }

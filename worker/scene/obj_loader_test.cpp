@@ -81,7 +81,8 @@ TEST(ObjLoader, NamesFileAndLineOfIndexOutOfRange) {
 
 TEST(ObjLoader, RejectsIndexZero) {
     EXPECT_EQ(error_of("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
-              "meshes/m.obj:4: expected a vertex index (non-zero integer), got \"0\"");
+              "meshes/m.obj:4: expected a vertex index (non-zero integer) as corner 1 of "
+              "the face");
 }
 
 TEST(ObjLoader, RejectsFaceWithFewerThanThreeVertices) {
@@ -91,7 +92,20 @@ TEST(ObjLoader, RejectsFaceWithFewerThanThreeVertices) {
 
 TEST(ObjLoader, RejectsCoordinateThatIsNotANumber) {
     EXPECT_EQ(error_of("v 0 zero 0\n"),
-              "meshes/m.obj:1: expected a finite number, got \"zero\"");
+              "meshes/m.obj:1: expected a finite number as coordinate 2 of the vertex");
+}
+
+// Issue 13: an error never carries the text it found (a "mesh" may be any file).
+TEST(ObjLoader, ErrorsNeverQuoteTheOffendingText) {
+    for (const std::string text :
+         {"v 1 the_admin_password 0\n",
+          "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 the_admin_password\n",
+          "v 0 0 0\nv 1 0 0\nv 0 1 0\nf the_admin_password/x 2 3\n",
+          "v 1 2 3 the_admin_password\nv nan_admin_password 0 0\n"}) {
+        const std::string error = error_of(text);
+        EXPECT_EQ(error.find("admin_password"), std::string::npos) << error;
+        EXPECT_NE(error.find("meshes/m.obj:"), std::string::npos) << error;
+    }
 }
 
 TEST(ObjLoader, RejectsVertexWithTooFewCoordinates) {

@@ -266,7 +266,9 @@ void add_triangle_shape(Scene& scene, LocalMesh local, const Transform& m,
 
 class SceneBuilder {
 public:
-    explicit SceneBuilder(const std::filesystem::path& base_dir) : base_dir_(base_dir) {}
+    // `submitted`: the scene came from another machine, and no file is opened for it.
+    explicit SceneBuilder(const std::filesystem::path& base_dir, bool submitted = false)
+        : base_dir_(base_dir), submitted_(submitted) {}
 
     Scene build(const JsonField& root, const std::string& origin) {
         root.expect_object("expected an object with camera, materials and shapes");
@@ -418,6 +420,11 @@ private:
         } else {
             const auto file = s.find("file");
             const bool inline_data = s.find("positions") || s.find("triangles");
+            if (file && submitted_)
+                file->fail(
+                    "mesh files are resolved by the client; a submitted scene carries "
+                    "its "
+                    "meshes inline (\"positions\" and \"triangles\")");
             if (file.has_value() == inline_data)
                 s.fail("expected either \"file\" or \"positions\" and \"triangles\"");
             local = file ? to_local_mesh(load_mesh_file(*file, base_dir_))
@@ -427,6 +434,7 @@ private:
     }
 
     std::filesystem::path base_dir_;
+    bool submitted_ = false;
     Scene scene_;
     std::map<std::string, uint32_t> material_index_;
 };
@@ -439,6 +447,14 @@ json parse_scene_json(std::string_view text, const std::string& origin) {
     } catch (const JsonError& e) {
         fail_scene(origin, e);
     }
+}
+
+void check_scene_size(size_t bytes, const std::string& origin) {
+    if (bytes > kMaxSceneJsonBytes)
+        throw SceneError(origin + ": the scene's JSON is " + std::to_string(bytes) +
+                         " bytes; a render carries at most " +
+                         std::to_string(kMaxSceneJsonBytes) +
+                         " (4 MiB less 64 KiB, gRPC's message limit)");
 }
 
 struct SceneSource {
@@ -501,6 +517,16 @@ Scene parse_scene(std::string_view json_text, const std::string& origin,
     }
 }
 
+Scene parse_submitted_scene(std::string_view json_text, const std::string& origin) {
+    check_scene_size(json_text.size(), origin);
+    const json doc = parse_scene_json(json_text, origin);
+    try {
+        return SceneBuilder({}, true).build(JsonField(doc), origin);
+    } catch (const JsonError& e) {
+        fail_scene(origin, e);
+    }
+}
+
 Scene load_scene(const std::string& name_or_file) {
     const SceneSource source = find_scene(name_or_file);
     Scene scene = parse_scene(source.text, source.origin, source.base_dir);
@@ -519,7 +545,9 @@ std::string self_contained_scene_json(const std::string& name_or_file) {
     } catch (const JsonError& e) {
         fail_scene(source.origin, e);
     }
-    return doc.dump();  // compact, keys sorted: the same scene always gives the same text
+    std::string text = doc.dump();  // compact, keys sorted: the same scene, the same text
+    check_scene_size(text.size(), source.origin + " (with its meshes inlined)");
+    return text;
 }
 
 std::optional<std::string> builtin_scene_json(std::string_view name) {

@@ -3,7 +3,10 @@
 #include "scene_loader.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <chrono>
 
 #include <filesystem>
 #include <fstream>
@@ -743,6 +746,69 @@ TEST_F(SceneFiles, PassesOnObjErrorWithItsLine) {
     EXPECT_EQ(error_of_call([&] { load_scene(path); }),
               path + ": /shapes/1/file: " + (dir_ / "meshes/bad.obj").string() +
                   ":3: vertex index 7 out of range (2 vertices defined so far)");
+}
+
+// ---- submitted scenes (issue 13)
+// -------------------------------------------------------
+
+std::string submitted_error_of(std::string_view text) {
+    return error_of_call([&] { parse_submitted_scene(text, "r"); });
+}
+
+// A submitted scene never opens a file: not a FIFO (which would block), not /dev/zero
+// (endless), not a secret; the error names the pointer and says nothing of the path.
+TEST_F(SceneFiles, ASubmittedSceneWithAMeshFileIsRefusedWithoutOpeningIt) {
+    const fs::path fifo = dir_ / "meshes" / "fifo.obj";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    write("meshes/secret.obj", "v 1 the_admin_password 0\n");
+    const std::string expected =
+        "r: /shapes/1/file: mesh files are resolved by the client; a submitted scene "
+        "carries its meshes inline (\"positions\" and \"triangles\")";
+    const auto start = std::chrono::steady_clock::now();
+    for (const std::string file :
+         {fifo.string(), std::string("/dev/zero.obj"), std::string("/dev/zero"),
+          (dir_ / "meshes/secret.obj").string(), std::string("../../etc/passwd.obj"),
+          std::string("meshes/missing.obj")}) {
+        json doc = minimal_scene();
+        doc["shapes"].push_back(
+            {{"type", "mesh"}, {"material", "white"}, {"file", file}});
+        EXPECT_EQ(submitted_error_of(doc.dump()), expected) << file;
+    }
+    EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(2));
+    // The same scene with its mesh inline is accepted.
+    write("meshes/m.obj", kTriangleObj);
+    const std::string text =
+        self_contained_scene_json(write_scene_with_mesh_file("meshes/m.obj"));
+    expect_identical(parse_submitted_scene(text, "r"), parse_scene(text, "r", "."));
+}
+
+TEST(SubmittedScenes, PastTheSizeLimitAreRefusedWithTheNumbers) {
+    json doc = minimal_scene();
+    doc["description"] = std::string(kMaxSceneJsonBytes, 'x');
+    const std::string text = doc.dump();
+    EXPECT_EQ(submitted_error_of(text), "r: the scene's JSON is " +
+                                            std::to_string(text.size()) +
+                                            " bytes; a render carries at most " +
+                                            std::to_string(kMaxSceneJsonBytes) +
+                                            " (4 MiB less 64 KiB, gRPC's message limit)");
+    doc["description"] = "";
+    EXPECT_NO_THROW(parse_submitted_scene(doc.dump(), "r"));
+}
+
+TEST_F(SceneFiles, SelfContainedSceneJsonPastTheLimitIsRefusedOnTheClient) {
+    std::string obj;
+    for (int i = 0; i < 200000; ++i) obj += "v 0.123456789 0.987654321 0.555555555\n";
+    obj += "f 1 2 3\n";
+    write("meshes/big.obj", obj);
+    const std::string path = write_scene_with_mesh_file("meshes/big.obj");
+    const std::string error = error_of_call([&] { self_contained_scene_json(path); });
+    EXPECT_NE(error.find(path + " (with its meshes inlined): the scene's JSON is "),
+              std::string::npos)
+        << error;
+    EXPECT_NE(
+        error.find("a render carries at most " + std::to_string(kMaxSceneJsonBytes)),
+        std::string::npos)
+        << error;
 }
 
 }  // namespace
