@@ -444,16 +444,16 @@ TEST_F(HttpServerTest, CrossSiteRequestsAreRefused) {
         200, "same-origin cancel");
     // DNS rebinding: a foreign name in Host gets nothing, files included; /healthz
     // answers probes whatever their Host.
-    for (const std::string path : {"/api/renders", "/", "/api/workers", "/api/events"})
-        expect(client_->Get(path.c_str(), {{"Host", "evil.example:" + port}}), 403, path);
+    for (const char* path : {"/api/renders", "/", "/api/workers", "/api/events"})
+        expect(client_->Get(path, {{"Host", "evil.example:" + port}}), 403, path);
     expect(client_->Post("/api/renders", {{"Host", "evil.example:" + port}}, body,
                          "application/json"),
            403, "POST with a foreign Host");
     expect(client_->Get("/api/renders", {{"Host", "127.0.0.2:" + port}}), 403,
            "another address");
     expect(client_->Get("/healthz", {{"Host", "10.0.0.7:8080"}}), 200, "probe");
-    for (const std::string host : {"localhost:" + port, "LOCALHOST.:" + port,
-                                   "[::1]:" + port, "127.0.0.1:" + port})
+    for (const std::string& host : {"localhost:" + port, "LOCALHOST.:" + port,
+                                    "[::1]:" + port, "127.0.0.1:" + port})
         expect(client_->Get("/api/renders", {{"Host", host}}), 200, host);
 }
 
@@ -513,7 +513,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
         grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_server.port()),
                             grpc::InsecureChannelCredentials()));
     json scene = json::parse(self_contained_scene_json("cornell-box"));
-    for (const std::string file :
+    for (const std::string& file :
          {fifo.string(), std::string("/dev/zero.obj"), (dir / "secret.obj").string(),
           std::string("../../x.obj")}) {
         scene["shapes"][0] = {{"type", "mesh"}, {"material", "white"}, {"file", file}};
@@ -536,7 +536,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
     }
     httplib::Client client("127.0.0.1", http_server.port());
     client.set_read_timeout(5, 0);
-    for (const std::string name : {fifo.string(), (dir / "secret.obj").string()}) {
+    for (const std::string& name : {fifo.string(), (dir / "secret.obj").string()}) {
         auto res =
             client.Post("/api/renders", json{{"scene", name}}.dump(), "application/json");
         ASSERT_TRUE(res) << name;
@@ -794,6 +794,10 @@ TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
         coordinator.register_worker("w1", 1);
         fake_jobs(coordinator, "w1");
         ASSERT_EQ(coordinator.info(id)->state, RenderState::Done);
+        // The backlog's own thread makes the failing write: wait for it (a generous
+        // deadline, not a timing check).
+        for (int i = 0; i < 600 && coordinator.storage_warning().empty(); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
 
         const std::string warning = list()["storage_warning"];
         EXPECT_NE(warning.find(id), std::string::npos) << warning;
@@ -807,7 +811,8 @@ TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
         // Once the disk takes writes again the warning goes away.
         fs::remove(render_dir);
         fs::create_directory(render_dir);
-        for (int i = 0; i < 100 && !coordinator.storage_warning().empty(); ++i) {
+        // Retries back off from 0.5 s doubling: allow a minute.
+        for (int i = 0; i < 1200 && !coordinator.storage_warning().empty(); ++i) {
             coordinator.tick();
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
         }

@@ -97,11 +97,10 @@ TEST(ObjLoader, RejectsCoordinateThatIsNotANumber) {
 
 // Issue 13: an error never carries the text it found (a "mesh" may be any file).
 TEST(ObjLoader, ErrorsNeverQuoteTheOffendingText) {
-    for (const std::string text :
-         {"v 1 the_admin_password 0\n",
-          "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 the_admin_password\n",
-          "v 0 0 0\nv 1 0 0\nv 0 1 0\nf the_admin_password/x 2 3\n",
-          "v 1 2 3 the_admin_password\nv nan_admin_password 0 0\n"}) {
+    for (const char* text : {"v 1 the_admin_password 0\n",
+                             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 the_admin_password\n",
+                             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf the_admin_password/x 2 3\n",
+                             "v 1 2 3 the_admin_password\nv nan_admin_password 0 0\n"}) {
         const std::string error = error_of(text);
         EXPECT_EQ(error.find("admin_password"), std::string::npos) << error;
         EXPECT_NE(error.find("meshes/m.obj:"), std::string::npos) << error;

@@ -765,7 +765,7 @@ TEST_F(SceneFiles, ASubmittedSceneWithAMeshFileIsRefusedWithoutOpeningIt) {
         "r: /shapes/1/file: mesh files are resolved by the client; a submitted scene "
         "carries its meshes inline (\"positions\" and \"triangles\")";
     const auto start = std::chrono::steady_clock::now();
-    for (const std::string file :
+    for (const std::string& file :
          {fifo.string(), std::string("/dev/zero.obj"), std::string("/dev/zero"),
           (dir_ / "meshes/secret.obj").string(), std::string("../../etc/passwd.obj"),
           std::string("meshes/missing.obj")}) {
