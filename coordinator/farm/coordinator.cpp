@@ -494,9 +494,8 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     WorkerEntry& w = it->second;
     const int64_t now = unix_millis_now();
     w.last_seen_ms = now;
-    // A worker first heard of here never registered with this coordinator (it registered
-    // with one before a restart on another --data): it gets its row now, so that marking
-    // it lost later has a row to mark.
+    // A worker first heard of here gets its row now, so that marking it lost later has
+    // a row to mark. (Since worker sessions, only register_worker meets a new name.)
     if ((is_new || w.lost) && store_) {
         try {
             store_->upsert_worker(name, w.threads, now);

@@ -110,7 +110,8 @@ public:
     bool fail(const std::string& session, uint64_t lease_id,
               const std::string& reason) override;
     // Whether `name` registered with this coordinator (a worker that did so with one
-    // before a restart did not): the gRPC service tells one that did not to register.
+    // before a restart did not). Calls are refused by session, not by this: a name
+    // proves nothing (worker_of_session).
     bool knows_worker(const std::string& name);
     // Leases out now, across renders (what `lease_render_` holds): for tests.
     size_t leases_out();
