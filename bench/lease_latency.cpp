@@ -69,12 +69,14 @@ int main(int argc, char** argv) {
                                         /*quiet=*/true});
         std::thread pool([&] { worker.run(); });
         std::atomic<bool> done{false};
+        const std::string probe_session = coordinator.register_worker("probe", 1).session;
         std::thread probe([&] {
             while (!done) {
                 auto t = Clock::now();
-                auto grant = coordinator.lease("probe", std::chrono::milliseconds(0));
+                auto grant =
+                    coordinator.lease(probe_session, std::chrono::milliseconds(0));
                 lease_ms.push_back(ms_since(t));
-                if (grant) coordinator.abandon("probe", grant->lease_id);
+                if (grant) coordinator.abandon(probe_session, grant->lease_id);
                 t = Clock::now();
                 coordinator.workers();
                 workers_ms.push_back(ms_since(t));

@@ -23,7 +23,8 @@ int main(int argc, char** argv) {
 
     uint64_t jobs = 0, pixel_samples = 0, pixels = 0;
     double seconds = 0;
-    while (auto grant = coordinator.lease("bench", std::chrono::milliseconds(0))) {
+    const std::string session = coordinator.register_worker("bench", 1).session;
+    while (auto grant = coordinator.lease(session, std::chrono::milliseconds(0))) {
         SampleJobResult r;
         r.rect = grant->job.rect;
         r.pixels.resize(r.rect.size());
@@ -35,7 +36,7 @@ int main(int argc, char** argv) {
             p.rays = 6 * p.samples;
         }
         const auto start = std::chrono::steady_clock::now();
-        coordinator.complete("bench", grant->lease_id, r);
+        coordinator.complete(session, grant->lease_id, r);
         seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
                        .count();
         ++jobs;

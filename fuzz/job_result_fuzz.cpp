@@ -74,8 +74,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         session.start();
         std::vector<aliquot::SampleJob> jobs;
         while (auto job = session.issue(jobs.size() + 1, "w", far)) jobs.push_back(*job);
-        for (size_t j = 1; j < jobs.size(); ++j) session.complete(j + 1, answer(jobs[j]));
-        session.complete(1, result);
+        for (size_t j = 1; j < jobs.size(); ++j)
+            session.complete(j + 1, "w", answer(jobs[j]));
+        session.complete(1, "w", result);
         // Whatever was merged is what a client fetches, AOVs included.
         session.merged().image(true);
     }

@@ -48,6 +48,9 @@ GrpcLink::~GrpcLink() = default;
 
 static void check(const grpc::Status& status, const std::string& address) {
     if (status.ok()) return;
+    // The coordinator does not know our session (it restarted since we registered).
+    if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED)
+        throw WorkerUnknown("coordinator " + address + ": " + status.error_message());
     if (status.error_code() == grpc::StatusCode::UNAVAILABLE ||
         status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED ||
         status.error_code() == grpc::StatusCode::CANCELLED)
@@ -55,25 +58,26 @@ static void check(const grpc::Status& status, const std::string& address) {
     throw std::runtime_error("coordinator " + address + ": " + status.error_message());
 }
 
-uint32_t GrpcLink::register_worker(const std::string& name, uint32_t threads) {
+Registration GrpcLink::register_worker(const std::string& name, uint32_t threads) {
     v1::RegisterRequest req;
     req.set_name(name);
     req.set_threads(threads);
     v1::RegisterReply reply;
     check(stub_->stub->Register(context().get(), req, &reply), address_);
-    return reply.lease_ms();
+    if (reply.session().empty())
+        throw std::runtime_error("coordinator " + address_ + " gave no worker session");
+    return {reply.session(), reply.lease_ms()};
 }
 
-std::optional<LeaseGrant> GrpcLink::lease(const std::string& worker,
+std::optional<LeaseGrant> GrpcLink::lease(const std::string& session,
                                           std::chrono::milliseconds wait) {
     v1::LeaseRequest req;
-    req.set_worker(worker);
+    req.set_session(session);
     req.set_wait_ms(uint32_t(wait.count()));
     v1::LeaseReply reply;
     check(stub_->stub->Lease(context(wait).get(), req, &reply), address_);
     if (reply.register_first())
-        throw WorkerUnknown("coordinator " + address_ + " does not know worker " +
-                            worker);
+        throw WorkerUnknown("coordinator " + address_ + " does not know this worker");
     if (!reply.has_lease()) return std::nullopt;
     const v1::Lease& l = reply.lease();
     return LeaseGrant{l.lease_id(),        l.render_id(),
@@ -81,10 +85,10 @@ std::optional<LeaseGrant> GrpcLink::lease(const std::string& worker,
                       from_proto(l.job()), l.lease_ms()};
 }
 
-CompleteOutcome GrpcLink::complete(const std::string& worker, uint64_t lease_id,
+CompleteOutcome GrpcLink::complete(const std::string& session, uint64_t lease_id,
                                    const SampleJobResult& result) {
     v1::CompleteRequest req;
-    req.set_worker(worker);
+    req.set_session(session);
     req.set_lease_id(lease_id);
     to_proto(result, *req.mutable_result());
     v1::CompleteReply reply;
@@ -92,8 +96,10 @@ CompleteOutcome GrpcLink::complete(const std::string& worker, uint64_t lease_id,
     return {from_proto(reply.status()), reply.message()};
 }
 
-std::optional<std::string> GrpcLink::fetch_scene(const std::string& hash) {
+std::optional<std::string> GrpcLink::fetch_scene(const std::string& session,
+                                                 const std::string& hash) {
     v1::FetchSceneRequest req;
+    req.set_session(session);
     req.set_hash(hash);
     v1::FetchSceneReply reply;
     const grpc::Status status = stub_->stub->FetchScene(context().get(), req, &reply);
@@ -102,28 +108,28 @@ std::optional<std::string> GrpcLink::fetch_scene(const std::string& hash) {
     return reply.scene_json();
 }
 
-bool GrpcLink::renew(const std::string& worker, uint64_t lease_id) {
+bool GrpcLink::renew(const std::string& session, uint64_t lease_id) {
     v1::RenewRequest req;
-    req.set_worker(worker);
+    req.set_session(session);
     req.set_lease_id(lease_id);
     v1::RenewReply reply;
     check(stub_->stub->Renew(context().get(), req, &reply), address_);
     return reply.valid();
 }
 
-bool GrpcLink::abandon(const std::string& worker, uint64_t lease_id) {
+bool GrpcLink::abandon(const std::string& session, uint64_t lease_id) {
     v1::RenewRequest req;
-    req.set_worker(worker);
+    req.set_session(session);
     req.set_lease_id(lease_id);
     v1::RenewReply reply;
     check(stub_->stub->Abandon(context().get(), req, &reply), address_);
     return reply.valid();
 }
 
-bool GrpcLink::fail(const std::string& worker, uint64_t lease_id,
+bool GrpcLink::fail(const std::string& session, uint64_t lease_id,
                     const std::string& reason) {
     v1::FailRequest req;
-    req.set_worker(worker);
+    req.set_session(session);
     req.set_lease_id(lease_id);
     req.set_reason(reason);
     v1::FailReply reply;

@@ -14,15 +14,16 @@ public:
     explicit GrpcLink(const std::string& address);
     ~GrpcLink() override;
 
-    uint32_t register_worker(const std::string& name, uint32_t threads) override;
-    std::optional<LeaseGrant> lease(const std::string& worker,
+    Registration register_worker(const std::string& name, uint32_t threads) override;
+    std::optional<LeaseGrant> lease(const std::string& session,
                                     std::chrono::milliseconds wait) override;
-    CompleteOutcome complete(const std::string& worker, uint64_t lease_id,
+    CompleteOutcome complete(const std::string& session, uint64_t lease_id,
                              const SampleJobResult& result) override;
-    std::optional<std::string> fetch_scene(const std::string& hash) override;
-    bool renew(const std::string& worker, uint64_t lease_id) override;
-    bool abandon(const std::string& worker, uint64_t lease_id) override;
-    bool fail(const std::string& worker, uint64_t lease_id,
+    std::optional<std::string> fetch_scene(const std::string& session,
+                                           const std::string& hash) override;
+    bool renew(const std::string& session, uint64_t lease_id) override;
+    bool abandon(const std::string& session, uint64_t lease_id) override;
+    bool fail(const std::string& session, uint64_t lease_id,
               const std::string& reason) override;
 
 private:

@@ -70,9 +70,32 @@ bool WorkerLoop::release(uint64_t lease_id) {
 bool WorkerLoop::register_again(uint64_t seen) {
     std::lock_guard lock(register_mutex_);
     if (registrations_ != seen) return false;  // another thread did, after our call began
-    lease_ms_ = link_.register_worker(options_.name, uint32_t(options_.threads));
+    const Registration r =
+        link_.register_worker(options_.name, uint32_t(options_.threads));
+    {
+        std::lock_guard session_lock(session_mutex_);
+        session_ = r.session;
+    }
+    lease_ms_ = r.lease_ms;
     ++registrations_;
     return true;
+}
+
+std::string WorkerLoop::session() const {
+    std::lock_guard lock(session_mutex_);
+    return session_;
+}
+
+bool WorkerLoop::reregister(uint64_t seen, bool& announced) {
+    try {
+        if (register_again(seen))
+            log("registered again with " + std::to_string(options_.threads) + " threads");
+        return true;
+    } catch (const std::exception& e) {
+        if (!announced) log(std::string("cannot register, retrying: ") + e.what());
+        announced = true;
+        return false;
+    }
 }
 
 void WorkerLoop::run() {
@@ -109,21 +132,13 @@ void WorkerLoop::thread_main() {
         const uint64_t registrations = registrations_;
         const auto asked = std::chrono::steady_clock::now();
         try {
-            grant = link_.lease(options_.name, options_.lease_wait);
+            grant = link_.lease(session(), options_.lease_wait);
             if (announced) log("coordinator back");
             announced = false;
         } catch (const WorkerUnknown&) {
             // The coordinator restarted without us: register again, with our threads.
-            try {
-                if (register_again(registrations))
-                    log("registered again with " + std::to_string(options_.threads) +
-                        " threads");
-            } catch (const std::exception& e) {
-                if (!announced)
-                    log(std::string("cannot register, retrying: ") + e.what());
-                announced = true;
+            if (!reregister(registrations, announced))
                 sleep_unless_stopping(unreachable.next());
-            }
             continue;
         } catch (const std::exception& e) {
             // Unreachable, or an answer this worker cannot read: wait and ask again; a
@@ -151,12 +166,17 @@ void WorkerLoop::thread_main() {
         bool unreachable_now = false;
         try {
             auto scene = scenes_.get(grant->scene_hash, [&](const std::string& h) {
-                return link_.fetch_scene(h);
+                return link_.fetch_scene(session(), h);
             });
             result = trace_sample_job(*scene->tracer, grant->geometry, grant->job, 1,
                                       &stopping_);
         } catch (const JobCancelled&) {
             // Stopping: the lease is given back below.
+        } catch (const WorkerUnknown&) {
+            // The coordinator restarted since this lease: it is gone with our session.
+            release(grant->lease_id);
+            reregister(registrations, announced);
+            continue;
         } catch (const LinkUnavailable& e) {
             log(std::string("lost the coordinator: ") + e.what());
             unreachable_now = true;
@@ -172,7 +192,7 @@ void WorkerLoop::thread_main() {
             release(grant->lease_id);  // from here on the result answers for the lease
             try {
                 const CompleteOutcome outcome =
-                    link_.complete(options_.name, grant->lease_id, *result);
+                    link_.complete(session(), grant->lease_id, *result);
                 if (outcome.status == CompleteStatus::Merged) {
                     samples_traced_ += result->total_samples();
                     ++jobs_done_;
@@ -183,6 +203,9 @@ void WorkerLoop::thread_main() {
                         seconds_text(wait));
                     sleep_unless_stopping(wait);
                 }
+            } catch (const WorkerUnknown&) {
+                // The coordinator restarted since this lease; the job is traced again.
+                reregister(registrations, announced);
             } catch (const LinkUnavailable& e) {
                 log(std::string("lost the coordinator: ") + e.what());
                 sleep_unless_stopping(unreachable.next());
@@ -203,7 +226,7 @@ void WorkerLoop::thread_main() {
             log("cannot trace a job of " + grant->render_id + ": " + failure +
                 "; reported, next lease in " + seconds_text(wait));
             try {
-                link_.fail(options_.name, grant->lease_id, failure);
+                link_.fail(session(), grant->lease_id, failure);
             } catch (const std::exception&) {
                 // The lease expires on its own and the job goes to someone else.
             }
@@ -211,7 +234,7 @@ void WorkerLoop::thread_main() {
             continue;
         }
         try {
-            link_.abandon(options_.name, grant->lease_id);
+            link_.abandon(session(), grant->lease_id);
         } catch (const std::exception&) {
             // The lease expires on its own.
         }
@@ -230,7 +253,7 @@ void WorkerLoop::keeper_main() {
         }
         for (uint64_t lease : held) {
             try {
-                link_.renew(options_.name, lease);
+                link_.renew(session(), lease);
             } catch (const std::exception&) {
                 break;  // unreachable: the next period tries again, or the leases expire
             }

@@ -50,6 +50,11 @@ private:
     // Registers (again) unless another thread did since it saw `seen` registrations;
     // whether this call did. Throws what the link throws.
     bool register_again(uint64_t seen);
+    // After WorkerUnknown (the coordinator restarted without us): registers again, with
+    // our threads; false (logged once) when that failed too.
+    bool reregister(uint64_t seen, bool& announced);
+    // The session from the last registration: every call carries it.
+    std::string session() const;
     // Drops the lease from the held set; whether it was still there.
     bool release(uint64_t lease_id);
 
@@ -61,6 +66,8 @@ private:
     std::atomic<uint64_t> samples_traced_{0}, jobs_done_{0}, jobs_failed_{0};
     std::mutex register_mutex_;
     std::atomic<uint64_t> registrations_{0};
+    mutable std::mutex session_mutex_;
+    std::string session_;
     std::mutex held_mutex_;
     std::set<uint64_t> held_;
 };

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <mutex>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -19,15 +20,16 @@ public:
     enum class Mode { BrokenScene, NothingAtOnce, ForgetsWorker };
     explicit FakeLink(Mode mode) : mode_(mode) {}
 
-    uint32_t register_worker(const std::string&, uint32_t threads) override {
+    Registration register_worker(const std::string&, uint32_t threads) override {
         std::lock_guard lock(mutex_);
         registered_threads.push_back(threads);
-        return 30000;
+        return {"session-" + std::to_string(registered_threads.size()), 30000};
     }
-    std::optional<LeaseGrant> lease(const std::string&, Millis wait) override {
+    std::optional<LeaseGrant> lease(const std::string& session, Millis wait) override {
         {
             std::lock_guard lock(mutex_);
             ++leases;
+            lease_sessions.insert(session);
             if (mode_ == Mode::BrokenScene) {
                 LeaseGrant g;
                 g.lease_id = next_lease_++;
@@ -51,7 +53,8 @@ public:
                              const SampleJobResult&) override {
         return {CompleteStatus::Merged, {}};
     }
-    std::optional<std::string> fetch_scene(const std::string&) override {
+    std::optional<std::string> fetch_scene(const std::string&,
+                                           const std::string&) override {
         return std::string("{\"camera\": ");  // does not parse on this worker
     }
     bool renew(const std::string&, uint64_t) override { return true; }
@@ -75,6 +78,7 @@ public:
     };
     std::mutex mutex_;
     std::vector<uint32_t> registered_threads;
+    std::set<std::string> lease_sessions;  // the sessions Lease calls carried
     std::vector<Failure> failures;
     int leases = 0, abandons = 0;
 
@@ -115,7 +119,7 @@ TEST(WorkerLoopTest, ReportsAJobItCannotTraceWithTheReasonAndBacksOff) {
     // Waits of at least 50, 100, 200, 200, ... ms: at most about ten in 1.5 s.
     EXPECT_LE(link.failures.size(), 12u);
     for (const FakeLink::Failure& f : link.failures) {
-        EXPECT_EQ(f.worker, "w");
+        EXPECT_EQ(f.worker, "session-1");  // the session, not the name
         EXPECT_NE(f.reason.find("scene:h"), std::string::npos) << f.reason;
     }
     EXPECT_NE(link.failures[0].lease_id, link.failures[1].lease_id);
@@ -146,6 +150,8 @@ TEST(WorkerLoopTest, RegistersAgainWithItsThreadsWhenTheCoordinatorForgotIt) {
     // Once at start, once again for both threads told, not once per thread.
     EXPECT_EQ(link.registered_threads, (std::vector<uint32_t>{2, 2}));
     EXPECT_GE(link.leases, 3);
+    // Then it asks with the session the new registration gave it.
+    EXPECT_EQ(link.lease_sessions, (std::set<std::string>{"session-1", "session-2"}));
 }
 
 }  // namespace

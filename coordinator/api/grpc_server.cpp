@@ -142,6 +142,10 @@ private:
     Coordinator& c_;
 };
 
+// Every call but Register carries the worker's session; one the coordinator did not issue
+// (it restarted since) is answered register_first by Lease and UNAUTHENTICATED by the
+// others, and the worker registers again (worker/grpc_link.cpp). Which lease is whose is
+// the Coordinator's to check: the same code answers the embedded render's threads.
 class WorkerServiceImpl final : public v1::WorkerService::Service {
 public:
     explicit WorkerServiceImpl(Coordinator& c) : c_(c) {}
@@ -150,21 +154,25 @@ public:
                     v1::RegisterReply* reply) override {
         if (req->name().empty())
             return {StatusCode::INVALID_ARGUMENT, "worker name is empty"};
-        reply->set_lease_ms(c_.register_worker(req->name(), req->threads()));
+        const Registration r = c_.register_worker(req->name(), req->threads());
+        reply->set_lease_ms(r.lease_ms);
+        reply->set_session(r.session);
         return Status::OK;
     }
 
     Status Lease(ServerContext*, const v1::LeaseRequest* req,
                  v1::LeaseReply* reply) override {
-        if (!c_.knows_worker(req->worker())) {
+        const auto wait =
+            std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
+        std::optional<LeaseGrant> grant;
+        try {
+            grant = c_.lease(req->session(), wait);
+        } catch (const WorkerUnknown&) {
             // Registered with a coordinator before a restart: it must register again,
             // with its threads, before it gets work.
             reply->set_register_first(true);
             return Status::OK;
         }
-        const auto wait =
-            std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
-        const std::optional<LeaseGrant> grant = c_.lease(req->worker(), wait);
         if (!grant) {
             reply->set_retry_after_ms(0);  // long-poll already waited; ask again at once
             return Status::OK;
@@ -183,26 +191,35 @@ public:
 
     Status Complete(ServerContext*, const v1::CompleteRequest* req,
                     v1::CompleteReply* reply) override {
-        SampleJobResult result;
-        try {
-            result = from_proto(req->result());
-        } catch (const WireError& e) {
-            // Malformed: nothing is merged and the job goes back to be traced again.
-            c_.abandon(req->worker(), req->lease_id());
-            reply->set_status(v1::COMPLETE_STATUS_REJECTED);
-            reply->set_message(e.what());
-            return Status::OK;
-        }
-        const CompleteOutcome outcome =
-            c_.complete(req->worker(), req->lease_id(), result);
-        reply->set_status(to_proto(outcome.status));
-        reply->set_message(outcome.message);
-        return Status::OK;
+        return known([&] {
+            SampleJobResult result;
+            try {
+                result = from_proto(req->result());
+            } catch (const WireError& e) {
+                // Malformed: nothing is merged and the job goes back to be traced again,
+                // when the sender holds it (abandon checks; anyone else changes nothing).
+                if (!c_.abandon(req->session(), req->lease_id())) {
+                    reply->set_status(v1::COMPLETE_STATUS_IGNORED);
+                    reply->set_message("not your lease, or no longer out");
+                    return;
+                }
+                reply->set_status(v1::COMPLETE_STATUS_REJECTED);
+                reply->set_message(e.what());
+                return;
+            }
+            const CompleteOutcome outcome =
+                c_.complete(req->session(), req->lease_id(), result);
+            reply->set_status(to_proto(outcome.status));
+            reply->set_message(outcome.message);
+        });
     }
 
     Status FetchScene(ServerContext*, const v1::FetchSceneRequest* req,
                       v1::FetchSceneReply* reply) override {
-        const auto json = c_.fetch_scene(req->hash());
+        std::optional<std::string> json;
+        const Status status =
+            known([&] { json = c_.fetch_scene(req->session(), req->hash()); });
+        if (!status.ok()) return status;
         if (!json) return {StatusCode::NOT_FOUND, "no scene " + req->hash()};
         reply->set_scene_json(*json);
         return Status::OK;
@@ -210,23 +227,35 @@ public:
 
     Status Renew(ServerContext*, const v1::RenewRequest* req,
                  v1::RenewReply* reply) override {
-        reply->set_valid(c_.renew(req->worker(), req->lease_id()));
-        return Status::OK;
+        return known(
+            [&] { reply->set_valid(c_.renew(req->session(), req->lease_id())); });
     }
 
     Status Abandon(ServerContext*, const v1::RenewRequest* req,
                    v1::RenewReply* reply) override {
-        reply->set_valid(c_.abandon(req->worker(), req->lease_id()));
-        return Status::OK;
+        return known(
+            [&] { reply->set_valid(c_.abandon(req->session(), req->lease_id())); });
     }
 
     Status Fail(ServerContext*, const v1::FailRequest* req,
                 v1::FailReply* reply) override {
-        reply->set_accepted(c_.fail(req->worker(), req->lease_id(), req->reason()));
-        return Status::OK;
+        return known([&] {
+            reply->set_accepted(c_.fail(req->session(), req->lease_id(), req->reason()));
+        });
     }
 
 private:
+    // Runs `call`; a session the coordinator does not know becomes UNAUTHENTICATED.
+    template <typename Call>
+    static Status known(Call&& call) {
+        try {
+            call();
+        } catch (const WorkerUnknown& e) {
+            return {StatusCode::UNAUTHENTICATED, e.what()};
+        }
+        return Status::OK;
+    }
+
     Coordinator& c_;
 };
 

@@ -34,7 +34,7 @@ protected:
             grpc::CreateChannel("127.0.0.1:" + std::to_string(server_->port()),
                                 grpc::InsecureChannelCredentials()));
 
-        RenderSpec spec;
+        RenderSpec& spec = spec_;
         spec.scene_name = "cornell-box";
         spec.scene_json = self_contained_scene_json("cornell-box");
         spec.width = 8;  // one job: the whole image fits one 32x32 tile
@@ -45,7 +45,7 @@ protected:
         scene_ = parse_scene(spec.scene_json, "test", ".");
         tracer_ = std::make_unique<PathTracer>(scene_);
         id_ = coordinator_->submit(spec);
-        coordinator_->register_worker("tester", 1);
+        session_ = register_over_wire("tester");
     }
     void TearDown() override {
         server_.reset();
@@ -53,10 +53,19 @@ protected:
         std::filesystem::remove_all(dir_);
     }
 
+    std::string register_over_wire(const std::string& name) {
+        grpc::ClientContext ctx;
+        v1::RegisterRequest req;
+        req.set_name(name);
+        req.set_threads(1);
+        v1::RegisterReply reply;
+        EXPECT_TRUE(stub_->Register(&ctx, req, &reply).ok());
+        return reply.session();
+    }
     v1::Lease lease() {
         grpc::ClientContext ctx;
         v1::LeaseRequest req;
-        req.set_worker("tester");
+        req.set_session(session_);
         req.set_wait_ms(2000);
         v1::LeaseReply reply;
         EXPECT_TRUE(stub_->Lease(&ctx, req, &reply).ok());
@@ -70,15 +79,41 @@ protected:
         to_proto(r, out);
         return out;
     }
-    v1::CompleteStatus complete(uint64_t lease_id, const v1::SampleJobResult& result) {
+    v1::CompleteReply complete_as(const std::string& session, uint64_t lease_id,
+                                  const v1::SampleJobResult& result) {
         grpc::ClientContext ctx;
         v1::CompleteRequest req;
-        req.set_worker("tester");
+        req.set_session(session);
         req.set_lease_id(lease_id);
         *req.mutable_result() = result;
         v1::CompleteReply reply;
         EXPECT_TRUE(stub_->Complete(&ctx, req, &reply).ok());
-        return reply.status();
+        return reply;
+    }
+    v1::CompleteStatus complete(uint64_t lease_id, const v1::SampleJobResult& result) {
+        return complete_as(session_, lease_id, result).status();
+    }
+    // Renew or Abandon (`give_back`) as `session`: whether the lease was that session's.
+    bool renew_as(const std::string& session, uint64_t lease_id, bool give_back = false) {
+        grpc::ClientContext ctx;
+        v1::RenewRequest req;
+        req.set_session(session);
+        req.set_lease_id(lease_id);
+        v1::RenewReply reply;
+        const grpc::Status status = give_back ? stub_->Abandon(&ctx, req, &reply)
+                                              : stub_->Renew(&ctx, req, &reply);
+        EXPECT_TRUE(status.ok()) << status.error_message();
+        return reply.valid();
+    }
+    bool fail_as(const std::string& session, uint64_t lease_id) {
+        grpc::ClientContext ctx;
+        v1::FailRequest req;
+        req.set_session(session);
+        req.set_lease_id(lease_id);
+        req.set_reason("cannot open mesh.obj");
+        v1::FailReply reply;
+        EXPECT_TRUE(stub_->Fail(&ctx, req, &reply).ok());
+        return reply.accepted();
     }
     uint64_t samples_merged() { return coordinator_->info(id_)->samples_done; }
 
@@ -89,6 +124,8 @@ protected:
     Scene scene_;
     std::unique_ptr<PathTracer> tracer_;
     std::string id_;
+    RenderSpec spec_;
+    std::string session_;  // the worker "tester"'s
 };
 
 TEST_F(WorkerServiceTest, RejectsAResultWithTheWrongPixelCountAndReissuesTheJob) {
@@ -122,7 +159,7 @@ TEST_F(WorkerServiceTest, RejectsNonFiniteSums) {
 
 TEST_F(WorkerServiceTest, OnlyTheHolderCanGiveALeaseBack) {
     const v1::Lease l = lease();
-    EXPECT_FALSE(coordinator_->abandon("intruder", l.lease_id()));
+    EXPECT_FALSE(coordinator_->abandon(register_over_wire("intruder"), l.lease_id()));
     EXPECT_EQ(complete(l.lease_id(), trace(l)), v1::COMPLETE_STATUS_MERGED);
     EXPECT_EQ(samples_merged(), 64u);
 }
@@ -146,15 +183,7 @@ TEST_F(WorkerServiceTest, IgnoresAResultSentTwice) {
 
 TEST_F(WorkerServiceTest, IgnoresALateResultForALeaseGivenToAnotherWorker) {
     const v1::Lease l = lease();
-    {
-        grpc::ClientContext ctx;
-        v1::RenewRequest req;
-        req.set_worker("tester");
-        req.set_lease_id(l.lease_id());
-        v1::RenewReply reply;
-        ASSERT_TRUE(stub_->Abandon(&ctx, req, &reply).ok());
-        EXPECT_TRUE(reply.valid());
-    }
+    EXPECT_TRUE(renew_as(session_, l.lease_id(), /*give_back=*/true));
     const v1::Lease reissued = lease();
     EXPECT_EQ(complete(l.lease_id(), trace(l)), v1::COMPLETE_STATUS_IGNORED);
     EXPECT_EQ(complete(reissued.lease_id(), trace(reissued)), v1::COMPLETE_STATUS_MERGED);
@@ -228,7 +257,7 @@ TEST(ClientServiceReference, ASubmittedReferenceIsWrittenToNoPredictableFile) {
 
 TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
     v1::LeaseRequest req;
-    req.set_worker("stranger");
+    req.set_session("0123456789abcdef0123456789abcdef");  // never issued here
     v1::LeaseReply reply;
     {
         grpc::ClientContext ctx;
@@ -243,6 +272,8 @@ TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
         reg.set_threads(3);
         v1::RegisterReply ok;
         ASSERT_TRUE(stub_->Register(&ctx, reg, &ok).ok());
+        EXPECT_EQ(ok.session().size(), 32u);
+        req.set_session(ok.session());
     }
     {
         grpc::ClientContext ctx;
@@ -255,22 +286,101 @@ TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
 // Issue 12, item 5: a worker that cannot trace a lease says so, with why.
 TEST_F(WorkerServiceTest, AFailedLeaseIsCountedOnceAndTheJobGoesBack) {
     const v1::Lease l = lease();
-    auto fail = [&](const std::string& worker) {
-        grpc::ClientContext ctx;
-        v1::FailRequest req;
-        req.set_worker(worker);
-        req.set_lease_id(l.lease_id());
-        req.set_reason("cannot open mesh.obj");
-        v1::FailReply reply;
-        EXPECT_TRUE(stub_->Fail(&ctx, req, &reply).ok());
-        return reply.accepted();
-    };
-    EXPECT_FALSE(fail("intruder"));
-    EXPECT_TRUE(fail("tester"));
-    EXPECT_FALSE(fail("tester"));     // counted once
-    const v1::Lease again = lease();  // the only worker alive tries again
+    // Another session, even under the holder's name (so that it is still the only
+    // worker alive), is not heard.
+    EXPECT_FALSE(fail_as(register_over_wire("tester"), l.lease_id()));
+    EXPECT_TRUE(fail_as(session_, l.lease_id()));
+    EXPECT_FALSE(fail_as(session_, l.lease_id()));  // counted once
+    const v1::Lease again = lease();                // the only worker alive tries again
     EXPECT_NE(again.lease_id(), l.lease_id());
     EXPECT_EQ(complete(again.lease_id(), trace(again)), v1::COMPLETE_STATUS_MERGED);
+}
+
+// Issue 13: worker T completed V's lease with radiance 100 and correct counts: merged,
+// V's honest result ignored, the final image wrong. Over the wire now, a second
+// registered worker (one named like the holder too) is refused on every call about the
+// lease, nothing changes, and the holder's result gives the image a render without the
+// intruder gives.
+TEST_F(WorkerServiceTest, AnotherWorkerCannotCompleteOrRevokeALease) {
+    const v1::Lease l = lease();
+    const v1::SampleJobResult honest = trace(l);
+    for (const std::string& intruder :
+         {register_over_wire("intruder"), register_over_wire("tester")}) {
+        ASSERT_FALSE(intruder.empty());
+        ASSERT_NE(intruder, session_);
+        v1::SampleJobResult bogus = honest;  // the right rectangle and sample counts
+        for (int i = 0; i < bogus.sum_even_size(); ++i) {
+            bogus.set_sum_even(i, 100.0 * bogus.samples(i / 3));
+            bogus.set_sum_odd(i, 0);
+        }
+        const v1::CompleteReply reply = complete_as(intruder, l.lease_id(), bogus);
+        EXPECT_EQ(reply.status(), v1::COMPLETE_STATUS_IGNORED);
+        EXPECT_EQ(reply.message(), "not your lease");
+        v1::SampleJobResult wrong = honest;  // would be rejected, the job re-issued
+        wrong.mutable_rect()->set_x(1);
+        EXPECT_EQ(complete_as(intruder, l.lease_id(), wrong).status(),
+                  v1::COMPLETE_STATUS_IGNORED);
+        v1::SampleJobResult malformed = honest;
+        malformed.mutable_samples()->RemoveLast();
+        EXPECT_EQ(complete_as(intruder, l.lease_id(), malformed).status(),
+                  v1::COMPLETE_STATUS_IGNORED);
+        EXPECT_FALSE(renew_as(intruder, l.lease_id()));
+        EXPECT_FALSE(renew_as(intruder, l.lease_id(), /*give_back=*/true));
+        EXPECT_FALSE(fail_as(intruder, l.lease_id()));
+    }
+    EXPECT_EQ(samples_merged(), 0u);
+    EXPECT_EQ(coordinator_->leases_out(), 1u);
+    EXPECT_TRUE(renew_as(session_, l.lease_id()));
+    EXPECT_EQ(complete(l.lease_id(), honest), v1::COMPLETE_STATUS_MERGED);
+    EXPECT_EQ(coordinator_->info(id_)->state, RenderState::Done);
+
+    // The same render with no intruder, in memory.
+    CoordinatorOptions plain;
+    Coordinator alone(plain);
+    const std::string id = alone.submit(spec_);
+    const std::string session = alone.register_worker("tester", 1).session;
+    const auto grant = alone.lease(session, std::chrono::milliseconds(0));
+    ASSERT_TRUE(grant);
+    EXPECT_EQ(alone.complete(session, grant->lease_id, from_proto(honest)).status,
+              CompleteStatus::Merged);
+    EXPECT_EQ(coordinator_->image(id_, true)->rgb, alone.image(id, true)->rgb);
+}
+
+// A session the coordinator never issued (or issued before a restart) is UNAUTHENTICATED
+// on every call but Lease, and changes nothing: the worker registers again.
+TEST_F(WorkerServiceTest, AnUnknownSessionIsToldToRegister) {
+    const v1::Lease l = lease();
+    const std::string stranger = "ffffffffffffffffffffffffffffffff";
+    {
+        grpc::ClientContext ctx;
+        v1::CompleteRequest req;
+        req.set_session(stranger);
+        req.set_lease_id(l.lease_id());
+        *req.mutable_result() = trace(l);
+        v1::CompleteReply reply;
+        EXPECT_EQ(stub_->Complete(&ctx, req, &reply).error_code(),
+                  grpc::StatusCode::UNAUTHENTICATED);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::RenewRequest req;
+        req.set_session(stranger);
+        req.set_lease_id(l.lease_id());
+        v1::RenewReply reply;
+        EXPECT_EQ(stub_->Abandon(&ctx, req, &reply).error_code(),
+                  grpc::StatusCode::UNAUTHENTICATED);
+    }
+    {
+        grpc::ClientContext ctx;
+        v1::FetchSceneRequest req;
+        req.set_session(stranger);
+        req.set_hash(l.scene_hash());
+        v1::FetchSceneReply reply;
+        EXPECT_EQ(stub_->FetchScene(&ctx, req, &reply).error_code(),
+                  grpc::StatusCode::UNAUTHENTICATED);
+    }
+    EXPECT_EQ(coordinator_->leases_out(), 1u);
+    EXPECT_EQ(complete(l.lease_id(), trace(l)), v1::COMPLETE_STATUS_MERGED);
 }
 
 }  // namespace

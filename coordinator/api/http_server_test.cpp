@@ -36,11 +36,13 @@ constexpr size_t kMaxResponse = 100 * 1024;
 
 // A worker that answers every job with made-up sums: a smooth image plus per-pixel noise
 // that differs between even and odd samples, so error estimates are non-zero.
+// Registers `worker` (1 thread) for a session, which its calls carry.
 size_t fake_jobs(Coordinator& c, const std::string& worker, size_t max_jobs = 1000000) {
+    const std::string session = c.register_worker(worker, 1).session;
     size_t jobs = 0;
     while (jobs < max_jobs) {
         const std::optional<LeaseGrant> grant =
-            c.lease(worker, std::chrono::milliseconds(0));
+            c.lease(session, std::chrono::milliseconds(0));
         if (!grant) break;
         SampleJobResult result;
         result.rect = grant->job.rect;
@@ -62,7 +64,7 @@ size_t fake_jobs(Coordinator& c, const std::string& worker, size_t max_jobs = 10
             p.rays = 2 * n;
             result.pixels.push_back(p);
         }
-        c.complete(worker, grant->lease_id, result);
+        c.complete(session, grant->lease_id, result);
         ++jobs;
     }
     return jobs;
@@ -550,10 +552,10 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
 }
 
 TEST_F(HttpServerTest, WorkersShowStateAndLeases) {
-    coordinator_->register_worker("alpha", 4);
+    const std::string alpha = coordinator_->register_worker("alpha", 4).session;
     coordinator_->register_worker("beta", 2);
     submit({{"resolution", "64x64"}, {"strategy", {{"spp", 4}}}});
-    ASSERT_TRUE(coordinator_->lease("alpha", std::chrono::milliseconds(0)));
+    ASSERT_TRUE(coordinator_->lease(alpha, std::chrono::milliseconds(0)));
     const json w = get_json("/api/workers");
     ASSERT_EQ(w["workers"].size(), 2u);
     EXPECT_EQ(w["workers"][0]["name"], "alpha");
@@ -644,7 +646,9 @@ TEST_F(HttpServerTest, FiftyRendersAndTenWorkersStayUnder100KB) {
     for (int w = 0; w < 10; ++w)
         fake_jobs(*coordinator_, "worker-" + std::to_string(w), 60);
     for (int w = 0; w < 10; ++w)
-        coordinator_->lease("worker-" + std::to_string(w), std::chrono::milliseconds(0));
+        coordinator_->lease(
+            coordinator_->register_worker("worker-" + std::to_string(w), 8).session,
+            std::chrono::milliseconds(0));
 
     auto size_of = [&](const std::string& path) {
         auto res = client_->Get(path.c_str());

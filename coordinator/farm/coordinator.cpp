@@ -1,10 +1,13 @@
 #include "coordinator.h"
 
 #include <malloc.h>
+#include <sys/random.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
 #include "checkpoint.h"
@@ -30,13 +33,38 @@ void log_error(const std::string& what) {
     std::fprintf(stderr, "coordinator: %s\n", what.c_str());
 }
 
+// Bytes from the kernel's CSPRNG (getrandom(2)): worker sessions and lease ids must not
+// be guessable from ones seen before.
+void random_bytes(void* out, size_t size) {
+    auto* p = static_cast<unsigned char*>(out);
+    while (size > 0) {
+        const ssize_t got = getrandom(p, size, 0);
+        if (got < 0) {
+            if (errno == EINTR) continue;
+            throw std::runtime_error(std::string("getrandom: ") + std::strerror(errno));
+        }
+        p += got;
+        size -= size_t(got);
+    }
+}
+
+// 128 random bits as 32 hex digits.
+std::string new_session_token() {
+    unsigned char bytes[16];
+    random_bytes(bytes, sizeof bytes);
+    static const char digits[] = "0123456789abcdef";
+    std::string hex;
+    hex.reserve(2 * sizeof bytes);
+    for (const unsigned char b : bytes) {
+        hex.push_back(digits[b >> 4]);
+        hex.push_back(digits[b & 15]);
+    }
+    return hex;
+}
+
 }  // namespace
 
-Coordinator::Coordinator(CoordinatorOptions options)
-    : options_(std::move(options)),
-      // Lease ids start from the clock so that a restarted coordinator never re-uses the
-      // id of a lease a worker may still be holding from before the restart.
-      next_lease_id_(uint64_t(unix_millis_now()) << 16) {
+Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(options)) {
     if (!options_.data_dir.empty()) {
         std::filesystem::create_directories(options_.data_dir / "renders");
         store_ = std::make_unique<RunStore>(options_.data_dir);
@@ -472,9 +500,8 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     WorkerEntry& w = it->second;
     const int64_t now = unix_millis_now();
     w.last_seen_ms = now;
-    // A worker first heard of here never registered with this coordinator (it registered
-    // with one before a restart on another --data): it gets its row now, so that marking
-    // it lost later has a row to mark.
+    // A worker first heard of here gets its row now, so that marking it lost later has
+    // a row to mark. (Since worker sessions, only register_worker meets a new name.)
     if ((is_new || w.lost) && store_) {
         try {
             store_->upsert_worker(name, w.threads, now);
@@ -486,32 +513,58 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     return w;
 }
 
-uint32_t Coordinator::register_worker(const std::string& name, uint32_t threads) {
+const std::string& Coordinator::worker_of_session(const std::string& session) {
+    const auto it = worker_sessions_.find(session);
+    if (it == worker_sessions_.end())
+        throw WorkerUnknown("unknown worker session: register again");
+    touch_worker(it->second);
+    return it->second;
+}
+
+uint64_t Coordinator::new_lease_id() const {
+    // Random, so that neither a lease id seen in ListWorkers nor the order they are
+    // issued in tells another; a restarted coordinator's ids match a pre-restart lease
+    // only with probability (leases out) / 2^64.
+    while (true) {
+        uint64_t id = 0;
+        random_bytes(&id, sizeof id);
+        if (id != 0 && !lease_render_.count(id)) return id;
+    }
+}
+
+Registration Coordinator::register_worker(const std::string& name, uint32_t threads) {
     std::lock_guard lock(mutex_);
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
     w.registered = true;
     if (store_) store_->upsert_worker(name, threads, unix_millis_now());
+    // A new session each time; earlier ones of the same name stay valid (their leases are
+    // still theirs), so registering with a worker's name neither takes its leases nor
+    // locks it out.
+    std::string session;
+    do session = new_session_token();
+    while (worker_sessions_.count(session));
+    worker_sessions_.emplace(session, name);
     changed();
-    return uint32_t(options_.lease_time.count());
+    return {session, uint32_t(options_.lease_time.count())};
 }
 
-std::optional<LeaseGrant> Coordinator::lease(const std::string& worker,
+std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
                                              std::chrono::milliseconds wait) {
     std::unique_lock lock(mutex_);
-    touch_worker(worker);
+    const std::string worker = worker_of_session(session);
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
         const std::set<std::string> alive = alive_workers();
         for (const std::string& id : order_) {
             RenderSession& s = *sessions_[id];
             if (s.state() != RenderState::Running || !s.has_pending()) continue;
-            const uint64_t lease_id = next_lease_id_++;
+            const uint64_t lease_id = new_lease_id();
             std::optional<SampleJob> job = s.issue(
                 lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
                 alive, options_.failure_policy);
             if (!job) continue;
-            lease_render_[lease_id] = id;
+            lease_render_[lease_id] = {id, session};
             changed();
             return LeaseGrant{
                 lease_id,        id,
@@ -523,19 +576,23 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& worker,
     return std::nullopt;
 }
 
-CompleteOutcome Coordinator::complete(const std::string& worker, uint64_t lease_id,
+CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
                                       const SampleJobResult& result) {
     std::lock_guard lock(mutex_);
-    WorkerEntry& w = touch_worker(worker);
+    const std::string& worker = worker_of_session(session);
+    WorkerEntry& w = workers_.at(worker);
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end())
         return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
-    const auto session = sessions_.find(it->second);
+    // Someone else's lease: refused before anything is looked at, and it stays with its
+    // holder, whose own result still merges.
+    if (it->second.session != session) return {CompleteStatus::Ignored, "not your lease"};
+    const auto session_it = sessions_.find(it->second.render);
     lease_render_.erase(it);  // whatever the outcome, this lease has ended
-    if (session == sessions_.end())
+    if (session_it == sessions_.end())
         return {CompleteStatus::Ignored, "the render is no longer here"};
-    RenderSession& s = *session->second;
-    const CompleteOutcome outcome = s.complete(lease_id, result);
+    RenderSession& s = *session_it->second;
+    const CompleteOutcome outcome = s.complete(lease_id, worker, result);
     if (outcome.status == CompleteStatus::Merged) {
         const uint64_t samples = result.total_samples();
         w.samples += samples;
@@ -551,50 +608,52 @@ CompleteOutcome Coordinator::complete(const std::string& worker, uint64_t lease_
     return outcome;
 }
 
-std::optional<std::string> Coordinator::fetch_scene(const std::string& hash) {
+std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
+                                                    const std::string& hash) {
     std::lock_guard lock(mutex_);
+    worker_of_session(session);
     if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;
     if (store_)
         if (auto rec = store_->get_scene(hash)) return rec->json;
     return std::nullopt;
 }
 
-bool Coordinator::renew(const std::string& worker, uint64_t lease_id) {
+bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
     std::lock_guard lock(mutex_);
-    touch_worker(worker);
+    const std::string& worker = worker_of_session(session);
     const auto it = lease_render_.find(lease_id);
-    if (it == lease_render_.end()) return false;
-    const auto session = sessions_.find(it->second);
-    if (session == sessions_.end()) return false;
-    return session->second->renew(lease_id, worker,
-                                  RenderSession::Clock::now() + options_.lease_time);
+    if (it == lease_render_.end() || it->second.session != session) return false;
+    const auto s = sessions_.find(it->second.render);
+    if (s == sessions_.end()) return false;
+    return s->second->renew(lease_id, worker,
+                            RenderSession::Clock::now() + options_.lease_time);
 }
 
-bool Coordinator::abandon(const std::string& worker, uint64_t lease_id) {
+bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
     std::lock_guard lock(mutex_);
-    touch_worker(worker);
+    const std::string& worker = worker_of_session(session);
     const auto it = lease_render_.find(lease_id);
-    if (it == lease_render_.end()) return false;
-    const auto session = sessions_.find(it->second);
-    if (session == sessions_.end()) return false;
     // Only the holder may give a lease back; anyone else's word leaves it with its
     // holder.
-    if (!session->second->abandon(lease_id, worker)) return false;
+    if (it == lease_render_.end() || it->second.session != session) return false;
+    const auto s = sessions_.find(it->second.render);
+    if (s == sessions_.end()) return false;
+    if (!s->second->abandon(lease_id, worker)) return false;
     lease_render_.erase(it);
     changed();
     return true;
 }
 
-bool Coordinator::fail(const std::string& worker, uint64_t lease_id,
+bool Coordinator::fail(const std::string& session, uint64_t lease_id,
                        const std::string& reason) {
     std::lock_guard lock(mutex_);
-    touch_worker(worker);
+    const std::string& worker = worker_of_session(session);
     const auto it = lease_render_.find(lease_id);
-    if (it == lease_render_.end()) return false;
-    const auto session = sessions_.find(it->second);
-    if (session == sessions_.end()) return false;
-    RenderSession& s = *session->second;
     // Only the holder's word counts, as for abandon.
+    if (it == lease_render_.end() || it->second.session != session) return false;
+    const auto session_it = sessions_.find(it->second.render);
+    if (session_it == sessions_.end()) return false;
+    RenderSession& s = *session_it->second;
     if (!s.fail_job(lease_id, worker, reason, alive_workers(), options_.failure_policy))
         return false;
     lease_render_.erase(it);
@@ -626,7 +685,7 @@ std::set<std::string> Coordinator::alive_workers() const {
 
 void Coordinator::forget_ended_leases() {
     for (auto it = lease_render_.begin(); it != lease_render_.end();) {
-        const auto session = sessions_.find(it->second);
+        const auto session = sessions_.find(it->second.render);
         if (session == sessions_.end() || !session->second->holds(it->first))
             it = lease_render_.erase(it);
         else
@@ -851,7 +910,8 @@ void Coordinator::evict(const std::string& id) {
     order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
     // Leases of a cancelled render that workers still hold: their results are now
     // answered as unknown, which is what they were (ignored) before.
-    std::erase_if(lease_render_, [&id](const auto& kv) { return kv.second == id; });
+    std::erase_if(lease_render_,
+                  [&id](const auto& kv) { return kv.second.render == id; });
     round_history_.erase(id);
     bucket_shapes_.erase(id);
     checkpoint_timing_.erase(id);

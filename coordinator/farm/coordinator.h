@@ -94,19 +94,24 @@ public:
     // pass `seen` and returns it.
     uint64_t wait_for_change(uint64_t seen, std::chrono::milliseconds timeout);
 
-    // Worker side (WorkerLink, in-process).
-    uint32_t register_worker(const std::string& name, uint32_t threads) override;
-    std::optional<LeaseGrant> lease(const std::string& worker,
+    // Worker side (WorkerLink, in-process). register_worker issues a new session each
+    // call; every other call takes one and throws WorkerUnknown for a session it did not
+    // issue. A lease is its session's: complete/renew/abandon/fail from another session
+    // are refused and change nothing (docs/SECURITY.md, "Lease ownership").
+    Registration register_worker(const std::string& name, uint32_t threads) override;
+    std::optional<LeaseGrant> lease(const std::string& session,
                                     std::chrono::milliseconds wait) override;
-    CompleteOutcome complete(const std::string& worker, uint64_t lease_id,
+    CompleteOutcome complete(const std::string& session, uint64_t lease_id,
                              const SampleJobResult& result) override;
-    std::optional<std::string> fetch_scene(const std::string& hash) override;
-    bool renew(const std::string& worker, uint64_t lease_id) override;
-    bool abandon(const std::string& worker, uint64_t lease_id) override;
-    bool fail(const std::string& worker, uint64_t lease_id,
+    std::optional<std::string> fetch_scene(const std::string& session,
+                                           const std::string& hash) override;
+    bool renew(const std::string& session, uint64_t lease_id) override;
+    bool abandon(const std::string& session, uint64_t lease_id) override;
+    bool fail(const std::string& session, uint64_t lease_id,
               const std::string& reason) override;
     // Whether `name` registered with this coordinator (a worker that did so with one
-    // before a restart did not): the gRPC service tells one that did not to register.
+    // before a restart did not). Calls are refused by session, not by this: a name
+    // proves nothing (worker_of_session).
     bool knows_worker(const std::string& name);
     // Leases out now, across renders (what `lease_render_` holds): for tests.
     size_t leases_out();
@@ -148,6 +153,11 @@ private:
     RenderInfo info_of(const RenderSession& s) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
+    // The name of the worker holding `session`, touched (heard from now); throws
+    // WorkerUnknown for a session this coordinator did not issue.
+    const std::string& worker_of_session(const std::string& session);
+    // A random lease id, not 0 and not one out now.
+    uint64_t new_lease_id() const;
     // Workers registered here and not lost: those a job may go to (RenderSession::issue).
     std::set<std::string> alive_workers() const;
     // Drops lease_render_ entries whose lease ended (expired, render finished or gone).
@@ -164,12 +174,17 @@ private:
     std::condition_variable work_ready_;
     std::condition_variable progress_;
     uint64_t version_ = 0;
-    uint64_t next_lease_id_;
     uint64_t next_render_number_ = 1;
     std::map<std::string, std::unique_ptr<RenderSession>> sessions_;  // by id
     std::vector<std::string> order_;                                  // submission order
-    std::unordered_map<uint64_t, std::string> lease_render_;  // lease -> render id
-    std::map<std::string, std::string> scenes_;               // hash -> json
+    struct LeaseOwner {
+        std::string render;  // render id
+        std::string
+            session;  // the worker session that leased it: the only one heard on it
+    };
+    std::unordered_map<uint64_t, LeaseOwner> lease_render_;         // lease -> owner
+    std::unordered_map<std::string, std::string> worker_sessions_;  // session -> name
+    std::map<std::string, std::string> scenes_;                     // hash -> json
     std::map<std::string, WorkerEntry> workers_;
     std::map<std::string, std::string>
         bucket_shapes_;  // render -> last stored bucket layout

@@ -7,6 +7,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -50,14 +52,20 @@ protected:
 
 // Issue 12, reproduction 1: a Lease from a worker that never registered here made an
 // in-memory worker with no store row; once it was lost, marking it threw on the ticker.
-TEST_F(CoordinatorTest, AWorkerThatNeverRegisteredCanBeLostWithoutAnError) {
+// Since issue 13 a call with a session this coordinator never issued is refused with
+// WorkerUnknown and leaves no worker behind; a registered worker is lost without error.
+TEST_F(CoordinatorTest, AWorkerThatNeverRegisteredIsToldToRegister) {
     Coordinator c(options);
-    EXPECT_FALSE(c.lease("ghost", std::chrono::milliseconds(0)).has_value());
+    EXPECT_THROW(c.lease("ghost", std::chrono::milliseconds(0)), WorkerUnknown);
+    EXPECT_THROW(c.renew("ghost", 1), WorkerUnknown);
+    EXPECT_THROW(c.fetch_scene("ghost", "h"), WorkerUnknown);
+    EXPECT_TRUE(c.workers().empty());
+    c.register_worker("w", 1);
     std::this_thread::sleep_for(std::chrono::milliseconds(60));
     EXPECT_NO_THROW(c.tick());
     const std::vector<WorkerStatus> workers = c.workers();
     ASSERT_EQ(workers.size(), 1u);
-    EXPECT_EQ(workers[0].name, "ghost");
+    EXPECT_EQ(workers[0].name, "w");
     EXPECT_EQ(workers[0].state, "lost");
 }
 
@@ -87,9 +95,25 @@ TEST_F(CoordinatorTest, AnExistingRenderDirectoryIsSkippedNotReused) {
 }
 
 // Sums for every job the coordinator hands out: a flat grey, no tracing.
+SampleJobResult flat_grey(const SampleJob& job, double value = 0.25) {
+    SampleJobResult result;
+    result.rect = job.rect;
+    for (size_t i = 0; i < job.rect.size(); ++i) {
+        PixelSums p;
+        const uint64_t n = job.counts[i];
+        for (int ch = 0; ch < 3; ++ch) p.even[ch] = p.odd[ch] = value * double(n);
+        p.sum_sq_luminance = 0.125 * double(n);
+        p.samples = n;
+        p.rays = 3 * n;
+        result.pixels.push_back(p);
+    }
+    return result;
+}
+
 void fake_render(Coordinator& c) {
+    const std::string session = c.register_worker("fake", 1).session;
     while (const std::optional<LeaseGrant> grant =
-               c.lease("fake", std::chrono::milliseconds(0))) {
+               c.lease(session, std::chrono::milliseconds(0))) {
         SampleJobResult result;
         result.rect = grant->job.rect;
         for (size_t i = 0; i < grant->job.rect.size(); ++i) {
@@ -101,7 +125,7 @@ void fake_render(Coordinator& c) {
             p.rays = 3 * n;
             result.pixels.push_back(p);
         }
-        c.complete("fake", grant->lease_id, result);
+        c.complete(session, grant->lease_id, result);
     }
 }
 
@@ -176,18 +200,21 @@ TEST_F(CoordinatorTest, AJobNoWorkerCanTraceFailsTheRenderWithTheReason) {
     std::string id;
     {
         Coordinator c(options);
-        for (const char* w : {"a", "b", "c"}) c.register_worker(w, 1);
+        std::map<std::string, std::string> session;
+        for (const char* w : {"a", "b", "c"})
+            session[w] = c.register_worker(w, 1).session;
+        const std::string intruder = c.register_worker("intruder", 1).session;
         id = c.submit(small_spec());  // one job
         for (const char* w : {"a", "b", "c"}) {
-            const auto grant = c.lease(w, std::chrono::milliseconds(0));
+            const auto grant = c.lease(session[w], std::chrono::milliseconds(0));
             ASSERT_TRUE(grant) << w;
             // The worker it failed on gets nothing while another could take the job.
             if (std::string(w) == "a") {
-                EXPECT_TRUE(c.fail(w, grant->lease_id, "cannot open mesh.obj"));
-                EXPECT_FALSE(c.lease("a", std::chrono::milliseconds(0)));
+                EXPECT_TRUE(c.fail(session[w], grant->lease_id, "cannot open mesh.obj"));
+                EXPECT_FALSE(c.lease(session["a"], std::chrono::milliseconds(0)));
             } else {
-                EXPECT_FALSE(c.fail("intruder", grant->lease_id, "not mine"));
-                EXPECT_TRUE(c.fail(w, grant->lease_id, "cannot open mesh.obj"));
+                EXPECT_FALSE(c.fail(intruder, grant->lease_id, "not mine"));
+                EXPECT_TRUE(c.fail(session[w], grant->lease_id, "cannot open mesh.obj"));
             }
         }
         const RenderInfo info = *c.info(id);
@@ -204,12 +231,12 @@ TEST_F(CoordinatorTest, AJobNoWorkerCanTraceFailsTheRenderWithTheReason) {
 TEST_F(CoordinatorTest, ALoneWorkerFailsTheRenderInsteadOfRetryingForever) {
     options.failure_policy.max_job_failures = 2;
     Coordinator c(options);
-    c.register_worker("only", 1);
+    const std::string only = c.register_worker("only", 1).session;
     const std::string id = c.submit(small_spec());
     for (int i = 0; i < 2; ++i) {
-        const auto grant = c.lease("only", std::chrono::milliseconds(0));
+        const auto grant = c.lease(only, std::chrono::milliseconds(0));
         ASSERT_TRUE(grant) << i;
-        ASSERT_TRUE(c.fail("only", grant->lease_id, "boom"));
+        ASSERT_TRUE(c.fail(only, grant->lease_id, "boom"));
     }
     EXPECT_EQ(c.info(id)->state, RenderState::Failed);
     EXPECT_EQ(c.info(id)->error, "job 0,0 4x4 failed 2 times on 1 worker: boom");
@@ -219,15 +246,15 @@ TEST_F(CoordinatorTest, ALoneWorkerFailsTheRenderInsteadOfRetryingForever) {
 TEST_F(CoordinatorTest, LeasesAreForgottenWhenTheyEnd) {
     options.lease_time = std::chrono::milliseconds(30);
     Coordinator c(options);
-    c.register_worker("w", 1);
+    const std::string w = c.register_worker("w", 1).session;
     const std::string first = c.submit(small_spec());
-    ASSERT_TRUE(c.lease("w", std::chrono::milliseconds(0)));
+    ASSERT_TRUE(c.lease(w, std::chrono::milliseconds(0)));
     EXPECT_EQ(c.leases_out(), 1u);
     std::this_thread::sleep_for(std::chrono::milliseconds(60));
     c.tick();  // expired
     EXPECT_EQ(c.leases_out(), 0u);
 
-    ASSERT_TRUE(c.lease("w", std::chrono::milliseconds(0)));
+    ASSERT_TRUE(c.lease(w, std::chrono::milliseconds(0)));
     EXPECT_EQ(c.leases_out(), 1u);
     c.cancel(first);
     c.tick();  // its render was cancelled
@@ -237,15 +264,86 @@ TEST_F(CoordinatorTest, LeasesAreForgottenWhenTheyEnd) {
 // Issue 12, item 9: after a restart the coordinator did not know its workers, which never
 // registered again and showed 0 threads.
 TEST_F(CoordinatorTest, KnowsOnlyWorkersThatRegisteredWithIt) {
+    std::string session;
     {
         Coordinator c(options);
-        EXPECT_FALSE(c.lease("w", std::chrono::milliseconds(0)));
-        EXPECT_FALSE(c.knows_worker("w"));  // heard from, but never registered here
-        c.register_worker("w", 4);
+        EXPECT_FALSE(c.knows_worker("w"));
+        session = c.register_worker("w", 4).session;
         EXPECT_TRUE(c.knows_worker("w"));
+        EXPECT_FALSE(c.lease(session, std::chrono::milliseconds(0)));  // no work
     }
     Coordinator restarted(options);
     EXPECT_FALSE(restarted.knows_worker("w"));
+    // Its session means nothing to the restarted coordinator: it must register again.
+    EXPECT_THROW(restarted.lease(session, std::chrono::milliseconds(0)), WorkerUnknown);
+}
+
+// Issue 13: worker T completed worker V's lease with radiance 100 (merged, V's result
+// ignored, the image wrong), or with a wrong rectangle got V's work thrown away. Now a
+// lease belongs to the session that leased it: anyone else is refused, nothing changes,
+// and the holder's own result merges.
+TEST_F(CoordinatorTest, AnotherWorkersCallsOnALeaseAreRefusedAndChangeNothing) {
+    options.data_dir.clear();  // in memory: the finished image stays in the session
+    options.worker_lost_after = std::chrono::seconds(60);
+    Coordinator c(options);
+    const std::string v = c.register_worker("V", 1).session;
+    const std::string t = c.register_worker("T", 1).session;
+    // Registering with V's name gives a session of its own, not V's leases.
+    const std::string fake_v = c.register_worker("V", 1).session;
+    EXPECT_NE(v, t);
+    EXPECT_NE(v, fake_v);
+    EXPECT_EQ(v.size(), 32u);
+    const std::string id = c.submit(small_spec());  // one job
+    const auto grant = c.lease(v, std::chrono::milliseconds(0));
+    ASSERT_TRUE(grant);
+    for (const std::string& other : {t, fake_v}) {
+        const CompleteOutcome bogus =
+            c.complete(other, grant->lease_id, flat_grey(grant->job, 100));
+        EXPECT_EQ(bogus.status, CompleteStatus::Ignored);
+        EXPECT_EQ(bogus.message, "not your lease");
+        SampleJobResult wrong = flat_grey(grant->job);
+        wrong.rect.x += 1;
+        EXPECT_EQ(c.complete(other, grant->lease_id, wrong).status,
+                  CompleteStatus::Ignored);
+        EXPECT_FALSE(c.renew(other, grant->lease_id));
+        EXPECT_FALSE(c.abandon(other, grant->lease_id));
+        EXPECT_FALSE(c.fail(other, grant->lease_id, "not mine"));
+    }
+    EXPECT_EQ(c.leases_out(), 1u);
+    EXPECT_EQ(c.info(id)->state, RenderState::Running);
+    EXPECT_EQ(c.info(id)->samples_done, 0u);
+    EXPECT_FALSE(c.lease(t, std::chrono::milliseconds(0)));  // nothing was re-issued
+    EXPECT_TRUE(c.renew(v, grant->lease_id));
+    EXPECT_EQ(c.complete(v, grant->lease_id, flat_grey(grant->job)).status,
+              CompleteStatus::Merged);
+    EXPECT_EQ(c.info(id)->state, RenderState::Done);
+    const std::optional<Image> image = c.image(id, false);
+    ASSERT_TRUE(image);
+    for (float x : image->rgb) EXPECT_FLOAT_EQ(x, 0.5f);  // V's grey, not T's 100
+}
+
+// Issue 13: lease ids were the clock << 16, then +1: one seen in ListWorkers told the
+// next. Now they are random 64-bit numbers.
+TEST_F(CoordinatorTest, LeaseIdsAreNotSequential) {
+    Coordinator c(options);
+    const std::string w = c.register_worker("w", 1).session;
+    RenderSpec spec = small_spec();
+    spec.width = spec.height = 64;  // several jobs
+    c.submit(spec);
+    std::vector<uint64_t> ids;
+    while (auto grant = c.lease(w, std::chrono::milliseconds(0)))
+        ids.push_back(grant->lease_id);
+    ASSERT_GE(ids.size(), 4u);
+    std::set<uint64_t> distinct(ids.begin(), ids.end());
+    EXPECT_EQ(distinct.size(), ids.size());
+    size_t close =
+        0;  // neighbours within 2^32 of each other: chance 2^-31 each if random
+    for (size_t i = 1; i < ids.size(); ++i) {
+        const uint64_t d =
+            ids[i] > ids[i - 1] ? ids[i] - ids[i - 1] : ids[i - 1] - ids[i];
+        if (d < (uint64_t(1) << 32)) ++close;
+    }
+    EXPECT_EQ(close, 0u);
 }
 
 }  // namespace

@@ -134,7 +134,7 @@ std::string RenderSession::check_result(const JobSlot& slot,
     return {};
 }
 
-CompleteOutcome RenderSession::complete(uint64_t lease_id,
+CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& worker,
                                         const SampleJobResult& result) {
     if (state_ != RenderState::Running)
         return {CompleteStatus::Ignored, "render is " + std::string(to_string(state_))};
@@ -142,6 +142,9 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id,
     if (it == lease_to_job_.end())
         return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
     JobSlot& slot = jobs_[it->second];
+    // Checked before anything else: a result from anyone but the holder neither merges
+    // nor ends the lease, and cannot get the holder's job rejected.
+    if (slot.worker != worker) return {CompleteStatus::Ignored, "not your lease"};
     lease_to_job_.erase(it);
     std::string why = check_result(slot, result);
     if (why.empty()) {

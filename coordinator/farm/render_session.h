@@ -64,7 +64,10 @@ public:
                                    Clock::time_point deadline,
                                    const std::set<std::string>& alive = {},
                                    const FailurePolicy& policy = {});
-    CompleteOutcome complete(uint64_t lease_id, const SampleJobResult& result);
+    // Merges `worker`'s result for its lease. A lease another worker holds is refused
+    // ("not your lease") and stays with its holder; so do renew, abandon and fail_job.
+    CompleteOutcome complete(uint64_t lease_id, const std::string& worker,
+                             const SampleJobResult& result);
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
     // `worker` could not trace its lease, for `reason`: the failure counts against the

@@ -41,7 +41,8 @@ TEST_F(RenderSessionTest, RunsRoundsUntilTheStrategyIsDone) {
     s.start();
     uint64_t lease = 1;
     while (auto job = s.issue(lease, "w", far)) {
-        EXPECT_EQ(s.complete(lease, fake_result(*job)).status, CompleteStatus::Merged);
+        EXPECT_EQ(s.complete(lease, "w", fake_result(*job)).status,
+                  CompleteStatus::Merged);
         ++lease;
     }
     EXPECT_EQ(s.state(), RenderState::Done);
@@ -61,8 +62,8 @@ TEST_F(RenderSessionTest, ReissuesAnExpiredLeaseAndIgnoresItsLateResult) {
     auto again = s.issue(2, "fast", far);
     ASSERT_TRUE(again);
     EXPECT_EQ(again->rect, job->rect);
-    EXPECT_EQ(s.complete(1, fake_result(*job)).status, CompleteStatus::Ignored);
-    EXPECT_EQ(s.complete(2, fake_result(*again)).status, CompleteStatus::Merged);
+    EXPECT_EQ(s.complete(1, "slow", fake_result(*job)).status, CompleteStatus::Ignored);
+    EXPECT_EQ(s.complete(2, "fast", fake_result(*again)).status, CompleteStatus::Merged);
     EXPECT_EQ(s.merged().total_samples(), job->rect.size());  // merged once, not twice
 }
 
@@ -75,7 +76,7 @@ TEST_F(RenderSessionTest, AResultThatWouldOverflowTheSumsIsRejectedAndTheJobReis
     ASSERT_TRUE(job);
     SampleJobResult huge = fake_result(*job);
     huge.pixels[0].even[0] = 1.7e308;
-    const CompleteOutcome out = s.complete(1, huge);
+    const CompleteOutcome out = s.complete(1, "w", huge);
     EXPECT_EQ(out.status, CompleteStatus::Rejected);
     EXPECT_NE(out.message.find("non-finite or larger than 1e100"), std::string::npos)
         << out.message;
@@ -83,7 +84,7 @@ TEST_F(RenderSessionTest, AResultThatWouldOverflowTheSumsIsRejectedAndTheJobReis
     auto again = s.issue(2, "w", far);
     ASSERT_TRUE(again);
     EXPECT_EQ(again->rect, job->rect);
-    EXPECT_EQ(s.complete(2, fake_result(*again)).status, CompleteStatus::Merged);
+    EXPECT_EQ(s.complete(2, "w", fake_result(*again)).status, CompleteStatus::Merged);
 }
 
 TEST_F(RenderSessionTest, RenewKeepsALeaseAliveOnlyForItsOwner) {
@@ -96,6 +97,35 @@ TEST_F(RenderSessionTest, RenewKeepsALeaseAliveOnlyForItsOwner) {
     EXPECT_EQ(s.expire(now + std::chrono::seconds(1)), 0u);
 }
 
+// Issue 13: a worker could complete another's lease (its sums merged, the holder's result
+// then ignored) or, with a wrong rectangle, get the holder's work rejected.
+TEST_F(RenderSessionTest, OnlyTheHolderCompletesRenewsAbandonsOrFailsALease) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const auto job = s.issue(1, "holder", far);
+    ASSERT_TRUE(job);
+    SampleJobResult bogus = fake_result(*job);
+    for (PixelSums& p : bogus.pixels)
+        for (int c = 0; c < 3; ++c) p.even[c] = p.odd[c] = 100 * double(p.samples);
+    const CompleteOutcome out = s.complete(1, "intruder", bogus);
+    EXPECT_EQ(out.status, CompleteStatus::Ignored);
+    EXPECT_EQ(out.message, "not your lease");
+    SampleJobResult wrong = fake_result(*job);
+    wrong.rect.x += 1;  // would be rejected, and the job re-issued, if it were heard
+    EXPECT_EQ(s.complete(1, "intruder", wrong).status, CompleteStatus::Ignored);
+    EXPECT_FALSE(s.renew(1, "intruder", far));
+    EXPECT_FALSE(s.abandon(1, "intruder"));
+    EXPECT_FALSE(s.fail_job(1, "intruder", "no", {"holder", "intruder"}, {}));
+    EXPECT_EQ(s.failures_of("intruder"), 0u);
+    EXPECT_TRUE(s.holds(1));
+    EXPECT_EQ(s.merged().total_samples(), 0u);
+    EXPECT_EQ(s.complete(1, "holder", fake_result(*job)).status, CompleteStatus::Merged);
+    EXPECT_EQ(s.merged().total_samples(), job->rect.size());
+    const PixelSums& first =
+        s.merged().at(size_t(job->rect.y) * spec.width + job->rect.x);
+    EXPECT_EQ(first.even[0], 0.5 * double(job->counts[0]));  // the holder's, not 100s
+}
+
 TEST_F(RenderSessionTest, CancelKeepsWhatWasMergedAndIgnoresTheRest) {
     spec.width = 300;  // wide enough for the first round to have several jobs
     RenderSession s("r", spec, 0);
@@ -103,10 +133,10 @@ TEST_F(RenderSessionTest, CancelKeepsWhatWasMergedAndIgnoresTheRest) {
     auto a = s.issue(1, "w", far);
     auto b = s.issue(2, "w", far);
     ASSERT_TRUE(a && b);
-    ASSERT_EQ(s.complete(1, fake_result(*a)).status, CompleteStatus::Merged);
+    ASSERT_EQ(s.complete(1, "w", fake_result(*a)).status, CompleteStatus::Merged);
     s.cancel();
     EXPECT_EQ(s.state(), RenderState::Cancelled);
-    EXPECT_EQ(s.complete(2, fake_result(*b)).status, CompleteStatus::Ignored);
+    EXPECT_EQ(s.complete(2, "w", fake_result(*b)).status, CompleteStatus::Ignored);
     EXPECT_EQ(s.merged().total_samples(), a->rect.size());
     EXPECT_FALSE(s.issue(3, "w", far));
 }
@@ -125,13 +155,13 @@ TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne)
         s.start();
         uint64_t lease = 1;
         while (auto job = s.issue(lease, "w", far))
-            s.complete(lease++, fake_result(*job));
+            s.complete(lease++, "w", fake_result(*job));
         if (interrupt_after_round < 0) return s.merged().image(true).rgb;
         RenderSession resumed("r", spec, 0);
         resumed.restore(saved->first, saved->second, saved_rounds, 0);
         resumed.start();
         while (auto job = resumed.issue(lease, "w", far))
-            resumed.complete(lease++, fake_result(*job));
+            resumed.complete(lease++, "w", fake_result(*job));
         EXPECT_EQ(resumed.state(), RenderState::Done);
         return resumed.merged().image(true).rgb;
     };

@@ -24,6 +24,8 @@ struct LeaseGrant {
 
 // A plain C++ enum rather than v1::CompleteStatus: the embedded render's threads complete
 // jobs by direct call and never link protobuf. proto/wire.h maps it for gRPC.
+// Ignored also answers a result for a lease another session holds ("not your lease"):
+// the holder's lease stays and its own result still merges.
 enum class CompleteStatus { Merged, Ignored, Rejected };
 struct CompleteOutcome {
     CompleteStatus status;
@@ -37,30 +39,44 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-// Thrown by a link's lease() when the coordinator does not know the worker (it restarted
-// since the worker registered): the worker registers again, then asks again.
+// Thrown by any call but register_worker when the coordinator does not know the worker's
+// session (it restarted since the worker registered, or the session was never issued):
+// the worker registers again, with its threads, then asks again. Nothing else changed.
 class WorkerUnknown : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
 };
 
+// What register_worker hands a worker: the session every later call carries, and how
+// long a lease lasts. The session is an unguessable token (128 random bits, hex): the
+// coordinator knows the worker by it, not by its name, so a caller that only knows a
+// worker's name (or a lease id) cannot act for it (docs/SECURITY.md, "Lease ownership").
+struct Registration {
+    std::string session;
+    uint32_t lease_ms = 0;
+};
+
+// Every call but register_worker carries the session; one the coordinator does not know
+// throws WorkerUnknown. A lease belongs to the session that leased it: complete, renew,
+// abandon and fail from any other session change nothing.
 class WorkerLink {
 public:
     virtual ~WorkerLink() = default;
-    // Returns the lease duration in milliseconds.
-    virtual uint32_t register_worker(const std::string& name, uint32_t threads) = 0;
-    virtual std::optional<LeaseGrant> lease(const std::string& worker,
+    virtual Registration register_worker(const std::string& name, uint32_t threads) = 0;
+    virtual std::optional<LeaseGrant> lease(const std::string& session,
                                             std::chrono::milliseconds wait) = 0;
-    virtual CompleteOutcome complete(const std::string& worker, uint64_t lease_id,
+    virtual CompleteOutcome complete(const std::string& session, uint64_t lease_id,
                                      const SampleJobResult& result) = 0;
-    virtual std::optional<std::string> fetch_scene(const std::string& hash) = 0;
-    virtual bool renew(const std::string& worker, uint64_t lease_id) = 0;
+    virtual std::optional<std::string> fetch_scene(const std::string& session,
+                                                   const std::string& hash) = 0;
+    // False when the lease is not (or no longer) this session's.
+    virtual bool renew(const std::string& session, uint64_t lease_id) = 0;
     // Gives a lease back untraced (the worker is stopping): re-issued at once, no fault.
-    virtual bool abandon(const std::string& worker, uint64_t lease_id) = 0;
+    virtual bool abandon(const std::string& session, uint64_t lease_id) = 0;
     // The worker cannot trace the lease (its scene does not load, tracing threw), for
     // `reason`: the job goes to another worker, and the failure counts against the job
     // and the worker (docs/FARM.md). False when the lease is no longer the worker's.
-    virtual bool fail(const std::string& worker, uint64_t lease_id,
+    virtual bool fail(const std::string& session, uint64_t lease_id,
                       const std::string& reason) = 0;
 };
 
