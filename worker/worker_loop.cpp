@@ -120,126 +120,158 @@ void WorkerLoop::run() {
     std::jthread keeper([this] { keeper_main(); });
 }
 
+// What one tracing thread carries from lease to lease: two kinds of retry, each waiting
+// longer each time (reaching the coordinator; jobs that fail here or answers the
+// coordinator refuses), whether "cannot get a lease" was logged, and the registrations
+// seen when this lease was asked for.
+struct WorkerLoop::Retries {
+    Backoff unreachable, faults;
+    bool announced = false;
+    uint64_t registrations = 0;
+};
+
+// The outcome of tracing one lease.
+struct WorkerLoop::Traced {
+    std::optional<SampleJobResult> result;
+    std::string failure;        // why this worker cannot trace it; empty otherwise
+    bool unreachable = false;   // the coordinator went away while fetching the scene
+    bool session_gone = false;  // the coordinator restarted: the lease went with it
+};
+
 void WorkerLoop::thread_main() {
     enable_flush_to_zero();
-    // Two kinds of retry, each waiting longer each time: reaching the coordinator, and
-    // jobs that fail here or answers the coordinator refuses.
-    Backoff unreachable(options_.backoff_initial, options_.reconnect_max);
-    Backoff faults(options_.backoff_initial, options_.failure_max);
-    bool announced = false;
+    Retries retries{Backoff(options_.backoff_initial, options_.reconnect_max),
+                    Backoff(options_.backoff_initial, options_.failure_max)};
     while (!stopping_) {
-        std::optional<LeaseGrant> grant;
-        const uint64_t registrations = registrations_;
-        const auto asked = std::chrono::steady_clock::now();
-        try {
-            grant = link_.lease(session(), options_.lease_wait);
-            if (announced) log("coordinator back");
-            announced = false;
-        } catch (const WorkerUnknown&) {
-            // The coordinator restarted without us: register again, with our threads.
-            if (!reregister(registrations, announced))
-                sleep_unless_stopping(unreachable.next());
-            continue;
-        } catch (const std::exception& e) {
-            // Unreachable, or an answer this worker cannot read: wait and ask again; a
-            // worker thread never dies of what the coordinator said.
-            if (!announced) log(std::string("cannot get a lease, retrying: ") + e.what());
-            announced = true;
-            sleep_unless_stopping(unreachable.next());
-            continue;
-        }
-        // A long-poll that ended early with nothing (a coordinator shutting down, a link
-        // that does not wait) is not asked again at once, nor sooner each time.
-        if (!grant &&
-            std::chrono::steady_clock::now() - asked < options_.lease_wait / 2) {
-            sleep_unless_stopping(unreachable.next());
-            continue;
-        }
-        unreachable.reset();
+        std::optional<LeaseGrant> grant = next_lease(retries);
         if (!grant) continue;
         {
             std::lock_guard lock(held_mutex_);
             held_.insert(grant->lease_id);
         }
-        std::optional<SampleJobResult> result;
-        std::string failure;
-        bool unreachable_now = false;
-        try {
-            auto scene = scenes_.get(grant->scene_hash, [&](const std::string& h) {
-                return link_.fetch_scene(session(), h);
-            });
-            result = trace_sample_job(*scene->tracer, grant->geometry, grant->job, 1,
-                                      &stopping_);
-        } catch (const JobCancelled&) {
-            // Stopping: the lease is given back below.
-        } catch (const WorkerUnknown&) {
-            // The coordinator restarted since this lease: it is gone with our session.
+        Traced traced = trace(*grant);
+        if (traced.session_gone) {
             release(grant->lease_id);
-            reregister(registrations, announced);
-            continue;
-        } catch (const LinkUnavailable& e) {
-            log(std::string("lost the coordinator: ") + e.what());
-            unreachable_now = true;
-        } catch (const std::exception& e) {
-            // A scene that does not load here, or tracing that threw: this worker cannot
-            // trace the job. Reported below, so that another worker gets it and a job
-            // nobody can trace fails its render instead of going round forever.
-            failure = *e.what() ? e.what() : "tracing failed";
-        } catch (...) {
-            failure = "tracing failed with an unknown exception";
-        }
-        if (result) {
+            reregister(retries.registrations, retries.announced);
+        } else if (traced.result) {
             release(grant->lease_id);  // from here on the result answers for the lease
-            try {
-                const CompleteOutcome outcome =
-                    link_.complete(session(), grant->lease_id, *result);
-                if (outcome.status == CompleteStatus::Merged) {
-                    samples_traced_ += result->total_samples();
-                    ++jobs_done_;
-                    faults.reset();
-                } else if (outcome.status == CompleteStatus::Rejected) {
-                    const Millis wait = faults.next();
-                    log("result rejected: " + outcome.message + "; next lease in " +
-                        seconds_text(wait));
-                    sleep_unless_stopping(wait);
-                }
-            } catch (const WorkerUnknown&) {
-                // The coordinator restarted since this lease; the job is traced again.
-                reregister(registrations, announced);
-            } catch (const LinkUnavailable& e) {
-                log(std::string("lost the coordinator: ") + e.what());
-                sleep_unless_stopping(unreachable.next());
-            } catch (const std::exception& e) {
-                const Millis wait = faults.next();
-                log(std::string("cannot return a result: ") + e.what() +
-                    "; next lease in " + seconds_text(wait));
-                sleep_unless_stopping(wait);
-            }
-            continue;
+            return_result(*grant, *traced.result, retries);
+        } else {
+            hand_back(*grant, traced, retries);
         }
-        // Still held: not traced to the end. Reported or given back outside the lock
-        // (an RPC).
-        if (!release(grant->lease_id)) continue;
-        if (!failure.empty()) {
-            ++jobs_failed_;
-            const Millis wait = faults.next();
-            log("cannot trace a job of " + grant->render_id + ": " + failure +
-                "; reported, next lease in " + seconds_text(wait));
-            try {
-                link_.fail(session(), grant->lease_id, failure);
-            } catch (const std::exception&) {
-                // The lease expires on its own and the job goes to someone else.
-            }
-            sleep_unless_stopping(wait);
-            continue;
-        }
-        try {
-            link_.abandon(session(), grant->lease_id);
-        } catch (const std::exception&) {
-            // The lease expires on its own.
-        }
-        if (unreachable_now) sleep_unless_stopping(unreachable.next());
     }
+}
+
+std::optional<LeaseGrant> WorkerLoop::next_lease(Retries& retries) {
+    retries.registrations = registrations_;
+    const auto asked = std::chrono::steady_clock::now();
+    std::optional<LeaseGrant> grant;
+    try {
+        grant = link_.lease(session(), options_.lease_wait);
+        if (retries.announced) log("coordinator back");
+        retries.announced = false;
+    } catch (const WorkerUnknown&) {
+        // The coordinator restarted without us: register again, with our threads.
+        if (!reregister(retries.registrations, retries.announced))
+            sleep_unless_stopping(retries.unreachable.next());
+        return std::nullopt;
+    } catch (const std::exception& e) {
+        // Unreachable, or an answer this worker cannot read: wait and ask again; a worker
+        // thread never dies of what the coordinator said.
+        if (!retries.announced)
+            log(std::string("cannot get a lease, retrying: ") + e.what());
+        retries.announced = true;
+        sleep_unless_stopping(retries.unreachable.next());
+        return std::nullopt;
+    }
+    // A long-poll that ended early with nothing (a coordinator shutting down, a link that
+    // does not wait) is not asked again at once, nor sooner each time.
+    if (!grant && std::chrono::steady_clock::now() - asked < options_.lease_wait / 2) {
+        sleep_unless_stopping(retries.unreachable.next());
+        return std::nullopt;
+    }
+    retries.unreachable.reset();
+    return grant;
+}
+
+WorkerLoop::Traced WorkerLoop::trace(const LeaseGrant& grant) {
+    Traced out;
+    try {
+        auto scene = scenes_.get(grant.scene_hash, [&](const std::string& h) {
+            return link_.fetch_scene(session(), h);
+        });
+        out.result =
+            trace_sample_job(*scene->tracer, grant.geometry, grant.job, 1, &stopping_);
+    } catch (const JobCancelled&) {
+        // Stopping: the lease is given back by hand_back.
+    } catch (const WorkerUnknown&) {
+        out.session_gone = true;
+    } catch (const LinkUnavailable& e) {
+        log(std::string("lost the coordinator: ") + e.what());
+        out.unreachable = true;
+    } catch (const std::exception& e) {
+        // A scene that does not load here, or tracing that threw: this worker cannot
+        // trace the job. Reported by hand_back, so that another worker gets it and a job
+        // nobody can trace fails its render instead of going round forever.
+        out.failure = *e.what() ? e.what() : "tracing failed";
+    } catch (...) {
+        out.failure = "tracing failed with an unknown exception";
+    }
+    return out;
+}
+
+void WorkerLoop::return_result(const LeaseGrant& grant, const SampleJobResult& result,
+                               Retries& retries) {
+    try {
+        const CompleteOutcome outcome = link_.complete(session(), grant.lease_id, result);
+        if (outcome.status == CompleteStatus::Merged) {
+            samples_traced_ += result.total_samples();
+            ++jobs_done_;
+            retries.faults.reset();
+        } else if (outcome.status == CompleteStatus::Rejected) {
+            const Millis wait = retries.faults.next();
+            log("result rejected: " + outcome.message + "; next lease in " +
+                seconds_text(wait));
+            sleep_unless_stopping(wait);
+        }
+    } catch (const WorkerUnknown&) {
+        // The coordinator restarted since this lease; the job is traced again.
+        reregister(retries.registrations, retries.announced);
+    } catch (const LinkUnavailable& e) {
+        log(std::string("lost the coordinator: ") + e.what());
+        sleep_unless_stopping(retries.unreachable.next());
+    } catch (const std::exception& e) {
+        const Millis wait = retries.faults.next();
+        log(std::string("cannot return a result: ") + e.what() + "; next lease in " +
+            seconds_text(wait));
+        sleep_unless_stopping(wait);
+    }
+}
+
+void WorkerLoop::hand_back(const LeaseGrant& grant, const Traced& traced,
+                           Retries& retries) {
+    // Still held: not traced to the end. Reported or given back outside the lock (an
+    // RPC).
+    if (!release(grant.lease_id)) return;
+    if (!traced.failure.empty()) {
+        ++jobs_failed_;
+        const Millis wait = retries.faults.next();
+        log("cannot trace a job of " + grant.render_id + ": " + traced.failure +
+            "; reported, next lease in " + seconds_text(wait));
+        try {
+            link_.fail(session(), grant.lease_id, traced.failure);
+        } catch (const std::exception&) {
+            // The lease expires on its own and the job goes to someone else.
+        }
+        sleep_unless_stopping(wait);
+        return;
+    }
+    try {
+        link_.abandon(session(), grant.lease_id);
+    } catch (const std::exception&) {
+        // The lease expires on its own.
+    }
+    if (traced.unreachable) sleep_unless_stopping(retries.unreachable.next());
 }
 
 void WorkerLoop::keeper_main() {

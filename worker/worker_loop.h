@@ -7,6 +7,7 @@
 #include <atomic>
 #include <chrono>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -43,7 +44,17 @@ public:
     uint64_t jobs_failed() const { return jobs_failed_; }
 
 private:
+    struct Retries;
+    struct Traced;
+    // One tracing thread: lease, trace, then return the result or hand the lease back.
     void thread_main();
+    // A lease, or nullopt after waiting as the failure asked (then ask again).
+    std::optional<LeaseGrant> next_lease(Retries& retries);
+    Traced trace(const LeaseGrant& grant);
+    void return_result(const LeaseGrant& grant, const SampleJobResult& result,
+                       Retries& retries);
+    // A lease not traced to the end: reported as failed (with why) or abandoned.
+    void hand_back(const LeaseGrant& grant, const Traced& traced, Retries& retries);
     void keeper_main();
     void log(const std::string& line) const;
     void sleep_unless_stopping(std::chrono::milliseconds duration);
