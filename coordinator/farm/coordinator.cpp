@@ -618,28 +618,28 @@ std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
     return std::nullopt;
 }
 
+RenderSession* Coordinator::held_render(const std::string& session, uint64_t lease_id) {
+    // Only the holder's word counts: anyone else's leaves the lease with its holder.
+    const auto it = lease_render_.find(lease_id);
+    if (it == lease_render_.end() || it->second.session != session) return nullptr;
+    const auto s = sessions_.find(it->second.render);
+    return s == sessions_.end() ? nullptr : s->second.get();
+}
+
 bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
     std::lock_guard lock(mutex_);
     const std::string& worker = worker_of_session(session);
-    const auto it = lease_render_.find(lease_id);
-    if (it == lease_render_.end() || it->second.session != session) return false;
-    const auto s = sessions_.find(it->second.render);
-    if (s == sessions_.end()) return false;
-    return s->second->renew(lease_id, worker,
-                            RenderSession::Clock::now() + options_.lease_time);
+    RenderSession* s = held_render(session, lease_id);
+    return s &&
+           s->renew(lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
 }
 
 bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
     std::lock_guard lock(mutex_);
     const std::string& worker = worker_of_session(session);
-    const auto it = lease_render_.find(lease_id);
-    // Only the holder may give a lease back; anyone else's word leaves it with its
-    // holder.
-    if (it == lease_render_.end() || it->second.session != session) return false;
-    const auto s = sessions_.find(it->second.render);
-    if (s == sessions_.end()) return false;
-    if (!s->second->abandon(lease_id, worker)) return false;
-    lease_render_.erase(it);
+    RenderSession* s = held_render(session, lease_id);
+    if (!s || !s->abandon(lease_id, worker)) return false;
+    lease_render_.erase(lease_id);
     changed();
     return true;
 }
@@ -648,15 +648,12 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
                        const std::string& reason) {
     std::lock_guard lock(mutex_);
     const std::string& worker = worker_of_session(session);
-    const auto it = lease_render_.find(lease_id);
-    // Only the holder's word counts, as for abandon.
-    if (it == lease_render_.end() || it->second.session != session) return false;
-    const auto session_it = sessions_.find(it->second.render);
-    if (session_it == sessions_.end()) return false;
-    RenderSession& s = *session_it->second;
-    if (!s.fail_job(lease_id, worker, reason, alive_workers(), options_.failure_policy))
+    RenderSession* held = held_render(session, lease_id);
+    if (!held || !held->fail_job(lease_id, worker, reason, alive_workers(),
+                                 options_.failure_policy))
         return false;
-    lease_render_.erase(it);
+    RenderSession& s = *held;
+    lease_render_.erase(lease_id);
     if (s.state() == RenderState::Failed) {
         log_error(s.id() + " failed: " + s.error());
         forget_ended_leases();  // the render's other leases ended with it

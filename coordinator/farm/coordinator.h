@@ -156,6 +156,8 @@ private:
     // The name of the worker holding `session`, touched (heard from now); throws
     // WorkerUnknown for a session this coordinator did not issue.
     const std::string& worker_of_session(const std::string& session);
+    // The render whose lease `lease_id` `session` holds; nullptr when it holds none.
+    RenderSession* held_render(const std::string& session, uint64_t lease_id);
     // A random lease id, not 0 and not one out now.
     uint64_t new_lease_id() const;
     // Workers registered here and not lost: those a job may go to (RenderSession::issue).
