@@ -82,10 +82,17 @@ private:
     bool stopping_ = false;
 };
 
+// Every JSON this server sends: bytes that are not UTF-8 (a URL's %FF echoed in an error,
+// a string cut mid-character) become U+FFFD instead of a throw from dump(), which outside
+// a handler's try would end the process.
+std::string json_text(const json& body) {
+    return body.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
 void send_json(httplib::Response& res, const json& body, int status = 200) {
     res.status = status;
     res.set_header("Cache-Control", "no-store");
-    res.set_content(body.dump(), "application/json");
+    res.set_content(json_text(body), "application/json");
 }
 
 void send_error(httplib::Response& res, int status, const std::string& message) {
@@ -245,18 +252,17 @@ struct HttpServer::Impl {
             return;
         }
         if (!changed.empty())
-            hub.publish(json{{"type", "render"}, {"renders", changed}}.dump());
+            hub.publish(json_text(json{{"type", "render"}, {"renders", changed}}));
         if (!rounds.empty())
-            hub.publish(json{{"type", "round"}, {"rounds", rounds}}.dump());
+            hub.publish(json_text(json{{"type", "round"}, {"rounds", rounds}}));
         if (workers_changed) {
             seen_worker_samples = samples;
             workers_sent = now;
             json list = json::array();
             for (const WorkerStatus& w : workers)
                 list.push_back(http_api::worker_json(w));
-            hub.publish(json{
-                {"type", "workers"}, {"workers", list}, {"now_ms", unix_millis_now()}}
-                            .dump());
+            hub.publish(json_text(
+                {{"type", "workers"}, {"workers", list}, {"now_ms", unix_millis_now()}}));
         }
     }
 
@@ -266,7 +272,7 @@ struct HttpServer::Impl {
         std::string warning = coordinator.storage_warning();
         if (warning == seen_storage_warning) return;
         seen_storage_warning = warning;
-        hub.publish(json{{"type", "storage"}, {"storage_warning", warning}}.dump());
+        hub.publish(json_text(json{{"type", "storage"}, {"storage_warning", warning}}));
     }
 
     void broadcast() {
@@ -277,11 +283,12 @@ struct HttpServer::Impl {
             const uint64_t now =
                 coordinator.wait_for_change(version, std::chrono::milliseconds(200));
             if (hub.stopping()) break;
-            // The record's disk can fill or free up without any render changing.
-            publish_storage_warning();
-            if (now == version) continue;
-            version = now;
+            // Nothing in this thread may end the process: a failed update is logged.
             try {
+                // The record's disk can fill or free up without any render changing.
+                publish_storage_warning();
+                if (now == version) continue;
+                version = now;
                 snapshot(true);
             } catch (const std::exception& e) {
                 std::fprintf(stderr, "http: live update failed: %s\n", e.what());
@@ -338,12 +345,12 @@ struct HttpServer::Impl {
                 std::string out;
                 if (!*greeted) {
                     *greeted = true;
-                    out = "retry: 2000\n\ndata: " +
-                          json{{"type", "hello"},
-                               {"now_ms", unix_millis_now()},
-                               {"storage_warning", coordinator.storage_warning()}}
-                              .dump() +
-                          "\n\n";
+                    out =
+                        "retry: 2000\n\ndata: " +
+                        json_text({{"type", "hello"},
+                                   {"now_ms", unix_millis_now()},
+                                   {"storage_warning", coordinator.storage_warning()}}) +
+                        "\n\n";
                     return sink.write(out.data(), out.size());
                 }
                 std::vector<std::string> messages;
@@ -422,15 +429,22 @@ struct HttpServer::Impl {
                          [&](const auto& d) { return d.first == label; });
         if (source == options.study_dirs.end())
             throw ApiError(404, "no study source '" + label + "'");
-        if (name.find("..") != std::string::npos || rel.find("..") != std::string::npos)
-            throw ApiError(400, "study paths may not contain '..'");
+        if (name.find("..") != std::string::npos || rel.find("..") != std::string::npos ||
+            !fs::path(name).is_relative() || !fs::path(rel).is_relative())
+            throw ApiError(400, "study paths must be relative and may not contain '..'");
+        const auto missing = [&] {
+            return ApiError(404, "no study file '" + name + "/" + rel + "'");
+        };
         std::error_code ec;
         const fs::path root = fs::weakly_canonical(source->second / name, ec);
-        const fs::path file = fs::weakly_canonical(source->second / name / rel, ec);
+        if (ec || root.empty()) throw missing();
+        const fs::path file = fs::weakly_canonical(root / rel, ec);
+        if (ec || content_type_of(file).empty() || !fs::is_regular_file(file, ec))
+            throw missing();
+        // Inside the study's folder by path components, not by string prefix.
+        const fs::path inside = file.lexically_relative(root);
+        if (inside.empty() || *inside.begin() == "..") throw missing();
         const std::string type = content_type_of(file);
-        if (ec || type.empty() || !fs::is_regular_file(file, ec) ||
-            file.string().rfind(root.string() + "/", 0) != 0)
-            throw ApiError(404, "no study file '" + name + "/" + rel + "'");
         std::ifstream in(file, std::ios::binary);
         std::ostringstream body;
         body << in.rdbuf();

@@ -690,6 +690,34 @@ TEST_F(HttpServerTest, StudiesAreListedAndServedFromTheirDirectoryOnly) {
     EXPECT_EQ(png->get_header_value("Content-Type"), "image/png");
 }
 
+// Found in review: a study name too long for the file system made weakly_canonical fail
+// for the root and an absolute rest succeed, and the prefix check then passed any file.
+TEST_F(HttpServerTest, AStudyPathCannotReachOutsideItsFolder) {
+    const std::string secret = (dir_ / "secret.txt").string();
+    for (const std::string& path :
+         {"/api/studies/data/" + std::string(300, 'x') + "/" + secret,
+          "/api/studies/data/equal-budget/" + secret}) {
+        auto res = client_->Get(path);
+        ASSERT_TRUE(res) << path;
+        EXPECT_TRUE(res->status == 400 || res->status == 404) << res->status;
+        EXPECT_EQ(res->body.find("not served"), std::string::npos) << res->body;
+    }
+}
+
+// Found in review: a URL decoding to bytes that are not UTF-8 was echoed in a JSON error
+// whose dump() threw outside any handler's try, and the process ended.
+TEST_F(HttpServerTest, APathThatIsNotUtf8GetsA404AndTheServerLivesOn) {
+    for (const char* path : {"/%FF", "/api/renders/%FF%FE", "/api/renders/r-1/%C3"}) {
+        auto res = client_->Get(path);
+        ASSERT_TRUE(res) << path;
+        EXPECT_EQ(res->status, 404) << path << " " << res->body;
+        EXPECT_NO_THROW(json::parse(res->body)) << res->body;
+    }
+    auto health = client_->Get("/healthz");
+    ASSERT_TRUE(health);
+    EXPECT_EQ(health->status, 200);
+}
+
 TEST_F(HttpServerTest, ServesTheDashboard) {
     auto res = client_->Get("/");
     ASSERT_TRUE(res);
