@@ -205,7 +205,11 @@ std::string one_line(const std::string& text) {
             out += "...";
             break;
         }
-        out += (c == '\n' || c == '\r' || c == '\t') ? ' ' : c;
+        // ASCII only: a worker's bytes reach proto strings and JSON, which need UTF-8,
+        // and a cut at kMax could split a character.
+        const auto u = static_cast<unsigned char>(c);
+        out += (u < 0x20 || u >= 0x7f) ? (u == '\n' || u == '\r' || u == '\t' ? ' ' : '?')
+                                       : c;
     }
     return out.empty() ? "no reason given" : out;
 }

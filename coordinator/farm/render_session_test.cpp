@@ -220,6 +220,23 @@ TEST_F(FailingJobsTest, AJobThatFailedOnKDistinctWorkersFailsTheRenderWithTheRea
     EXPECT_FALSE(s.issue(lease, "d", far, alive, policy));
 }
 
+// Found in review: a reason cut at 500 bytes could split a UTF-8 character, and the
+// render's error then broke every JSON and proto string that carried it.
+TEST_F(FailingJobsTest, TheReasonKeptIsPrintableAsciiAndBounded) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const std::set<std::string> alive{"a"};
+    const std::string reason =
+        std::string(499, 'x') + "\xc3\xa9\xff" + std::string(100, 'y');
+    for (uint64_t lease = 1; s.state() == RenderState::Running; ++lease) {
+        ASSERT_TRUE(s.issue(lease, "a", far, alive, policy));
+        EXPECT_TRUE(s.fail_job(lease, "a", reason, alive, policy));
+    }
+    EXPECT_EQ(s.state(), RenderState::Failed);
+    for (char c : s.error()) EXPECT_TRUE(c >= 0x20 && c < 0x7f) << int(c);
+    EXPECT_LT(s.error().size(), 600u);
+}
+
 TEST_F(FailingJobsTest, AWorkerThatKeepsFailingIsKeptOffTheRender) {
     RenderSession s("r", spec, 0);
     s.start();
