@@ -33,7 +33,8 @@ public:
                 req->strategy_json().empty() ? "{}" : req->strategy_json());
             if (!req->reference_exr().empty())
                 spec.reference =
-                    decode_exr(req->reference_exr(), "the submitted reference");
+                    decode_exr(req->reference_exr(), "the submitted reference",
+                               ExrSize{req->width(), req->height()});
             const std::string id = c_.submit(std::move(spec));
             to_proto(*c_.info(id), *reply);
             return Status::OK;

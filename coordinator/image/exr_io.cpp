@@ -22,6 +22,8 @@ namespace {
 constexpr const char* kRgb[3] = {"R", "G", "B"};
 // Twice the largest side the farm renders: larger claims are refused before allocating.
 constexpr int64_t kMaxSide = 16384;
+// R, G, B and every AOV the farm writes, with room to spare.
+constexpr size_t kMaxChannels = 16;
 
 [[noreturn]] void fail(const char* verb, const std::filesystem::path& path,
                        const std::string& why) {
@@ -78,7 +80,8 @@ void write_to(Imf::OStream& stream, const Image& image) {
 
 // Reads R, G, B and every other channel from an OpenEXR stream; `path` (a file, or what
 // the bytes came from) goes into errors. The one reader of files and memory.
-Image read_from(Imf::IStream& stream, const std::filesystem::path& path) {
+Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
+                const ExrSize* expected = nullptr) {
     Imf::InputFile file(stream);
     const Imath::Box2i dw = file.header().dataWindow();
     const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
@@ -88,7 +91,19 @@ Image read_from(Imf::IStream& stream, const std::filesystem::path& path) {
         fail("read", path,
              "data window " + std::to_string(w) + "x" + std::to_string(h) +
                  " is outside 1.." + std::to_string(kMaxSide) + " a side");
+    if (expected && (w != expected->width || h != expected->height))
+        fail("read", path,
+             "it is " + std::to_string(w) + "x" + std::to_string(h) + ", expected " +
+                 std::to_string(expected->width) + "x" +
+                 std::to_string(expected->height));
     const Imf::ChannelList& channels = file.header().channels();
+    size_t channel_count = 0;
+    for (auto it = channels.begin(); it != channels.end(); ++it) ++channel_count;
+    // Each channel is a full float plane: the count is bounded as the size is.
+    if (channel_count > kMaxChannels)
+        fail("read", path,
+             std::to_string(channel_count) + " channels, more than " +
+                 std::to_string(kMaxChannels));
     for (const char* name : kRgb)
         if (!channels.findChannel(name))
             fail("read", path, std::string("no channel ") + name);
@@ -186,13 +201,14 @@ std::string encode_exr(const Image& image) {
     }
 }
 
-Image decode_exr(const std::string& bytes, const std::string& name) {
+Image decode_exr(const std::string& bytes, const std::string& name,
+                 std::optional<ExrSize> expected) {
     if (bytes.size() < 4 || !Imf::isImfMagic(bytes.data()))
         fail("read", name, "not an OpenEXR file");
     return reading(name, [&] {
         Imf::StdISStream stream;
         stream.str(bytes);
-        return read_from(stream, name);
+        return read_from(stream, name, expected ? &*expected : nullptr);
     });
 }
 

@@ -2,7 +2,9 @@
 // bytes.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -25,7 +27,13 @@ Image read_exr(const std::filesystem::path& path);
 // The same bytes as write_exr and the same reading as read_exr, in memory: EXRs that
 // cross the network never touch a file (a predictable temporary name is an attack).
 // `name` says in errors where the bytes came from.
+// With `expected`, bytes whose header claims another size are refused before any pixel
+// is allocated (a few kilobytes could otherwise claim gigabytes).
+struct ExrSize {
+    int64_t width = 0, height = 0;
+};
 std::string encode_exr(const Image& image);
-Image decode_exr(const std::string& bytes, const std::string& name);
+Image decode_exr(const std::string& bytes, const std::string& name,
+                 std::optional<ExrSize> expected = std::nullopt);
 
 }  // namespace aliquot

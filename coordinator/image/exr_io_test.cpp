@@ -227,5 +227,25 @@ TEST_F(ExrIo, DecodingBadBytesNamesTheirSource) {
     }
 }
 
+// Found in review: a few kilobytes of header could claim 16384x16384 and any number of
+// channels, and decoding allocated every plane before failing. A caller that knows the
+// size passes it; the channel count is bounded for everyone.
+TEST_F(ExrIo, BytesOfAnotherSizeOrTooManyChannelsAreRefusedBeforeAllocating) {
+    const std::string bytes = encode_exr(patterned(8, 8));
+    EXPECT_NO_THROW(decode_exr(bytes, "ref", ExrSize{8, 8}));
+    try {
+        decode_exr(bytes, "ref", ExrSize{16, 16});
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_NE(std::string(e.what()).find("it is 8x8, expected 16x16"),
+                  std::string::npos)
+            << e.what();
+    }
+    Image many(4, 4);
+    for (int c = 0; c < 14; ++c)
+        many.extra.push_back({"c" + std::to_string(c), std::vector<float>(16, 0.0f)});
+    EXPECT_THROW(decode_exr(encode_exr(many), "ref"), ImageFileError);
+}
+
 }  // namespace
 }  // namespace aliquot
