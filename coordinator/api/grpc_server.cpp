@@ -2,6 +2,8 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <algorithm>
+
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "render_proto.h"
@@ -63,8 +65,10 @@ public:
 
     Status ListRenders(ServerContext*, const v1::ListRendersRequest* req,
                        v1::ListRendersReply* reply) override {
-        for (const RenderInfo& i : c_.list(req->limit() ? req->limit() : 100))
-            to_proto(i, *reply->add_renders());
+        // Bounded as HTTP's list is: the reply is built in memory.
+        const uint32_t limit =
+            req->limit() ? std::min<uint32_t>(req->limit(), 1000) : 100;
+        for (const RenderInfo& i : c_.list(limit)) to_proto(i, *reply->add_renders());
         reply->set_storage_warning(c_.storage_warning());
         return Status::OK;
     }
@@ -102,7 +106,7 @@ public:
         constexpr size_t kChunk = 1 << 20;
         for (size_t off = 0; off < bytes.size(); off += kChunk) {
             v1::FileChunk chunk;
-            chunk.set_data(bytes.substr(off, kChunk));
+            chunk.set_data(bytes.data() + off, std::min(kChunk, bytes.size() - off));
             if (!writer->Write(chunk)) break;
         }
         return Status::OK;
@@ -153,8 +157,9 @@ public:
 
     Status Register(ServerContext*, const v1::RegisterRequest* req,
                     v1::RegisterReply* reply) override {
-        if (req->name().empty())
-            return {StatusCode::INVALID_ARGUMENT, "worker name is empty"};
+        // The name keys the coordinator's worker table and the store's rows.
+        if (req->name().empty() || req->name().size() > 128)
+            return {StatusCode::INVALID_ARGUMENT, "a worker name is 1 to 128 bytes"};
         const Registration r = c_.register_worker(req->name(), req->threads());
         reply->set_lease_ms(r.lease_ms);
         reply->set_session(r.session);

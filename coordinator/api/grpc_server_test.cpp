@@ -255,6 +255,17 @@ TEST(ClientServiceReference, ASubmittedReferenceIsWrittenToNoPredictableFile) {
     fs::remove(victim);
 }
 
+// Found in review: any name was a key of the coordinator's worker table and a store row.
+TEST_F(WorkerServiceTest, AWorkerNameLongerThan128BytesIsRefused) {
+    grpc::ClientContext ctx;
+    v1::RegisterRequest reg;
+    reg.set_name(std::string(129, 'w'));
+    reg.set_threads(1);
+    v1::RegisterReply reply;
+    EXPECT_EQ(stub_->Register(&ctx, reg, &reply).error_code(),
+              grpc::StatusCode::INVALID_ARGUMENT);
+}
+
 TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
     v1::LeaseRequest req;
     req.set_session("0123456789abcdef0123456789abcdef");  // never issued here

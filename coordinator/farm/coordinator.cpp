@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
@@ -596,7 +597,8 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     if (outcome.status == CompleteStatus::Merged) {
         const uint64_t samples = result.total_samples();
         w.samples += samples;
-        if (result.wall_seconds > 0) {
+        // A worker's own clock: a NaN or a near-zero time would poison the smoothed rate.
+        if (std::isfinite(result.wall_seconds) && result.wall_seconds >= 1e-3) {
             // Per-thread rate of this job, times the worker's threads, smoothed.
             const double rate =
                 double(samples) / result.wall_seconds * std::max(w.threads, 1u);

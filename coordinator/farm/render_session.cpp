@@ -19,6 +19,13 @@ RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms
 
 void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_state,
                             uint32_t rounds_done, double seconds_before) {
+    // A checkpoint of another size (damaged, or another render's) would index the
+    // buffers out of bounds in every round after it: refused, the render cannot resume.
+    if (merged.width() != spec_.width || merged.height() != spec_.height)
+        throw std::runtime_error("checkpoint is " + std::to_string(merged.width()) + "x" +
+                                 std::to_string(merged.height()) + ", the render " +
+                                 std::to_string(spec_.width) + "x" +
+                                 std::to_string(spec_.height));
     merged_ = std::move(merged);
     strategy_->restore_state(strategy_state);
     rounds_done_ = rounds_done;

@@ -141,6 +141,15 @@ TEST_F(RenderSessionTest, CancelKeepsWhatWasMergedAndIgnoresTheRest) {
     EXPECT_FALSE(s.issue(3, "w", far));
 }
 
+// Found in review: a checkpoint of another size was restored as it was, and every round
+// after it indexed the buffers out of bounds.
+TEST_F(RenderSessionTest, ACheckpointOfAnotherSizeIsRefused) {
+    RenderSession s("r", spec, 0);
+    EXPECT_THROW(s.restore(Accumulator(spec.width + 1, spec.height),
+                           nlohmann::json::object(), 1, 0),
+                 std::runtime_error);
+}
+
 TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne) {
     auto run = [&](int interrupt_after_round) {
         RenderSession s("r", spec, 0);
