@@ -73,6 +73,12 @@ void fetch_image(ClientConnection& c, const std::string& id, const std::string& 
         v1::FileChunk chunk;
         while (reader->Read(&chunk))
             out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+        out.close();
+        if (!out) {  // a full disk: never rename a truncated file into place
+            reader->Finish();
+            std::filesystem::remove(tmp);
+            throw CommandError("--out: cannot write " + path);
+        }
     }
     const grpc::Status status = reader->Finish();
     if (!status.ok()) std::filesystem::remove(tmp);
