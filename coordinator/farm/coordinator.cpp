@@ -538,7 +538,14 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
     w.registered = true;
-    if (store_) store_->upsert_worker(name, threads, unix_millis_now());
+    // A full disk must not keep workers out: the row is written again when it returns.
+    if (store_) {
+        try {
+            store_->upsert_worker(name, threads, unix_millis_now());
+        } catch (const std::exception& e) {
+            log_error(e.what());
+        }
+    }
     // A new session each time; earlier ones of the same name stay valid (their leases are
     // still theirs), so registering with a worker's name neither takes its leases nor
     // locks it out.
