@@ -202,14 +202,16 @@ public:
             try {
                 result = from_proto(req->result());
             } catch (const WireError& e) {
-                // Malformed: nothing is merged and the job goes back to be traced again,
-                // when the sender holds it (abandon checks; anyone else changes nothing).
-                if (!c_.abandon(req->session(), req->lease_id())) {
-                    reply->set_status(v1::COMPLETE_STATUS_IGNORED);
+                // Malformed: nothing is merged, and it counts as the sender's failure on
+                // the job, as a rejected result does (fail checks the sender holds it;
+                // anyone else changes nothing).
+                if (!c_.fail(req->session(), req->lease_id(),
+                             std::string("malformed result: ") + e.what())) {
+                    reply->set_status(to_proto(CompleteStatus::Ignored));
                     reply->set_message("not your lease, or no longer out");
                     return;
                 }
-                reply->set_status(v1::COMPLETE_STATUS_REJECTED);
+                reply->set_status(to_proto(CompleteStatus::Rejected));
                 reply->set_message(e.what());
                 return;
             }

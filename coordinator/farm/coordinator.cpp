@@ -600,7 +600,8 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     if (session_it == sessions_.end())
         return {CompleteStatus::Ignored, "the render is no longer here"};
     RenderSession& s = *session_it->second;
-    const CompleteOutcome outcome = s.complete(lease_id, worker, result);
+    const CompleteOutcome outcome =
+        s.complete(lease_id, worker, result, alive_workers(), options_.failure_policy);
     if (outcome.status == CompleteStatus::Merged) {
         const uint64_t samples = result.total_samples();
         w.samples += samples;

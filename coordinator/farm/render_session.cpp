@@ -142,7 +142,9 @@ std::string RenderSession::check_result(const JobSlot& slot,
 }
 
 CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& worker,
-                                        const SampleJobResult& result) {
+                                        const SampleJobResult& result,
+                                        const std::set<std::string>& alive,
+                                        const FailurePolicy& policy) {
     if (state_ != RenderState::Running)
         return {CompleteStatus::Ignored, "render is " + std::string(to_string(state_))};
     const auto it = lease_to_job_.find(lease_id);
@@ -162,8 +164,9 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
         }
     }
     if (!why.empty()) {
-        // The job is traced again by whoever asks next; nothing was merged.
-        pending_.push_front(size_t(&slot - jobs_.data()));
+        // Nothing was merged; the job is traced again, preferably by another worker.
+        count_failure(size_t(&slot - jobs_.data()), worker, "result rejected: " + why,
+                      alive, policy);
         return {CompleteStatus::Rejected, why};
     }
     if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
@@ -230,8 +233,16 @@ bool RenderSession::fail_job(uint64_t lease_id, const std::string& worker,
     const auto it = lease_to_job_.find(lease_id);
     if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
     const size_t j = it->second;
-    JobSlot& slot = jobs_[j];
     lease_to_job_.erase(it);
+    count_failure(j, worker, reason, alive, policy);
+    return true;
+}
+
+void RenderSession::count_failure(size_t j, const std::string& worker,
+                                  const std::string& reason,
+                                  const std::set<std::string>& alive,
+                                  const FailurePolicy& policy) {
+    JobSlot& slot = jobs_[j];
     ++slot.failures;
     if (std::find(slot.failed_on.begin(), slot.failed_on.end(), worker) ==
         slot.failed_on.end())
@@ -256,11 +267,10 @@ bool RenderSession::fail_job(uint64_t lease_id, const std::string& worker,
         why += distinct == 1 ? " worker: " : " workers: ";
         why += one_line(reason);
         fail(why);
-        return true;
+        return;
     }
     // Back to the front: the next worker that may take it does.
     pending_.push_front(j);
-    return true;
 }
 
 uint32_t RenderSession::failures_of(const std::string& worker) const {

@@ -66,8 +66,12 @@ public:
                                    const FailurePolicy& policy = {});
     // Merges `worker`'s result for its lease. A lease another worker holds is refused
     // ("not your lease") and stays with its holder; so do renew, abandon and fail_job.
+    // A result that does not fit its job is rejected and counts as a failure, as
+    // fail_job's do: a worker that keeps returning one cannot keep a render going round.
     CompleteOutcome complete(uint64_t lease_id, const std::string& worker,
-                             const SampleJobResult& result);
+                             const SampleJobResult& result,
+                             const std::set<std::string>& alive = {},
+                             const FailurePolicy& policy = {});
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
     // `worker` could not trace its lease, for `reason`: the failure counts against the
@@ -127,6 +131,10 @@ private:
     bool blocklisted(const std::string& worker, const FailurePolicy& policy) const;
     // Whether someone in `alive` but `worker` may take `slot`: not blocklisted and not
     // among those it failed on.
+    // Counts a failure of job `j` (no longer leased) against it and `worker`: back to the
+    // queue, or the render fails with `reason` when the policy says so.
+    void count_failure(size_t j, const std::string& worker, const std::string& reason,
+                       const std::set<std::string>& alive, const FailurePolicy& policy);
     bool another_could_take(const JobSlot& slot, const std::string& worker,
                             const std::set<std::string>& alive,
                             const FailurePolicy& policy) const;

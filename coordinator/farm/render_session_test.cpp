@@ -246,6 +246,27 @@ TEST_F(FailingJobsTest, TheReasonKeptIsPrintableAsciiAndBounded) {
     EXPECT_LT(s.error().size(), 600u);
 }
 
+// Found in review: a rejected result put its job back at the front with nothing counted,
+// so a worker that always returned a bad result leased, was rejected and leased again for
+// ever. Rejections now count as failures.
+TEST_F(FailingJobsTest, AWorkerWhoseResultsAreAlwaysRejectedFailsTheRender) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    const std::set<std::string> alive{"a"};
+    uint64_t lease = 1;
+    for (; s.state() == RenderState::Running && lease < 10; ++lease) {
+        const auto job = s.issue(lease, "a", far, alive, policy);
+        ASSERT_TRUE(job);
+        SampleJobResult bad = fake_result(*job);
+        bad.pixels.pop_back();  // the wrong pixel count
+        EXPECT_EQ(s.complete(lease, "a", bad, alive, policy).status,
+                  CompleteStatus::Rejected);
+    }
+    EXPECT_EQ(s.state(), RenderState::Failed);
+    EXPECT_EQ(lease - 1, policy.max_job_failures);
+    EXPECT_NE(s.error().find("result rejected: "), std::string::npos) << s.error();
+}
+
 TEST_F(FailingJobsTest, AWorkerThatKeepsFailingIsKeptOffTheRender) {
     RenderSession s("r", spec, 0);
     s.start();
