@@ -8,14 +8,16 @@
 
 namespace aliquot::cli {
 
-ClientConnection::ClientConnection(const std::string& address) : address_(address) {
+ClientConnection::ClientConnection(CoordinatorEndpoint endpoint)
+    : endpoint_(std::move(endpoint)), address_(endpoint_.address) {
     stub_ = v1::ClientService::NewStub(
-        grpc::CreateChannel(address, grpc::InsecureChannelCredentials()));
+        grpc::CreateChannel(address_, channel_credentials(endpoint_)));
 }
 
 std::unique_ptr<grpc::ClientContext> ClientConnection::context(int seconds) const {
     auto ctx = std::make_unique<grpc::ClientContext>();
     ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(seconds));
+    add_token(*ctx, endpoint_);
     return ctx;
 }
 
@@ -96,6 +98,7 @@ RenderInfo follow(ClientConnection& c, const std::string& id,
     // ends.
     for (int attempt = 0;; ++attempt) {
         grpc::ClientContext ctx;
+        c.authorize(ctx);
         auto reader = c.stub().Watch(&ctx, req);
         while (reader->Read(&message)) {
             info = from_proto(message);

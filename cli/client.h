@@ -9,21 +9,25 @@
 
 #include <grpcpp/grpcpp.h>
 #include "aliquot.grpc.pb.h"
+#include "channel.h"
 #include "coordinator.h"
 
 namespace aliquot::cli {
 
 class ClientConnection {
 public:
-    explicit ClientConnection(const std::string& address);
+    explicit ClientConnection(CoordinatorEndpoint endpoint);
     v1::ClientService::Stub& stub() { return *stub_; }
-    // A context whose deadline is `seconds` from now.
+    // A context whose deadline is `seconds` from now, carrying the client token.
     std::unique_ptr<grpc::ClientContext> context(int seconds = 30) const;
+    // Adds the client token to a context made elsewhere (a stream without a deadline).
+    void authorize(grpc::ClientContext& ctx) const { add_token(ctx, endpoint_); }
     // Throws CommandError for a failed call; `what` names the call for the message.
     void check(const grpc::Status& status, const std::string& what) const;
     const std::string& address() const { return address_; }
 
 private:
+    CoordinatorEndpoint endpoint_;
     std::string address_;
     std::unique_ptr<v1::ClientService::Stub> stub_;
 };

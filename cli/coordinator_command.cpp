@@ -5,12 +5,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <vector>
 
 #include "commands.h"
 #include "grpc_server.h"
 #include "http_server.h"
+#include "token_file.h"
 
 namespace aliquot::cli {
 
@@ -69,6 +72,33 @@ uint64_t parse_bytes(const std::string& text) {
     return uint64_t(n) << shift;
 }
 
+// The whole of a PEM file named by `option`.
+std::string read_pem(const std::string& path, const char* option) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (!in || text.str().empty())
+        throw CommandError(std::string(option) + ": cannot read " + path);
+    return text.str();
+}
+
+// A role's token: from the file the operator named, else DATA/ROLE.token, made at the
+// first start. Says where it is, never what it is.
+std::string role_token(const std::string& file, const fs::path& data_dir, Role role) {
+    const std::string name(to_string(role));
+    try {
+        if (!file.empty()) return read_token_file(file);
+        bool created = false;
+        const fs::path path = data_dir / (name + ".token");
+        std::string token = load_or_create_token_file(path, created);
+        std::fprintf(stderr, "coordinator: %s token %s %s\n", name.c_str(),
+                     created ? "written to" : "read from", path.string().c_str());
+        return token;
+    } catch (const TokenError& e) {
+        throw CommandError(e.what());
+    }
+}
+
 struct CoordinatorCommand {
     std::string grpc_address = "127.0.0.1:7070";
     std::string data_dir = "aliquot-data";
@@ -76,7 +106,9 @@ struct CoordinatorCommand {
     std::string web_dir;       // empty: default_web_dir()
     std::vector<std::string>
         study_dirs;  // more places `aliquot study --out` wrote reports
-    std::vector<std::string> allowed_hosts;  // --allow-host
+    std::vector<std::string> allowed_hosts;            // --allow-host
+    std::string client_token_file, worker_token_file;  // empty: DATA/ROLE.token
+    std::string tls_cert, tls_key;                     // empty: plaintext
     double lease_seconds = 30;
     double lost_seconds = 10;
     uint32_t max_side = 8192;
@@ -96,6 +128,22 @@ struct CoordinatorCommand {
         sigaddset(&stop, SIGINT);
         pthread_sigmask(SIG_BLOCK, &stop, nullptr);
 
+        if (tls_cert.empty() != tls_key.empty())
+            throw CommandError("--tls-cert and --tls-key go together");
+        std::error_code ec;
+        fs::create_directories(data_dir, ec);
+        GrpcSecurity security;
+        security.tokens = {role_token(client_token_file, data_dir, Role::Client),
+                           role_token(worker_token_file, data_dir, Role::Worker)};
+        if (security.tokens.client == security.tokens.worker)
+            throw CommandError(
+                "the client and worker tokens are the same: a token names its role, so "
+                "they must differ");
+        if (!tls_cert.empty()) {
+            security.tls_cert_pem = read_pem(tls_cert, "--tls-cert");
+            security.tls_key_pem = read_pem(tls_key, "--tls-key");
+        }
+
         CoordinatorOptions options;
         options.data_dir = data_dir;
         options.lease_time = std::chrono::milliseconds(int64_t(lease_seconds * 1000));
@@ -105,10 +153,11 @@ struct CoordinatorCommand {
         options.memory_limit = memory;
         options.failure_policy.max_job_failures = max_job_failures;
         Coordinator coordinator(options);
-        GrpcServer server(coordinator, grpc_address);
+        GrpcServer server(coordinator, grpc_address, security);
         std::fprintf(stderr,
-                     "coordinator: gRPC on %s (port %d), data in %s, memory limit %llu "
+                     "coordinator: gRPC%s on %s (port %d), data in %s, memory limit %llu "
                      "MiB\n",
+                     security.tls_cert_pem.empty() ? "" : " over TLS",
                      grpc_address.c_str(), server.port(), data_dir.c_str(),
                      (unsigned long long)(memory >> 20));
         std::unique_ptr<HttpServer> http;
@@ -165,6 +214,15 @@ void register_coordinator(CLI::App& app) {
                     "a Host name the HTTP API answers besides its listen address, e.g. a "
                     "compose or Kubernetes service name: NAME (any port) or NAME:PORT "
                     "(repeatable; docs/SECURITY.md)");
+    cmd->add_option("--client-token-file", c->client_token_file,
+                    "file holding the client token (default: DATA/client.token, made at "
+                    "the first start, mode 0600)");
+    cmd->add_option("--worker-token-file", c->worker_token_file,
+                    "file holding the worker token (default: DATA/worker.token, made at "
+                    "the first start, mode 0600)");
+    cmd->add_option("--tls-cert", c->tls_cert,
+                    "PEM certificate (chain): serve gRPC and HTTP over TLS");
+    cmd->add_option("--tls-key", c->tls_key, "PEM private key of --tls-cert");
     cmd->add_option("--web", c->web_dir,
                     "built dashboard directory (default: web/dist of the source tree)");
     cmd->add_option("--data", c->data_dir, "directory for SQLite, checkpoints, images")

@@ -8,6 +8,7 @@
 
 #include "client.h"
 #include "commands.h"
+#include "endpoint_options.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
@@ -18,7 +19,7 @@ namespace aliquot::cli {
 namespace {
 
 struct FarmOptions {
-    std::string coordinator = "127.0.0.1:7070";
+    EndpointOptions coordinator;
     std::string id;
     std::string out;
     bool json = false, aovs = false;
@@ -27,8 +28,7 @@ struct FarmOptions {
 CLI::App* add_common(CLI::App& app, const char* name, const char* help,
                      const std::shared_ptr<FarmOptions>& o) {
     CLI::App* cmd = app.add_subcommand(name, help);
-    cmd->add_option("--coordinator", o->coordinator, "coordinator address")
-        ->capture_default_str();
+    o->coordinator.add_to(*cmd, Role::Client);
     return cmd;
 }
 
@@ -45,7 +45,7 @@ void register_status(CLI::App& app) {
     cmd->add_option("id", o->id, "render id (omit for all)");
     cmd->add_flag("--json", o->json, "print JSON");
     cmd->callback([o] {
-        ClientConnection c(o->coordinator);
+        ClientConnection c(o->coordinator.resolve(Role::Client));
         std::vector<RenderInfo> renders;
         v1::ListRendersRequest list;
         v1::ListRendersReply reply;
@@ -82,7 +82,7 @@ void register_watch(CLI::App& app) {
     CLI::App* cmd = add_common(app, "watch", "follow a render live until it ends", o);
     cmd->add_option("id", o->id, "render id")->required();
     cmd->callback([o] {
-        ClientConnection c(o->coordinator);
+        ClientConnection c(o->coordinator.resolve(Role::Client));
         const bool tty = isatty(STDOUT_FILENO);
         const RenderInfo last = follow(c, o->id, [&](const RenderInfo& i) {
             const std::string line = describe(i) + "  eta " + eta(i);
@@ -106,7 +106,7 @@ void register_fetch(CLI::App& app) {
     cmd->add_flag("--aovs", o->aovs, "add channels spp and variance");
     cmd->callback([o] {
         check_writable(o->out, "--out");
-        ClientConnection c(o->coordinator);
+        ClientConnection c(o->coordinator.resolve(Role::Client));
         fetch_image(c, o->id, o->out, o->aovs);
         std::cout << "wrote " << o->out << std::endl;
     });
@@ -117,7 +117,7 @@ void register_cancel(CLI::App& app) {
     CLI::App* cmd = add_common(app, "cancel", "stop a render, keeping what it merged", o);
     cmd->add_option("id", o->id, "render id")->required();
     cmd->callback([o] {
-        ClientConnection c(o->coordinator);
+        ClientConnection c(o->coordinator.resolve(Role::Client));
         v1::GetRenderRequest req;
         req.set_id(o->id);
         v1::RenderInfo info;
@@ -141,7 +141,7 @@ void register_workers(CLI::App& app) {
     CLI::App* cmd = add_common(app, "workers", "workers the coordinator knows", o);
     cmd->add_flag("--json", o->json, "print JSON");
     cmd->callback([o] {
-        ClientConnection c(o->coordinator);
+        ClientConnection c(o->coordinator.resolve(Role::Client));
         v1::ListWorkersRequest req;
         v1::ListWorkersReply reply;
         c.check(c.stub().ListWorkers(c.context().get(), req, &reply), "workers");

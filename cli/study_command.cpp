@@ -11,6 +11,7 @@
 
 #include "child_process.h"
 #include "commands.h"
+#include "endpoint_options.h"
 #include "progress_bar.h"
 #include "study_farm.h"
 #include "study_runner.h"
@@ -54,7 +55,7 @@ std::string find_python(const fs::path& script) {
 struct StudyCommand {
     std::string file;
     std::string scale = "small";
-    std::string coordinator;
+    EndpointOptions coordinator{""};  // no address: embedded
     std::string out;
     int threads = 0;
     bool no_report = false;
@@ -69,10 +70,11 @@ struct StudyCommand {
                           ? fs::path("out") / ("study-" + def.name + "-" + sc.name)
                           : fs::path(out);
         options.threads = threads;
-        if (!coordinator.empty())
-            options.backend = [this](const fs::path& data) {
-                return make_farm_backend(coordinator, data);
-            };
+        if (!coordinator.address.empty())
+            options.backend =
+                [endpoint = coordinator.resolve(Role::Client)](const fs::path& data) {
+                    return make_farm_backend(endpoint, data);
+                };
         // Made at the first update, once the references are there, as before the split.
         std::optional<ProgressBar> bar;
         options.progress = [&](uint64_t done, uint64_t total, const std::string& note) {
@@ -132,8 +134,7 @@ void register_study(CLI::App& app) {
     cmd->add_option("--scale", c->scale,
                     "small | medium | full (or a scale the file defines)")
         ->capture_default_str();
-    cmd->add_option("--coordinator", c->coordinator,
-                    "run the renders on this farm (ADDR) instead of embedded");
+    c->coordinator.add_to(*cmd, Role::Client);  // --coordinator ADDR: on that farm
     cmd->add_option("--out", c->out, "output directory (default out/study-NAME-SCALE)");
     cmd->add_option("--threads", c->threads, "embedded tracing threads (0: all cores)");
     cmd->add_flag("--no-report", c->no_report,

@@ -56,8 +56,8 @@ void mirror_render(RunStore& store, const CollectedRender& c, const RenderSpec& 
 
 class FarmBackend final : public StudyBackend {
 public:
-    FarmBackend(const std::string& address, const fs::path& data_dir)
-        : connection_(address), data_dir_(data_dir) {}
+    FarmBackend(const CoordinatorEndpoint& endpoint, const fs::path& data_dir)
+        : connection_(endpoint), data_dir_(data_dir) {}
 
     std::string origin() const override { return "farm " + connection_.address(); }
     bool parallel() const override { return true; }
@@ -136,9 +136,9 @@ private:
 
 }  // namespace
 
-std::unique_ptr<StudyBackend> make_farm_backend(const std::string& address,
+std::unique_ptr<StudyBackend> make_farm_backend(const CoordinatorEndpoint& endpoint,
                                                 const fs::path& data_dir) {
-    return std::make_unique<FarmBackend>(address, data_dir);
+    return std::make_unique<FarmBackend>(endpoint, data_dir);
 }
 
 }  // namespace aliquot::cli

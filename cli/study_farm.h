@@ -6,12 +6,13 @@
 #include <memory>
 #include <string>
 
+#include "channel.h"
 #include "study_backend.h"
 
 namespace aliquot::cli {
 
 // Fetched images go to `data_dir`/renders/farm-ID/image.exr.
-std::unique_ptr<StudyBackend> make_farm_backend(const std::string& address,
+std::unique_ptr<StudyBackend> make_farm_backend(const CoordinatorEndpoint& endpoint,
                                                 const std::filesystem::path& data_dir);
 
 }  // namespace aliquot::cli

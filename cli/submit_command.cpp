@@ -7,6 +7,7 @@
 
 #include "client.h"
 #include "commands.h"
+#include "endpoint_options.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
@@ -19,7 +20,7 @@ namespace {
 
 struct SubmitCommand {
     RenderOptions options;
-    std::string coordinator = "127.0.0.1:7070";
+    EndpointOptions coordinator;
     bool wait = false, json = false, aovs = false;
     std::string out;
 
@@ -43,7 +44,7 @@ struct SubmitCommand {
             ss << in.rdbuf();
             req.set_reference_exr(ss.str());
         }
-        ClientConnection c(coordinator);
+        ClientConnection c(coordinator.resolve(Role::Client));
         v1::RenderInfo submitted;
         c.check(c.stub().Submit(c.context(60).get(), req, &submitted), "submit");
         RenderInfo info = from_proto(submitted);
@@ -79,8 +80,7 @@ void register_submit(CLI::App& app) {
     auto c = std::make_shared<SubmitCommand>();
     CLI::App* cmd = app.add_subcommand("submit", "submit a render to a coordinator");
     add_render_options(*cmd, c->options);
-    cmd->add_option("--coordinator", c->coordinator, "coordinator address")
-        ->capture_default_str();
+    c->coordinator.add_to(*cmd, Role::Client);
     cmd->add_flag("--wait", c->wait,
                   "follow the render with a progress bar until it ends");
     cmd->add_option("--out", c->out, "write the final EXR here (implies --wait)");

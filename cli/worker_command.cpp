@@ -2,12 +2,14 @@
 // back what it holds.
 #include <unistd.h>
 
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <memory>
 #include <thread>
 
 #include "commands.h"
+#include "endpoint_options.h"
 #include "grpc_link.h"
 #include "worker_loop.h"
 
@@ -16,7 +18,7 @@ namespace aliquot::cli {
 namespace {
 
 struct WorkerCommand {
-    std::string coordinator = "127.0.0.1:7070";
+    EndpointOptions coordinator;
     int threads = 0;
     std::string name;
 
@@ -35,15 +37,26 @@ struct WorkerCommand {
         sigaddset(&stop, SIGINT);
         pthread_sigmask(SIG_BLOCK, &stop, nullptr);
 
-        GrpcLink link(coordinator);
+        GrpcLink link(coordinator.resolve(Role::Worker));
         WorkerLoop loop(link, {name, threads, std::chrono::milliseconds(2000), false});
+        std::atomic<bool> refused{false};
         std::thread waiter([&] {
             int sig = 0;
             sigwait(&stop, &sig);
-            std::fprintf(stderr, "worker %s: stopping (signal %d)\n", name.c_str(), sig);
+            if (!refused)
+                std::fprintf(stderr, "worker %s: stopping (signal %d)\n", name.c_str(),
+                             sig);
             loop.stop();
         });
-        loop.run();
+        try {
+            loop.run();
+        } catch (const LinkRefused& e) {
+            // The token was refused: wake the waiter, then end with the reason.
+            refused = true;
+            pthread_kill(waiter.native_handle(), SIGINT);
+            waiter.join();
+            throw CommandError(e.what());
+        }
         waiter.join();
         std::fprintf(stderr, "worker %s: traced %llu samples in %llu jobs\n",
                      name.c_str(), (unsigned long long)loop.samples_traced(),
@@ -56,8 +69,7 @@ struct WorkerCommand {
 void register_worker(CLI::App& app) {
     auto c = std::make_shared<WorkerCommand>();
     CLI::App* cmd = app.add_subcommand("worker", "trace sample jobs for a coordinator");
-    cmd->add_option("--coordinator", c->coordinator, "coordinator address host:port")
-        ->capture_default_str();
+    c->coordinator.add_to(*cmd, Role::Worker);
     cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)");
     cmd->add_option("--name", c->name, "worker name (default: host-pid)");
     cmd->callback([c] { c->run(); });

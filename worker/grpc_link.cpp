@@ -3,6 +3,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include "aliquot.grpc.pb.h"
+#include "channel.h"
 #include "wire.h"
 
 namespace aliquot {
@@ -11,12 +12,6 @@ namespace {
 
 constexpr auto kCallDeadline = std::chrono::seconds(10);
 
-std::unique_ptr<grpc::ClientContext> context(std::chrono::milliseconds extra = {}) {
-    auto ctx = std::make_unique<grpc::ClientContext>();
-    ctx->set_deadline(std::chrono::system_clock::now() + kCallDeadline + extra);
-    return ctx;
-}
-
 }  // namespace
 
 struct GrpcLink::Stub {
@@ -24,7 +19,8 @@ struct GrpcLink::Stub {
     std::unique_ptr<v1::WorkerService::Stub> stub;
 };
 
-GrpcLink::GrpcLink(const std::string& address) : stub_(new Stub), address_(address) {
+GrpcLink::GrpcLink(CoordinatorEndpoint endpoint)
+    : stub_(new Stub), endpoint_(std::move(endpoint)), address_(endpoint_.address) {
     grpc::ChannelArguments args;
     // Keepalive matched with the coordinator's server settings
     // (coordinator/api/grpc_server.cpp).
@@ -40,14 +36,28 @@ GrpcLink::GrpcLink(const std::string& address) : stub_(new Stub), address_(addre
     args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 1000);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
     stub_->channel =
-        grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
+        grpc::CreateCustomChannel(address_, channel_credentials(endpoint_), args);
     stub_->stub = v1::WorkerService::NewStub(stub_->channel);
 }
 
 GrpcLink::~GrpcLink() = default;
 
-static void check(const grpc::Status& status, const std::string& address) {
+std::unique_ptr<grpc::ClientContext> GrpcLink::context(
+    std::chrono::milliseconds extra) const {
+    auto ctx = std::make_unique<grpc::ClientContext>();
+    ctx->set_deadline(std::chrono::system_clock::now() + kCallDeadline + extra);
+    add_token(*ctx, endpoint_);
+    return ctx;
+}
+
+static void check(const grpc::Status& status, const std::string& address,
+                  bool registering = false) {
     if (status.ok()) return;
+    // The worker token is missing, wrong or the client's: asking again will not help.
+    if (status.error_code() == grpc::StatusCode::PERMISSION_DENIED ||
+        (registering && status.error_code() == grpc::StatusCode::UNAUTHENTICATED))
+        throw LinkRefused("coordinator " + address +
+                          " refused this worker: " + status.error_message());
     // The coordinator does not know our session (it restarted since we registered).
     if (status.error_code() == grpc::StatusCode::UNAUTHENTICATED)
         throw WorkerUnknown("coordinator " + address + ": " + status.error_message());
@@ -63,7 +73,7 @@ Registration GrpcLink::register_worker(const std::string& name, uint32_t threads
     req.set_name(name);
     req.set_threads(threads);
     v1::RegisterReply reply;
-    check(stub_->stub->Register(context().get(), req, &reply), address_);
+    check(stub_->stub->Register(context().get(), req, &reply), address_, true);
     if (reply.session().empty())
         throw std::runtime_error("coordinator " + address_ + " gave no worker session");
     return {reply.session(), reply.lease_ms()};

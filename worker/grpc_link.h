@@ -1,17 +1,19 @@
 // GrpcLink: a worker's WorkerLink to a coordinator over gRPC. Every call has a deadline;
-// an unreachable coordinator becomes LinkUnavailable, which the worker loop waits out.
+// an unreachable coordinator becomes LinkUnavailable, which the worker loop waits out; a
+// refused token becomes LinkRefused, which ends it.
 #pragma once
 
 #include <memory>
 #include <string>
 
+#include "channel.h"
 #include "lease.h"
 
 namespace aliquot {
 
 class GrpcLink : public WorkerLink {
 public:
-    explicit GrpcLink(const std::string& address);
+    explicit GrpcLink(CoordinatorEndpoint endpoint);
     ~GrpcLink() override;
 
     Registration register_worker(const std::string& name, uint32_t threads) override;
@@ -27,8 +29,13 @@ public:
               const std::string& reason) override;
 
 private:
+    // A call's context: a deadline `extra` past the usual, and the worker token.
+    std::unique_ptr<grpc::ClientContext> context(
+        std::chrono::milliseconds extra = {}) const;
+
     struct Stub;
     std::unique_ptr<Stub> stub_;
+    CoordinatorEndpoint endpoint_;
     std::string address_;
 };
 

@@ -86,11 +86,22 @@ std::string WorkerLoop::session() const {
     return session_;
 }
 
+void WorkerLoop::refused(const LinkRefused& e) {
+    {
+        std::lock_guard lock(session_mutex_);
+        if (refused_.empty()) refused_ = e.what();
+    }
+    stopping_ = true;
+}
+
 bool WorkerLoop::reregister(uint64_t seen, bool& announced) {
     try {
         if (register_again(seen))
             log("registered again with " + std::to_string(options_.threads) + " threads");
         return true;
+    } catch (const LinkRefused& e) {
+        refused(e);  // the token was changed or revoked since we started
+        return false;
     } catch (const std::exception& e) {
         if (!announced) log(std::string("cannot register, retrying: ") + e.what());
         announced = true;
@@ -106,6 +117,8 @@ void WorkerLoop::run() {
             register_again(registrations_);
             log("registered with " + std::to_string(options_.threads) + " threads");
             break;
+        } catch (const LinkRefused& e) {
+            refused(e);
         } catch (const std::exception& e) {
             // Unreachable, or an answer this worker cannot use: wait and try again.
             if (!announced)
@@ -114,10 +127,14 @@ void WorkerLoop::run() {
             sleep_unless_stopping(wait.next());
         }
     }
-    std::vector<std::jthread> threads;
-    for (int t = 0; t < std::max(options_.threads, 1); ++t)
-        threads.emplace_back([this] { thread_main(); });
-    std::jthread keeper([this] { keeper_main(); });
+    {
+        std::vector<std::jthread> threads;
+        for (int t = 0; t < std::max(options_.threads, 1) && !stopping_; ++t)
+            threads.emplace_back([this] { thread_main(); });
+        std::jthread keeper([this] { keeper_main(); });
+    }  // every thread has ended
+    std::lock_guard lock(session_mutex_);
+    if (!refused_.empty()) throw LinkRefused(refused_);
 }
 
 // What one tracing thread carries from lease to lease: two kinds of retry, each waiting
@@ -174,6 +191,9 @@ std::optional<LeaseGrant> WorkerLoop::next_lease(Retries& retries) {
         // The coordinator restarted without us: register again, with our threads.
         if (!reregister(retries.registrations, retries.announced))
             sleep_unless_stopping(retries.unreachable.next());
+        return std::nullopt;
+    } catch (const LinkRefused& e) {
+        refused(e);
         return std::nullopt;
     } catch (const std::exception& e) {
         // Unreachable, or an answer this worker cannot read: wait and ask again; a worker

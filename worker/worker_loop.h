@@ -34,7 +34,9 @@ class WorkerLoop {
 public:
     WorkerLoop(WorkerLink& link, WorkerOptions options);
 
-    // Runs until stop() is called. Thread-safe to call stop() from any thread.
+    // Runs until stop() is called. Thread-safe to call stop() from any thread. Throws
+    // LinkRefused, once every thread has ended, when the coordinator refused this
+    // worker's token: no retry can help.
     void run();
     void stop() { stopping_ = true; }
 
@@ -68,6 +70,8 @@ private:
     std::string session() const;
     // Drops the lease from the held set; whether it was still there.
     bool release(uint64_t lease_id);
+    // Remembers why the coordinator refused this worker and stops every thread.
+    void refused(const LinkRefused& e);
 
     WorkerLink& link_;
     WorkerOptions options_;
@@ -79,6 +83,7 @@ private:
     std::atomic<uint64_t> registrations_{0};
     mutable std::mutex session_mutex_;
     std::string session_;
+    std::string refused_;  // under session_mutex_: why run() ends with LinkRefused
     std::mutex held_mutex_;
     std::set<uint64_t> held_;
 };

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <future>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -17,11 +18,14 @@ using Millis = std::chrono::milliseconds;
 
 class FakeLink : public WorkerLink {
 public:
-    enum class Mode { BrokenScene, NothingAtOnce, ForgetsWorker };
+    enum class Mode { BrokenScene, NothingAtOnce, ForgetsWorker, TokenRevoked };
     explicit FakeLink(Mode mode) : mode_(mode) {}
 
     Registration register_worker(const std::string&, uint32_t threads) override {
         std::lock_guard lock(mutex_);
+        // TokenRevoked: the operator rotated the worker token after the first start.
+        if (mode_ == Mode::TokenRevoked && !registered_threads.empty())
+            throw LinkRefused("coordinator refused this worker: needs the worker token");
         registered_threads.push_back(threads);
         return {"session-" + std::to_string(registered_threads.size()), 30000};
     }
@@ -43,7 +47,7 @@ public:
             }
             if (mode_ == Mode::NothingAtOnce) return std::nullopt;
             // ForgetsWorker: a coordinator restarted after the first registration.
-            if (registered_threads.size() < 2)
+            if (registered_threads.size() < 2 || mode_ == Mode::TokenRevoked)
                 throw WorkerUnknown("coordinator does not know this worker");
         }
         std::this_thread::sleep_for(wait);  // a long-poll with no work
@@ -152,6 +156,26 @@ TEST(WorkerLoopTest, RegistersAgainWithItsThreadsWhenTheCoordinatorForgotIt) {
     EXPECT_GE(link.leases, 3);
     // Then it asks with the session the new registration gave it.
     EXPECT_EQ(link.lease_sessions, (std::set<std::string>{"session-1", "session-2"}));
+}
+
+// Issue 13: a refused token cannot become good by asking again, so the worker stops by
+// itself and says why, instead of retrying for ever.
+TEST(WorkerLoopTest, ARefusedTokenEndsTheLoopWithTheReason) {
+    FakeLink link(FakeLink::Mode::TokenRevoked);
+    WorkerLoop loop(link, options(2));
+    auto ended = std::async(std::launch::async, [&] {
+        try {
+            loop.run();
+        } catch (const LinkRefused& e) {
+            return std::string(e.what());
+        }
+        return std::string("no LinkRefused");
+    });
+    // A guard against hanging, not a timing assertion: the loop ends on its own.
+    ASSERT_EQ(ended.wait_for(std::chrono::seconds(30)), std::future_status::ready);
+    EXPECT_NE(ended.get().find("worker token"), std::string::npos);
+    std::lock_guard lock(link.mutex_);
+    EXPECT_EQ(link.registered_threads.size(), 1u);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "access.h"
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "render_proto.h"
@@ -18,12 +19,29 @@ using grpc::ServerContext;
 using grpc::Status;
 using grpc::StatusCode;
 
+// Before anything else a call does: the bearer token of its `authorization` metadata must
+// be `role`'s (docs/SECURITY.md).
+Status admit(const ServerContext* ctx, const Tokens& tokens, Role role) {
+    const auto& metadata = ctx->client_metadata();
+    const auto header = metadata.find("authorization");
+    const std::string_view value =
+        header == metadata.end()
+            ? std::string_view()
+            : std::string_view(header->second.data(), header->second.size());
+    const Access access = check_access(tokens, bearer_token(value), role);
+    if (access == Access::Granted) return Status::OK;
+    return {access == Access::Forbidden ? StatusCode::PERMISSION_DENIED
+                                        : StatusCode::UNAUTHENTICATED,
+            access_message(access, role)};
+}
+
 class ClientServiceImpl final : public v1::ClientService::Service {
 public:
-    explicit ClientServiceImpl(Coordinator& c) : c_(c) {}
+    ClientServiceImpl(Coordinator& c, const Tokens& tokens) : c_(c), tokens_(tokens) {}
 
-    Status Submit(ServerContext*, const v1::SubmitRequest* req,
+    Status Submit(ServerContext* ctx, const v1::SubmitRequest* req,
                   v1::RenderInfo* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         try {
             RenderSpec spec;
             spec.scene_name = req->scene_name();
@@ -55,16 +73,18 @@ public:
         }
     }
 
-    Status GetRender(ServerContext*, const v1::GetRenderRequest* req,
+    Status GetRender(ServerContext* ctx, const v1::GetRenderRequest* req,
                      v1::RenderInfo* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto info = c_.info(req->id());
         if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
         to_proto(*info, *reply);
         return Status::OK;
     }
 
-    Status ListRenders(ServerContext*, const v1::ListRendersRequest* req,
+    Status ListRenders(ServerContext* ctx, const v1::ListRendersRequest* req,
                        v1::ListRendersReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         // Bounded as HTTP's list is: the reply is built in memory.
         const uint32_t limit =
             req->limit() ? std::min<uint32_t>(req->limit(), 1000) : 100;
@@ -75,6 +95,7 @@ public:
 
     Status Watch(ServerContext* ctx, const v1::GetRenderRequest* req,
                  grpc::ServerWriter<v1::RenderInfo>* writer) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         uint64_t seen = 0;
         while (!ctx->IsCancelled()) {
             const auto info = c_.info(req->id());
@@ -90,16 +111,18 @@ public:
         return Status::OK;
     }
 
-    Status Cancel(ServerContext*, const v1::GetRenderRequest* req,
+    Status Cancel(ServerContext* ctx, const v1::GetRenderRequest* req,
                   v1::RenderInfo* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto info = c_.cancel(req->id());
         if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
         to_proto(*info, *reply);
         return Status::OK;
     }
 
-    Status FetchImage(ServerContext*, const v1::FetchImageRequest* req,
+    Status FetchImage(ServerContext* ctx, const v1::FetchImageRequest* req,
                       grpc::ServerWriter<v1::FileChunk>* writer) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto image = c_.image(req->id(), req->aovs());
         if (!image) return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
         const std::string bytes = encode_exr(*image);
@@ -112,8 +135,9 @@ public:
         return Status::OK;
     }
 
-    Status ListWorkers(ServerContext*, const v1::ListWorkersRequest*,
+    Status ListWorkers(ServerContext* ctx, const v1::ListWorkersRequest*,
                        v1::ListWorkersReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         for (const WorkerStatus& w : c_.workers()) {
             v1::WorkerInfo* out = reply->add_workers();
             out->set_name(w.name);
@@ -127,8 +151,9 @@ public:
         return Status::OK;
     }
 
-    Status GetRounds(ServerContext*, const v1::GetRenderRequest* req,
+    Status GetRounds(ServerContext* ctx, const v1::GetRenderRequest* req,
                      v1::GetRoundsReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto rounds = c_.rounds(req->id());
         if (!rounds) return {StatusCode::NOT_FOUND, "no render " + req->id()};
         for (const RoundSummary& r : *rounds) {
@@ -145,6 +170,7 @@ public:
 
 private:
     Coordinator& c_;
+    const Tokens& tokens_;
 };
 
 // Every call but Register carries the worker's session; one the coordinator did not issue
@@ -153,10 +179,11 @@ private:
 // the Coordinator's to check: the same code answers the embedded render's threads.
 class WorkerServiceImpl final : public v1::WorkerService::Service {
 public:
-    explicit WorkerServiceImpl(Coordinator& c) : c_(c) {}
+    WorkerServiceImpl(Coordinator& c, const Tokens& tokens) : c_(c), tokens_(tokens) {}
 
-    Status Register(ServerContext*, const v1::RegisterRequest* req,
+    Status Register(ServerContext* ctx, const v1::RegisterRequest* req,
                     v1::RegisterReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         // The name keys the coordinator's worker table and the store's rows.
         if (req->name().empty() || req->name().size() > 128)
             return {StatusCode::INVALID_ARGUMENT, "a worker name is 1 to 128 bytes"};
@@ -166,8 +193,9 @@ public:
         return Status::OK;
     }
 
-    Status Lease(ServerContext*, const v1::LeaseRequest* req,
+    Status Lease(ServerContext* ctx, const v1::LeaseRequest* req,
                  v1::LeaseReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         const auto wait =
             std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
         std::optional<LeaseGrant> grant;
@@ -195,8 +223,9 @@ public:
         return Status::OK;
     }
 
-    Status Complete(ServerContext*, const v1::CompleteRequest* req,
+    Status Complete(ServerContext* ctx, const v1::CompleteRequest* req,
                     v1::CompleteReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         return known([&] {
             SampleJobResult result;
             try {
@@ -222,8 +251,9 @@ public:
         });
     }
 
-    Status FetchScene(ServerContext*, const v1::FetchSceneRequest* req,
+    Status FetchScene(ServerContext* ctx, const v1::FetchSceneRequest* req,
                       v1::FetchSceneReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         std::optional<std::string> json;
         const Status status =
             known([&] { json = c_.fetch_scene(req->session(), req->hash()); });
@@ -233,20 +263,23 @@ public:
         return Status::OK;
     }
 
-    Status Renew(ServerContext*, const v1::RenewRequest* req,
+    Status Renew(ServerContext* ctx, const v1::RenewRequest* req,
                  v1::RenewReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         return known(
             [&] { reply->set_valid(c_.renew(req->session(), req->lease_id())); });
     }
 
-    Status Abandon(ServerContext*, const v1::RenewRequest* req,
+    Status Abandon(ServerContext* ctx, const v1::RenewRequest* req,
                    v1::RenewReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         return known(
             [&] { reply->set_valid(c_.abandon(req->session(), req->lease_id())); });
     }
 
-    Status Fail(ServerContext*, const v1::FailRequest* req,
+    Status Fail(ServerContext* ctx, const v1::FailRequest* req,
                 v1::FailReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         return known([&] {
             reply->set_accepted(c_.fail(req->session(), req->lease_id(), req->reason()));
         });
@@ -265,20 +298,41 @@ private:
     }
 
     Coordinator& c_;
+    const Tokens& tokens_;
 };
 
 }  // namespace
 
 struct GrpcServer::Services {
+    Tokens tokens;
     ClientServiceImpl client;
     WorkerServiceImpl worker;
-    explicit Services(Coordinator& c) : client(c), worker(c) {}
+    Services(Coordinator& c, Tokens t)
+        : tokens(std::move(t)), client(c, tokens), worker(c, tokens) {}
 };
 
-GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address)
-    : services_(std::make_unique<Services>(coordinator)) {
+namespace {
+
+std::shared_ptr<grpc::ServerCredentials> server_credentials(const GrpcSecurity& s) {
+    if (s.tls_cert_pem.empty()) return grpc::InsecureServerCredentials();
+    grpc::SslServerCredentialsOptions options;
+    options.pem_key_cert_pairs.push_back({s.tls_key_pem, s.tls_cert_pem});
+    return grpc::SslServerCredentials(options);
+}
+
+}  // namespace
+
+GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
+                       GrpcSecurity security) {
+    if (security.tokens.client.empty() || security.tokens.worker.empty() ||
+        security.tokens.client == security.tokens.worker)
+        throw std::invalid_argument(
+            "gRPC: the client and worker tokens must both be set and differ");
+    if (security.tls_cert_pem.empty() != security.tls_key_pem.empty())
+        throw std::invalid_argument("gRPC: TLS needs both a certificate and its key");
+    services_ = std::make_unique<Services>(coordinator, security.tokens);
     grpc::ServerBuilder builder;
-    builder.AddListeningPort(address, grpc::InsecureServerCredentials(), &port_);
+    builder.AddListeningPort(address, server_credentials(security), &port_);
     builder.RegisterService(&services_->client);
     builder.RegisterService(&services_->worker);
     // Keepalive matched with the workers' channel settings (worker/grpc_link.cpp).

@@ -1,6 +1,7 @@
 // The worker service over real gRPC on loopback, fed results a broken or malicious worker
 // could send. None may touch the image; every job must still be traced exactly once.
 #include "grpc_server.h"
+#include "test_tokens.h"
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
@@ -29,7 +30,8 @@ protected:
         CoordinatorOptions options;
         options.data_dir = dir_;
         coordinator_ = std::make_unique<Coordinator>(options);
-        server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0");
+        server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0",
+                                               testing::test_security());
         stub_ = v1::WorkerService::NewStub(
             grpc::CreateChannel("127.0.0.1:" + std::to_string(server_->port()),
                                 grpc::InsecureChannelCredentials()));
@@ -54,7 +56,7 @@ protected:
     }
 
     std::string register_over_wire(const std::string& name) {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::RegisterRequest req;
         req.set_name(name);
         req.set_threads(1);
@@ -63,7 +65,7 @@ protected:
         return reply.session();
     }
     v1::Lease lease() {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::LeaseRequest req;
         req.set_session(session_);
         req.set_wait_ms(2000);
@@ -81,7 +83,7 @@ protected:
     }
     v1::CompleteReply complete_as(const std::string& session, uint64_t lease_id,
                                   const v1::SampleJobResult& result) {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::CompleteRequest req;
         req.set_session(session);
         req.set_lease_id(lease_id);
@@ -95,7 +97,7 @@ protected:
     }
     // Renew or Abandon (`give_back`) as `session`: whether the lease was that session's.
     bool renew_as(const std::string& session, uint64_t lease_id, bool give_back = false) {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::RenewRequest req;
         req.set_session(session);
         req.set_lease_id(lease_id);
@@ -106,7 +108,7 @@ protected:
         return reply.valid();
     }
     bool fail_as(const std::string& session, uint64_t lease_id) {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::FailRequest req;
         req.set_session(session);
         req.set_lease_id(lease_id);
@@ -194,11 +196,11 @@ TEST(ClientServiceMemory, ASubmissionPastTheMemoryBudgetIsResourceExhausted) {
     CoordinatorOptions options;
     options.memory_limit = 1024;
     Coordinator coordinator(options);
-    GrpcServer server(coordinator, "127.0.0.1:0");
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
     auto stub = v1::ClientService::NewStub(
         grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
                             grpc::InsecureChannelCredentials()));
-    grpc::ClientContext ctx;
+    testing::TokenContext ctx(Role::Client);
     v1::SubmitRequest req;
     req.set_scene_name("cornell-box");
     req.set_scene_json(self_contained_scene_json("cornell-box"));
@@ -233,11 +235,11 @@ TEST(ClientServiceReference, ASubmittedReferenceIsWrittenToNoPredictableFile) {
         }
     {
         Coordinator coordinator(CoordinatorOptions{});
-        GrpcServer server(coordinator, "127.0.0.1:0");
+        GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
         auto stub = v1::ClientService::NewStub(
             grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
                                 grpc::InsecureChannelCredentials()));
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Client);
         v1::SubmitRequest req;
         req.set_scene_name("cornell-box");
         req.set_scene_json(self_contained_scene_json("cornell-box"));
@@ -257,7 +259,7 @@ TEST(ClientServiceReference, ASubmittedReferenceIsWrittenToNoPredictableFile) {
 
 // Found in review: any name was a key of the coordinator's worker table and a store row.
 TEST_F(WorkerServiceTest, AWorkerNameLongerThan128BytesIsRefused) {
-    grpc::ClientContext ctx;
+    testing::TokenContext ctx(Role::Worker);
     v1::RegisterRequest reg;
     reg.set_name(std::string(129, 'w'));
     reg.set_threads(1);
@@ -271,13 +273,13 @@ TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
     req.set_session("0123456789abcdef0123456789abcdef");  // never issued here
     v1::LeaseReply reply;
     {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         ASSERT_TRUE(stub_->Lease(&ctx, req, &reply).ok());
     }
     EXPECT_TRUE(reply.register_first());
     EXPECT_FALSE(reply.has_lease());
     {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::RegisterRequest reg;
         reg.set_name("stranger");
         reg.set_threads(3);
@@ -287,7 +289,7 @@ TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
         req.set_session(ok.session());
     }
     {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         ASSERT_TRUE(stub_->Lease(&ctx, req, &reply).ok());
     }
     EXPECT_FALSE(reply.register_first());
@@ -363,7 +365,7 @@ TEST_F(WorkerServiceTest, AnUnknownSessionIsToldToRegister) {
     const v1::Lease l = lease();
     const std::string stranger = "ffffffffffffffffffffffffffffffff";
     {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::CompleteRequest req;
         req.set_session(stranger);
         req.set_lease_id(l.lease_id());
@@ -373,7 +375,7 @@ TEST_F(WorkerServiceTest, AnUnknownSessionIsToldToRegister) {
                   grpc::StatusCode::UNAUTHENTICATED);
     }
     {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::RenewRequest req;
         req.set_session(stranger);
         req.set_lease_id(l.lease_id());
@@ -382,7 +384,7 @@ TEST_F(WorkerServiceTest, AnUnknownSessionIsToldToRegister) {
                   grpc::StatusCode::UNAUTHENTICATED);
     }
     {
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Worker);
         v1::FetchSceneRequest req;
         req.set_session(stranger);
         req.set_hash(l.scene_hash());
@@ -392,6 +394,83 @@ TEST_F(WorkerServiceTest, AnUnknownSessionIsToldToRegister) {
     }
     EXPECT_EQ(coordinator_->leases_out(), 1u);
     EXPECT_EQ(complete(l.lease_id(), trace(l)), v1::COMPLETE_STATUS_MERGED);
+}
+
+}  // namespace
+}  // namespace aliquot
+
+namespace aliquot {
+namespace {
+
+// Issue 13: anyone who reached the port could do anything. Now each service wants its
+// role's token, and a refused call changes nothing.
+TEST(GrpcTokens, NoTokenIsUnauthenticatedAndTheOtherRolesTokenIsPermissionDenied) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
+    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
+                                       grpc::InsecureChannelCredentials());
+    auto client = v1::ClientService::NewStub(channel);
+    auto worker = v1::WorkerService::NewStub(channel);
+
+    v1::SubmitRequest submit;
+    submit.set_scene_name("cornell-box");
+    submit.set_scene_json(self_contained_scene_json("cornell-box"));
+    submit.set_width(8);
+    submit.set_height(8);
+    submit.set_strategy_json(R"({"method":"uniform","spp":1})");
+    v1::RegisterRequest reg;
+    reg.set_name("intruder");
+    reg.set_threads(1);
+    const auto submit_with = [&](grpc::ClientContext& ctx) {
+        v1::RenderInfo reply;
+        return client->Submit(&ctx, submit, &reply);
+    };
+    const auto register_with = [&](grpc::ClientContext& ctx) {
+        v1::RegisterReply reply;
+        return worker->Register(&ctx, reg, &reply);
+    };
+    {
+        grpc::ClientContext none;
+        EXPECT_EQ(submit_with(none).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+        grpc::ClientContext wrong;
+        wrong.AddMetadata("authorization", "Bearer not-the-client-token-at-all");
+        EXPECT_EQ(submit_with(wrong).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+        grpc::ClientContext basic;
+        basic.AddMetadata("authorization", "Basic " + testing::kTestTokens.client);
+        EXPECT_EQ(submit_with(basic).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+        testing::TokenContext worker_token(Role::Worker);
+        const grpc::Status denied = submit_with(worker_token);
+        EXPECT_EQ(denied.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+        EXPECT_EQ(denied.error_message().find(testing::kTestTokens.client),
+                  std::string::npos);
+    }
+    {
+        grpc::ClientContext none;
+        EXPECT_EQ(register_with(none).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+        testing::TokenContext client_token(Role::Client);
+        EXPECT_EQ(register_with(client_token).error_code(),
+                  grpc::StatusCode::PERMISSION_DENIED);
+    }
+    EXPECT_TRUE(coordinator.list(10).empty());
+    EXPECT_TRUE(coordinator.workers().empty());
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::ListWorkersRequest req;
+        v1::ListWorkersReply reply;
+        EXPECT_TRUE(client->ListWorkers(&ctx, req, &reply).ok());
+    }
+    testing::TokenContext client_token(Role::Client);
+    EXPECT_TRUE(submit_with(client_token).ok());
+    testing::TokenContext worker_token(Role::Worker);
+    EXPECT_TRUE(register_with(worker_token).ok());
+}
+
+TEST(GrpcTokens, AServerRefusesMissingOrEqualTokens) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    EXPECT_THROW(GrpcServer(coordinator, "127.0.0.1:0", GrpcSecurity{}),
+                 std::invalid_argument);
+    GrpcSecurity same{{"same-token-0123456789", "same-token-0123456789"}, "", ""};
+    EXPECT_THROW(GrpcServer(coordinator, "127.0.0.1:0", same), std::invalid_argument);
 }
 
 }  // namespace

@@ -25,6 +25,7 @@
 #include "http_api.h"
 #include "png_encoder.h"
 #include "scene_loader.h"
+#include "test_tokens.h"
 
 namespace aliquot {
 namespace {
@@ -509,7 +510,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
     std::ofstream(dir / "secret.obj") << "v 1 the_admin_password 0\n";
 
     Coordinator coordinator{CoordinatorOptions{}};
-    GrpcServer grpc_server(coordinator, "127.0.0.1:0");
+    GrpcServer grpc_server(coordinator, "127.0.0.1:0", testing::test_security());
     HttpServer http_server(coordinator, "127.0.0.1:0");
     auto stub = v1::ClientService::NewStub(
         grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_server.port()),
@@ -526,7 +527,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
         req.set_height(8);
         req.set_strategy_json(R"({"spp":1})");
         v1::RenderInfo reply;
-        grpc::ClientContext ctx;
+        testing::TokenContext ctx(Role::Client);
         ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
         const grpc::Status status = stub->Submit(&ctx, req, &reply);
         EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)

@@ -1,7 +1,6 @@
 #include "coordinator.h"
 
 #include <malloc.h>
-#include <sys/random.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,6 +13,7 @@
 #include "checkpoint.h"
 #include "exr_io.h"
 #include "scene_loader.h"
+#include "secret.h"
 #include "store.h"
 
 namespace aliquot {
@@ -32,35 +32,6 @@ constexpr const char* kFinalKey = "_final";
 
 void log_error(const std::string& what) {
     std::fprintf(stderr, "coordinator: %s\n", what.c_str());
-}
-
-// Bytes from the kernel's CSPRNG (getrandom(2)): worker sessions and lease ids must not
-// be guessable from ones seen before.
-void random_bytes(void* out, size_t size) {
-    auto* p = static_cast<unsigned char*>(out);
-    while (size > 0) {
-        const ssize_t got = getrandom(p, size, 0);
-        if (got < 0) {
-            if (errno == EINTR) continue;
-            throw std::runtime_error(std::string("getrandom: ") + std::strerror(errno));
-        }
-        p += got;
-        size -= size_t(got);
-    }
-}
-
-// 128 random bits as 32 hex digits.
-std::string new_session_token() {
-    unsigned char bytes[16];
-    random_bytes(bytes, sizeof bytes);
-    static const char digits[] = "0123456789abcdef";
-    std::string hex;
-    hex.reserve(2 * sizeof bytes);
-    for (const unsigned char b : bytes) {
-        hex.push_back(digits[b >> 4]);
-        hex.push_back(digits[b & 15]);
-    }
-    return hex;
 }
 
 }  // namespace
@@ -550,7 +521,7 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     // still theirs), so registering with a worker's name neither takes its leases nor
     // locks it out.
     std::string session;
-    do session = new_session_token();
+    do session = random_hex(16);
     while (worker_sessions_.count(session));
     worker_sessions_.emplace(session, name);
     changed();

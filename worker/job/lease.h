@@ -39,6 +39,14 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+// Thrown by a link when the coordinator refuses the worker's credentials (a missing or
+// wrong worker token, or the client's): retrying cannot help, so the worker stops and
+// says why (docs/SECURITY.md).
+class LinkRefused : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
 // Thrown by any call but register_worker when the coordinator does not know the worker's
 // session (it restarted since the worker registered, or the session was never issued):
 // the worker registers again, with its threads, then asks again. Nothing else changed.
