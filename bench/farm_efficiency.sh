@@ -18,13 +18,14 @@ embedded=$("$aliquot" render "${render[@]}" --threads 2 --out "$tmp/embedded.exr
 
 "$aliquot" coordinator --grpc "127.0.0.1:$port" --data "$tmp/data" 2>"$tmp/coordinator.log" &
 pids+=($!)
-for _ in $(seq 100); do "$aliquot" status --coordinator "127.0.0.1:$port" >/dev/null 2>&1 && break; sleep 0.1; done
+client_token=(--token-file "$tmp/data/client.token")  # made by the coordinator at start
+for _ in $(seq 100); do "$aliquot" status --coordinator "127.0.0.1:$port" "${client_token[@]}" >/dev/null 2>&1 && break; sleep 0.1; done
 for w in a b; do
-    "$aliquot" worker --coordinator "127.0.0.1:$port" --threads 1 --name "$w" 2>"$tmp/worker-$w.log" &
+    "$aliquot" worker --coordinator "127.0.0.1:$port" --threads 1 --name "$w" --token-file "$tmp/data/worker.token" 2>"$tmp/worker-$w.log" &
     pids+=($!)
 done
 sleep 0.5  # both workers registered and polling before the clock starts
-farm=$("$aliquot" submit --coordinator "127.0.0.1:$port" "${render[@]}" --out "$tmp/farm.exr" --json)
+farm=$("$aliquot" submit --coordinator "127.0.0.1:$port" "${client_token[@]}" "${render[@]}" --out "$tmp/farm.exr" --json)
 identical=false
 cmp -s "$tmp/embedded.exr" "$tmp/farm.exr" && identical=true
 

@@ -71,14 +71,17 @@ def main():
         stdout=logs, stderr=subprocess.STDOUT)
     procs.append(coordinator)
     deadline = time.time() + 30
-    while subprocess.run([aliquot, "status", "--coordinator", addr, "--json"],
+    # The coordinator makes its tokens in its data directory before it listens.
+    client_token = ["--token-file", os.path.join(tmp, "data", "client.token")]
+    while subprocess.run([aliquot, "status", "--coordinator", addr, "--json", *client_token],
                          capture_output=True).returncode != 0:
         if time.time() > deadline or coordinator.poll() is not None:
             sys.exit("coordinator did not start")
         time.sleep(0.1)
     for i in range(2):
         procs.append(subprocess.Popen(
-            [aliquot, "worker", "--coordinator", addr, "--threads", "1", "--name", f"w{i}"],
+            [aliquot, "worker", "--coordinator", addr, "--threads", "1", "--name", f"w{i}",
+             "--token-file", os.path.join(tmp, "data", "worker.token")],
             stdout=logs, stderr=subprocess.STDOUT))
 
     def rss_kb():
@@ -95,7 +98,8 @@ def main():
         i = n % len(specs)
         out = os.path.join(tmp, f"farm-{n}.exr")
         try:
-            run("submit", "--coordinator", addr, "--json", *specs[i], "--out", out)
+            run("submit", "--coordinator", addr, "--json", *specs[i], "--out", out,
+                *client_token)
             same = filecmp.cmp(out, twins[i], shallow=False)
             os.remove(out)
         except Exception as e:  # counted, not raised: the soak goes on

@@ -75,7 +75,14 @@ def free_port():
         return s.getsockname()[1]
 
 
+# The coordinator makes its tokens in its data directory at the first start and reads them
+# at every restart: clients and workers are handed the files (issue 13).
+CLIENT_COMMANDS = {"submit", "status", "watch", "fetch", "cancel", "workers"}
+
+
 def run(*args, check=True, timeout=60):
+    if args[0] in CLIENT_COMMANDS:
+        args = (*args, "--token-file", os.path.join(TMP, "data", "client.token"))
     r = subprocess.run([ALIQUOT, *args], capture_output=True, text=True, timeout=timeout)
     if check and r.returncode != 0:
         raise AssertionError(f"aliquot {' '.join(args)} failed: {r.stderr.strip()}")
@@ -126,7 +133,8 @@ class Farm:
         log_file.write(f"---- start {self.worker_starts[name]}\n")
         log_file.flush()
         self.workers[name] = subprocess.Popen(
-            [ALIQUOT, "worker", "--coordinator", self.addr, "--threads", "1", "--name", name],
+            [ALIQUOT, "worker", "--coordinator", self.addr, "--threads", "1", "--name", name,
+             "--token-file", os.path.join(self.data, "worker.token")],
             stdout=log_file, stderr=subprocess.STDOUT)
 
     def kill9(self, p):

@@ -31,15 +31,49 @@ def free_port():
         return s.getsockname()[1]
 
 
-def spawn(*args, log, cwd=None):
-    p = subprocess.Popen([ALIQUOT, *args], stdout=open(log, "w"), stderr=subprocess.STDOUT,
-                         cwd=cwd)
+# The farm runs authenticated, as in production: the coordinators get these two tokens,
+# clients the first and workers the second (issue 13). One test below lets a coordinator
+# make its own in its data directory.
+def write_token(name):
+    path = os.path.join(TMP, name)
+    with open(os.open(path, os.O_WRONLY | os.O_CREAT, 0o600), "w") as f:
+        f.write(os.urandom(32).hex() + "\n")
+    return path
+
+
+CLIENT_TOKEN = write_token("client.token")
+WORKER_TOKEN = write_token("worker.token")
+CLIENT_COMMANDS = {"submit", "status", "watch", "fetch", "cancel", "workers"}
+
+
+def with_token(args):
+    """The token for the command's role, unless the test passes its own."""
+    if "--token-file" in args:
+        return list(args)
+    if args[0] == "worker":
+        return [*args, "--token-file", WORKER_TOKEN]
+    if args[0] == "coordinator":
+        return [*args, "--client-token-file", CLIENT_TOKEN, "--worker-token-file", WORKER_TOKEN]
+    if args[0] in CLIENT_COMMANDS:
+        return [*args, "--token-file", CLIENT_TOKEN]
+    return list(args)
+
+
+def client_token():
+    with open(CLIENT_TOKEN) as f:
+        return f.read().strip()
+
+
+def spawn(*args, log, cwd=None, token=True):
+    p = subprocess.Popen([ALIQUOT, *(with_token(args) if token else args)],
+                         stdout=open(log, "w"), stderr=subprocess.STDOUT, cwd=cwd)
     PROCS.append(p)
     return p
 
 
 def run(*args, check=True, timeout=300):
-    r = subprocess.run([ALIQUOT, *args], capture_output=True, text=True, timeout=timeout)
+    r = subprocess.run([ALIQUOT, *with_token(args)], capture_output=True, text=True,
+                       timeout=timeout)
     if check and r.returncode != 0:
         raise AssertionError(f"aliquot {' '.join(args)} failed: {r.stderr.strip()}")
     return r
@@ -56,17 +90,21 @@ class Farm:
         self.coordinator = None
         self.workers = {}
 
-    def start_coordinator(self, *extra, data="data", cwd=None):
+    def start_coordinator(self, *extra, data="data", cwd=None, token=True):
         self.coordinator = spawn("coordinator", "--grpc", self.addr, "--data",
                                  os.path.join(self.dir, data),
                                  "--lease-seconds", str(self.lease_seconds),
                                  "--lost-seconds", str(self.lost_seconds), *extra,
                                  *(["--http", f"127.0.0.1:{self.http_port}"]
                                    if self.http_port else []),
-                                 log=os.path.join(self.dir, "coordinator.log"), cwd=cwd)
+                                 log=os.path.join(self.dir, "coordinator.log"), cwd=cwd,
+                                 token=token)
+        # A coordinator that makes its own tokens has them before it listens.
+        token_file = CLIENT_TOKEN if token else os.path.join(self.dir, data, "client.token")
         deadline = time.time() + 20
         while time.time() < deadline:
-            if run("status", "--coordinator", self.addr, check=False).returncode == 0:
+            if run("status", "--coordinator", self.addr, "--token-file", token_file,
+                   check=False).returncode == 0:
                 return
             time.sleep(0.1)
         raise AssertionError("coordinator did not start")
@@ -295,7 +333,9 @@ def test_storage_warning_reaches_status_and_http():
 
     def http_warning():
         url = f"http://127.0.0.1:{farm.http_port}/api/renders"
-        with urllib.request.urlopen(url, timeout=10) as r:
+        request = urllib.request.Request(
+            url, headers={"Authorization": "Bearer " + client_token()})
+        with urllib.request.urlopen(request, timeout=10) as r:
             return json.load(r)["storage_warning"]
 
     try:
@@ -556,8 +596,8 @@ def test_a_mesh_scene_submitted_from_elsewhere_matches_a_local_render():
         farm.start_worker("w0", threads=2, cwd=elsewhere)
         out = os.path.join(farm.dir, "farm.exr")
         r = subprocess.run([ALIQUOT, "submit", "--coordinator", farm.addr, "--json", *args,
-                            "--out", out], capture_output=True, text=True, timeout=300,
-                           cwd=client)
+                            "--out", out, "--token-file", CLIENT_TOKEN],
+                           capture_output=True, text=True, timeout=300, cwd=client)
         assert r.returncode == 0, r.stderr
         assert json.loads(r.stdout)["state"] == "done", r.stdout
         local = os.path.join(farm.dir, "local.exr")
@@ -565,6 +605,48 @@ def test_a_mesh_scene_submitted_from_elsewhere_matches_a_local_render():
                            capture_output=True, text=True, timeout=300, cwd=client)
         assert r.returncode == 0, r.stderr
         assert same(out, local), "the farm's render of the mesh scene differs from the local one"
+    finally:
+        farm.stop()
+
+
+def test_tokens_made_by_the_coordinator_admit_each_role_only():
+    """Issue 13: a coordinator without token files makes both, private to its user; each
+    role's token works for that role only, a missing one is refused, and a worker handed
+    the client token stops with the reason instead of retrying for ever."""
+    farm = Farm("tokens")
+    data = os.path.join(farm.dir, "data")
+    client, worker = os.path.join(data, "client.token"), os.path.join(data, "worker.token")
+    try:
+        farm.start_coordinator(token=False)
+        for path in (client, worker):
+            assert os.stat(path).st_mode & 0o777 == 0o600, oct(os.stat(path).st_mode)
+        with open(client) as f:
+            secret = f.read().strip()
+        r = run("status", "--coordinator", farm.addr, "--token-file", client)
+        assert r.returncode == 0, r.stderr
+        r = run("status", "--coordinator", farm.addr, "--token-file", worker, check=False)
+        assert r.returncode == 1 and "client token" in r.stderr, r.stderr
+        r = run("submit", "--coordinator", farm.addr, *SMALL, "--token-file", CLIENT_TOKEN,
+                check=False)
+        assert r.returncode == 1 and "client token" in r.stderr, r.stderr
+        assert secret not in r.stderr
+        empty = os.path.join(farm.dir, "empty")
+        os.makedirs(empty)
+        r = subprocess.run([ALIQUOT, "status", "--coordinator", farm.addr],
+                           capture_output=True, text=True, timeout=60, cwd=empty,
+                           env={k: v for k, v in os.environ.items() if k != "ALIQUOT_TOKEN"})
+        assert r.returncode == 1 and "--token-file" in r.stderr, r.stderr
+        r = subprocess.run([ALIQUOT, "status", "--coordinator", farm.addr],
+                           capture_output=True, text=True, timeout=60, cwd=empty,
+                           env={**os.environ, "ALIQUOT_TOKEN": secret})
+        assert r.returncode == 0, r.stderr
+        # A worker with the client token is refused at registration and exits 1 by itself.
+        w = subprocess.run([ALIQUOT, "worker", "--coordinator", farm.addr, "--threads", "1",
+                            "--token-file", client], capture_output=True, text=True,
+                           timeout=60)
+        assert w.returncode == 1 and "worker token" in w.stderr, w.stderr
+        r = run("workers", "--json", "--coordinator", farm.addr, "--token-file", client)
+        assert json.loads(r.stdout) == [], r.stdout
     finally:
         farm.stop()
 

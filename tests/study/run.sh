@@ -90,12 +90,14 @@ check "no render was started twice" \
 
 # --- the same tiny study on a farm
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+# Authenticated with the tokens the coordinator makes in its data directory (issue 13).
 "$aliquot" coordinator --grpc "127.0.0.1:$port" --data "$tmp/farm-data" >"$tmp/coordinator.log" 2>&1 &
 pids+=($!)
-"$aliquot" worker --coordinator "127.0.0.1:$port" --threads 2 >"$tmp/worker.log" 2>&1 &
+client_token=(--token-file "$tmp/farm-data/client.token")
+for _ in $(seq 1 100); do "$aliquot" status --coordinator "127.0.0.1:$port" "${client_token[@]}" >/dev/null 2>&1 && break; sleep 0.1; done
+"$aliquot" worker --coordinator "127.0.0.1:$port" --threads 2 --token-file "$tmp/farm-data/worker.token" >"$tmp/worker.log" 2>&1 &
 pids+=($!)
-for _ in $(seq 1 100); do "$aliquot" status --coordinator "127.0.0.1:$port" >/dev/null 2>&1 && break; sleep 0.1; done
-"$aliquot" study "$tiny" --scale small --out "$tmp/farm" --coordinator "127.0.0.1:$port" >"$tmp/farm.log" 2>&1
+"$aliquot" study "$tiny" --scale small --out "$tmp/farm" --coordinator "127.0.0.1:$port" "${client_token[@]}" >"$tmp/farm.log" 2>&1
 status=$?
 check "the tiny study runs on a farm" "[[ $status -eq 0 ]] || { cat '$tmp/farm.log'; false; }"
 fdb="$tmp/farm/data/aliquot.db"
