@@ -187,7 +187,12 @@ public:
         // The name keys the coordinator's worker table and the store's rows.
         if (req->name().empty() || req->name().size() > 128)
             return {StatusCode::INVALID_ARGUMENT, "a worker name is 1 to 128 bytes"};
-        const Registration r = c_.register_worker(req->name(), req->threads());
+        Registration r;
+        try {
+            r = c_.register_worker(req->name(), req->threads());
+        } catch (const TooManyWorkers& e) {
+            return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
+        }
         reply->set_lease_ms(r.lease_ms);
         reply->set_session(r.session);
         return Status::OK;

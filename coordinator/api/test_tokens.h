@@ -1,5 +1,5 @@
-// For the api room's tests: the tokens their coordinators run with, and call contexts that
-// carry one (a context without a token is refused, as it is in production).
+// For the api room's tests: the tokens their coordinators run with, and call contexts
+// that carry one (a context without a token is refused, as it is in production).
 #pragma once
 
 #include <grpcpp/grpcpp.h>
@@ -9,7 +9,8 @@
 
 namespace aliquot::testing {
 
-inline const Tokens kTestTokens{"client-token-for-tests-0123", "worker-token-for-tests-0123"};
+inline const Tokens kTestTokens{"client-token-for-tests-0123",
+                                "worker-token-for-tests-0123"};
 
 inline GrpcSecurity test_security() { return {kTestTokens, "", ""}; }
 
@@ -17,9 +18,9 @@ inline GrpcSecurity test_security() { return {kTestTokens, "", ""}; }
 class TokenContext : public grpc::ClientContext {
 public:
     explicit TokenContext(Role role) {
-        AddMetadata("authorization", "Bearer " + (role == Role::Client
-                                                      ? kTestTokens.client
-                                                      : kTestTokens.worker));
+        AddMetadata(
+            "authorization",
+            "Bearer " + (role == Role::Client ? kTestTokens.client : kTestTokens.worker));
     }
 };
 

@@ -489,8 +489,54 @@ const std::string& Coordinator::worker_of_session(const std::string& session) {
     const auto it = worker_sessions_.find(session);
     if (it == worker_sessions_.end())
         throw WorkerUnknown("unknown worker session: register again");
-    touch_worker(it->second);
-    return it->second;
+    it->second.last_seen_ms = unix_millis_now();
+    touch_worker(it->second.worker);
+    return it->second.worker;
+}
+
+std::set<std::string> Coordinator::sessions_with_leases() const {
+    std::set<std::string> holding;
+    for (const auto& [lease, owner] : lease_render_) holding.insert(owner.session);
+    return holding;
+}
+
+void Coordinator::make_room_for_a_session() {
+    if (worker_sessions_.size() < options_.max_worker_sessions) return;
+    const std::set<std::string> holding = sessions_with_leases();
+    auto oldest = worker_sessions_.end();
+    for (auto it = worker_sessions_.begin(); it != worker_sessions_.end(); ++it)
+        if (!holding.count(it->first) &&
+            (oldest == worker_sessions_.end() ||
+             it->second.last_seen_ms < oldest->second.last_seen_ms))
+            oldest = it;
+    if (oldest == worker_sessions_.end())
+        throw TooManyWorkers("the coordinator has " +
+                             std::to_string(worker_sessions_.size()) +
+                             " worker sessions, each holding a lease; try again later");
+    // Its worker, if it is still there, is told to register again at its next call.
+    worker_sessions_.erase(oldest);
+}
+
+void Coordinator::forget_silent_workers(int64_t now_ms) {
+    const int64_t after = options_.forget_workers_after.count();
+    const std::set<std::string> holding = sessions_with_leases();
+    std::set<std::string> named;
+    for (auto it = worker_sessions_.begin(); it != worker_sessions_.end();) {
+        if (now_ms - it->second.last_seen_ms > after && !holding.count(it->first)) {
+            it = worker_sessions_.erase(it);
+        } else {
+            named.insert(it->second.worker);
+            ++it;
+        }
+    }
+    for (auto it = workers_.begin(); it != workers_.end();) {
+        const WorkerEntry& w = it->second;
+        if (w.lost && w.unrecorded == 0 && now_ms - w.last_seen_ms > after &&
+            !named.count(it->first))
+            it = workers_.erase(it);  // its row stays in the store, marked lost
+        else
+            ++it;
+    }
 }
 
 uint64_t Coordinator::new_lease_id() const {
@@ -506,6 +552,7 @@ uint64_t Coordinator::new_lease_id() const {
 
 Registration Coordinator::register_worker(const std::string& name, uint32_t threads) {
     std::lock_guard lock(mutex_);
+    make_room_for_a_session();  // first: a refused registration changes nothing
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
     w.registered = true;
@@ -523,7 +570,7 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     std::string session;
     do session = random_hex(16);
     while (worker_sessions_.count(session));
-    worker_sessions_.emplace(session, name);
+    worker_sessions_.emplace(session, SessionEntry{name, unix_millis_now()});
     changed();
     return {session, uint32_t(options_.lease_time.count())};
 }
@@ -654,6 +701,11 @@ size_t Coordinator::leases_out() {
     return lease_render_.size();
 }
 
+size_t Coordinator::worker_sessions() {
+    std::lock_guard lock(mutex_);
+    return worker_sessions_.size();
+}
+
 std::set<std::string> Coordinator::alive_workers() const {
     std::set<std::string> alive;
     for (const auto& [name, w] : workers_)
@@ -729,6 +781,7 @@ void Coordinator::tick() {
             }
         }
     }
+    forget_silent_workers(wall);
     if (any) changed();
     // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the
     // next one tries again.

@@ -53,6 +53,20 @@ struct CoordinatorOptions {
     // Jobs workers cannot trace: how many failures fail a render, when a worker is kept
     // off one (docs/FARM.md).
     FailurePolicy failure_policy;
+    // Worker sessions are forgotten after this long unheard while they hold no lease (a
+    // worker that comes back is told to register again), and so are workers lost this
+    // long; at most max_worker_sessions exist at once (registering past it drops the
+    // longest-silent one holding no lease, or is refused with TooManyWorkers). Every
+    // registration is remembered otherwise, and anyone with the worker token could
+    // register without end.
+    std::chrono::milliseconds forget_workers_after{std::chrono::minutes(10)};
+    size_t max_worker_sessions = 4096;
+};
+
+// Thrown by register_worker when every one of max_worker_sessions sessions holds a lease.
+class TooManyWorkers : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
 };
 
 // A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
@@ -115,6 +129,8 @@ public:
     bool knows_worker(const std::string& name);
     // Leases out now, across renders (what `lease_render_` holds): for tests.
     size_t leases_out();
+    // Worker sessions remembered now: for tests.
+    size_t worker_sessions();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -164,6 +180,14 @@ private:
     std::set<std::string> alive_workers() const;
     // Drops lease_render_ entries whose lease ended (expired, render finished or gone).
     void forget_ended_leases();
+    // Sessions holding a lease now.
+    std::set<std::string> sessions_with_leases() const;
+    // Drops sessions silent for forget_workers_after that hold no lease, and workers lost
+    // that long with no session left (tick).
+    void forget_silent_workers(int64_t now_ms);
+    // Makes room for one more session under max_worker_sessions, or throws
+    // TooManyWorkers.
+    void make_room_for_a_session();
     void changed();
     uint64_t memory_in_use_locked() const;
     // Drops a finished render whose end is recorded, and what is kept per render.
@@ -184,9 +208,13 @@ private:
         std::string
             session;  // the worker session that leased it: the only one heard on it
     };
-    std::unordered_map<uint64_t, LeaseOwner> lease_render_;         // lease -> owner
-    std::unordered_map<std::string, std::string> worker_sessions_;  // session -> name
-    std::map<std::string, std::string> scenes_;                     // hash -> json
+    std::unordered_map<uint64_t, LeaseOwner> lease_render_;  // lease -> owner
+    struct SessionEntry {
+        std::string worker;  // its name
+        int64_t last_seen_ms = 0;
+    };
+    std::unordered_map<std::string, SessionEntry> worker_sessions_;  // by session
+    std::map<std::string, std::string> scenes_;                      // hash -> json
     std::map<std::string, WorkerEntry> workers_;
     std::map<std::string, std::string>
         bucket_shapes_;  // render -> last stored bucket layout

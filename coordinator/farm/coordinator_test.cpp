@@ -346,5 +346,52 @@ TEST_F(CoordinatorTest, LeaseIdsAreNotSequential) {
     EXPECT_EQ(close, 0u);
 }
 
+// Found in review of issue 13: every Register added a session, and every name a worker,
+// for ever: anyone with the worker token could grow the coordinator without bound.
+TEST_F(CoordinatorTest, WorkerSessionsAreBoundedAndASessionHoldingALeaseIsKept) {
+    options.data_dir.clear();
+    options.max_worker_sessions = 8;
+    Coordinator c(options);
+    c.submit(small_spec());
+    const std::string holder = c.register_worker("holder", 1).session;
+    const auto grant = c.lease(holder, std::chrono::milliseconds(0));
+    ASSERT_TRUE(grant);
+    for (int i = 0; i < 1000; ++i) c.register_worker("flood-" + std::to_string(i), 1);
+    EXPECT_LE(c.worker_sessions(), 8u);
+    // The holder's session survived the flood: its result still merges.
+    SampleJobResult result;
+    result.rect = grant->job.rect;
+    result.pixels.assign(grant->job.counts.size(), PixelSums{});
+    for (size_t i = 0; i < grant->job.counts.size(); ++i)
+        result.pixels[i].samples = grant->job.counts[i];
+    EXPECT_EQ(c.complete(holder, grant->lease_id, result).status, CompleteStatus::Merged);
+}
+
+TEST_F(CoordinatorTest, RegisteringIsRefusedWhenEverySessionHoldsALease) {
+    options.data_dir.clear();
+    options.max_worker_sessions = 1;
+    Coordinator c(options);
+    RenderSpec spec = small_spec();
+    c.submit(spec);
+    const std::string holder = c.register_worker("holder", 1).session;
+    ASSERT_TRUE(c.lease(holder, std::chrono::milliseconds(0)));
+    EXPECT_THROW(c.register_worker("late", 1), TooManyWorkers);
+    EXPECT_FALSE(c.knows_worker("late"));
+}
+
+TEST_F(CoordinatorTest, SilentSessionsAndLongLostWorkersAreForgotten) {
+    options.forget_workers_after = std::chrono::milliseconds(0);
+    Coordinator c(options);
+    const std::string session = c.register_worker("gone", 1).session;
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));  // past worker_lost_after
+    c.tick();                                                    // lost
+    c.tick();                                                    // and forgotten
+    EXPECT_EQ(c.worker_sessions(), 0u);
+    EXPECT_FALSE(c.knows_worker("gone"));
+    // It comes back: told to register again, which works.
+    EXPECT_THROW(c.lease(session, std::chrono::milliseconds(0)), WorkerUnknown);
+    EXPECT_NO_THROW(c.register_worker("gone", 1));
+}
+
 }  // namespace
 }  // namespace aliquot
