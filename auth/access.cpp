@@ -4,7 +4,9 @@
 
 namespace aliquot {
 
-std::string_view to_string(Role role) { return role == Role::Client ? "client" : "worker"; }
+std::string_view to_string(Role role) {
+    return role == Role::Client ? "client" : "worker";
+}
 
 std::string_view bearer_token(std::string_view authorization) {
     constexpr std::string_view kScheme = "bearer ";

@@ -19,7 +19,8 @@ struct Tokens {
 
 enum class Access {
     Granted,
-    Unauthenticated,  // no token, or one that is neither role's: gRPC UNAUTHENTICATED, 401
+    Unauthenticated,  // no token, or one that is neither role's: gRPC UNAUTHENTICATED,
+                      // 401
     Forbidden,        // the other role's token: gRPC PERMISSION_DENIED, 403
 };
 

@@ -27,11 +27,17 @@ void check_token(std::string_view token, const std::string& source) {
         throw TokenError(source + ": the token is shorter than 16 characters");
     if (token.size() > kMaxToken)
         throw TokenError(source + ": the token is longer than 1024 characters");
-    for (const char c : token)
-        if (c < 0x21 || c > 0x7e)
+    // RFC 6750's b64token alphabet: what a bearer header carries unchanged, and what a
+    // cookie value may hold (no ; , " \ or %, which HTTP libraries split or decode).
+    for (const char c : token) {
+        const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') ||
+                        (c >= '0' && c <= '9') || c == '-' || c == '.' || c == '_' ||
+                        c == '~' || c == '+' || c == '/' || c == '=';
+        if (!ok)
             throw TokenError(source +
-                             ": a token is visible ASCII only (no spaces or control "
-                             "characters)");
+                             ": a token is letters, digits and - . _ ~ + / = only (as "
+                             "`openssl rand -hex 32` makes)");
+    }
 }
 
 std::string read_token_file(const std::filesystem::path& path) {
@@ -59,12 +65,13 @@ std::string load_or_create_token_file(const std::filesystem::path& path, bool& c
         throw TokenError(why(path, std::strerror(errno)));
     }
     const std::string line = token + "\n";
-    const bool written = ::write(fd, line.data(), line.size()) == ssize_t(line.size()) &&
-                         ::fsync(fd) == 0;
+    const bool written =
+        ::write(fd, line.data(), line.size()) == ssize_t(line.size()) && ::fsync(fd) == 0;
     ::close(fd);
     if (!written) {
         const std::string error = std::strerror(errno);
-        ::unlink(path.c_str());  // never leave a half-written secret to be read next start
+        ::unlink(
+            path.c_str());  // never leave a half-written secret to be read next start
         throw TokenError(why(path, error.c_str()));
     }
     created = true;

@@ -17,9 +17,9 @@ public:
     using std::runtime_error::runtime_error;
 };
 
-// Throws TokenError unless `token` can be a bearer token: 16 to 1024 visible ASCII
-// characters (it travels in an HTTP header; shorter is guessable). `source` names where
-// it came from for the message.
+// Throws TokenError unless `token` can be a bearer token: 16 to 1024 characters of RFC
+// 6750's b64token alphabet (letters, digits, - . _ ~ + / =; shorter is guessable).
+// `source` names where it came from for the message.
 void check_token(std::string_view token, const std::string& source);
 
 // The token in `path`, without the trailing newline (or whitespace) editors add.

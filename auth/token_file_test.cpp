@@ -61,11 +61,17 @@ TEST_F(TokenFileTest, AnUnusableTokenIsRefusedWithoutQuotingIt) {
     }
     EXPECT_THROW(read_token_file(dir_ / "missing"), TokenError);
     EXPECT_THROW(check_token(std::string(2000, 'a'), "ALIQUOT_TOKEN"), TokenError);
+    // Characters an HTTP header or cookie would split or percent-decode.
+    for (const char* bad :
+         {"0123456789abcdef%41", "0123456789abcdef;x", "0123456789abcdef,"})
+        EXPECT_THROW(check_token(bad, "ALIQUOT_TOKEN"), TokenError) << bad;
+    EXPECT_NO_THROW(check_token("dGhpcyBpcyBiYXNlNjQ=/+_-.~", "ALIQUOT_TOKEN"));
 }
 
 TEST_F(TokenFileTest, ACorruptOrMissingDirectoryIsATokenError) {
     bool created = false;
-    EXPECT_THROW(load_or_create_token_file(dir_ / "no" / "such" / "t", created), TokenError);
+    EXPECT_THROW(load_or_create_token_file(dir_ / "no" / "such" / "t", created),
+                 TokenError);
 }
 
 }  // namespace

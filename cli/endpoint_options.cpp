@@ -31,8 +31,8 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
     // The default token is the one a coordinator with the default --data writes in the
     // current directory: `aliquot coordinator` and `aliquot submit` side by side work
     // without flags, and nothing is read from anywhere else.
-    const std::filesystem::path local = std::filesystem::path("aliquot-data") /
-                                        (name + ".token");
+    const std::filesystem::path local =
+        std::filesystem::path("aliquot-data") / (name + ".token");
     try {
         if (!token_file.empty()) {
             endpoint.token = read_token_file(token_file);

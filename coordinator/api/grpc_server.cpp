@@ -3,6 +3,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <algorithm>
+#include <atomic>
 
 #include "access.h"
 #include "aliquot.grpc.pb.h"
@@ -34,6 +35,24 @@ Status admit(const ServerContext* ctx, const Tokens& tokens, Role role) {
                                         : StatusCode::UNAUTHENTICATED,
             access_message(access, role)};
 }
+
+// At most kMaxStreams Watch and FetchImage calls at once; one more is refused rather than
+// given a thread and a buffer.
+constexpr int kMaxStreams = 32;
+class StreamSlot {
+public:
+    explicit StreamSlot(std::atomic<int>& open) : open_(open) {
+        taken_ = open_.fetch_add(1) < kMaxStreams;
+    }
+    ~StreamSlot() { open_.fetch_sub(1); }
+    StreamSlot(const StreamSlot&) = delete;
+    StreamSlot& operator=(const StreamSlot&) = delete;
+    bool taken() const { return taken_; }
+
+private:
+    std::atomic<int>& open_;
+    bool taken_ = false;
+};
 
 class ClientServiceImpl final : public v1::ClientService::Service {
 public:
@@ -96,6 +115,11 @@ public:
     Status Watch(ServerContext* ctx, const v1::GetRenderRequest* req,
                  grpc::ServerWriter<v1::RenderInfo>* writer) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
+        // Each open stream holds one of the server's threads while it waits.
+        StreamSlot slot(open_streams_);
+        if (!slot.taken())
+            return {StatusCode::RESOURCE_EXHAUSTED,
+                    "too many open Watch and FetchImage streams; try again later"};
         uint64_t seen = 0;
         while (!ctx->IsCancelled()) {
             const auto info = c_.info(req->id());
@@ -123,6 +147,11 @@ public:
     Status FetchImage(ServerContext* ctx, const v1::FetchImageRequest* req,
                       grpc::ServerWriter<v1::FileChunk>* writer) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
+        // Each holds an encoded EXR (up to ~1 GB at 8192x8192 with AOVs) while it sends.
+        StreamSlot slot(open_streams_);
+        if (!slot.taken())
+            return {StatusCode::RESOURCE_EXHAUSTED,
+                    "too many open Watch and FetchImage streams; try again later"};
         const auto image = c_.image(req->id(), req->aovs());
         if (!image) return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
         const std::string bytes = encode_exr(*image);
@@ -171,6 +200,7 @@ public:
 private:
     Coordinator& c_;
     const Tokens& tokens_;
+    std::atomic<int> open_streams_{0};
 };
 
 // Every call but Register carries the worker's session; one the coordinator did not issue
