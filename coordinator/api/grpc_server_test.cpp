@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
@@ -471,6 +472,54 @@ TEST(GrpcTokens, AServerRefusesMissingOrEqualTokens) {
                  std::invalid_argument);
     GrpcSecurity same{{"same-token-0123456789", "same-token-0123456789"}, "", ""};
     EXPECT_THROW(GrpcServer(coordinator, "127.0.0.1:0", same), std::invalid_argument);
+}
+
+// Found in review of issue 13: every Watch held a server thread for as long as its client
+// kept it open, without limit.
+TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
+    auto stub = v1::ClientService::NewStub(
+        grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
+                            grpc::InsecureChannelCredentials()));
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = 8;
+    spec.strategy.spp = 1;
+    v1::GetRenderRequest req;
+    req.set_id(coordinator.submit(spec));  // no worker: it stays running
+
+    std::vector<std::unique_ptr<testing::TokenContext>> contexts;
+    std::vector<std::unique_ptr<grpc::ClientReader<v1::RenderInfo>>> readers;
+    v1::RenderInfo info;
+    for (int i = 0; i < 32; ++i) {
+        contexts.push_back(std::make_unique<testing::TokenContext>(Role::Client));
+        readers.push_back(stub->Watch(contexts.back().get(), req));
+        ASSERT_TRUE(readers.back()->Read(&info)) << "stream " << i;
+    }
+    testing::TokenContext one_more(Role::Client);
+    auto refused = stub->Watch(&one_more, req);
+    EXPECT_FALSE(refused->Read(&info));
+    EXPECT_EQ(refused->Finish().error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+
+    // A closed stream gives its place back.
+    contexts.front()->TryCancel();
+    readers.front()->Finish();
+    bool reopened = false;
+    for (int attempt = 0; attempt < 100 && !reopened; ++attempt) {
+        testing::TokenContext again(Role::Client);
+        auto reader = stub->Watch(&again, req);
+        reopened = reader->Read(&info);
+        again.TryCancel();
+        reader->Finish();
+        if (!reopened) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_TRUE(reopened);
+    for (size_t i = 1; i < readers.size(); ++i) {
+        contexts[i]->TryCancel();
+        readers[i]->Finish();
+    }
 }
 
 }  // namespace
