@@ -163,6 +163,8 @@ struct CoordinatorCommand {
         std::unique_ptr<HttpServer> http;
         if (!http_address.empty()) {
             HttpOptions http_options;
+            // The same tokens as gRPC: the dashboard signs in with the client's.
+            http_options.tokens = security.tokens;
             http_options.web_dir =
                 web_dir.empty() ? default_web_dir() : fs::path(web_dir);
             // Study reports: the data directory's, then the --studies directories or, by

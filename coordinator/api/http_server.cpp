@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "http_api.h"
+#include "http_session.h"
 #include "scene_loader.h"
 #include "store.h"
 
@@ -514,12 +515,34 @@ struct HttpServer::Impl {
         return httplib::Server::HandlerResponse::Unhandled;
     }
 
+    // After the cross-site checks, so that a foreign page learns nothing more from a 401
+    // than from a 403. Only the client token opens the API.
+    httplib::Server::HandlerResponse token_check(const httplib::Request& req,
+                                                 httplib::Response& res) {
+        if (!http_session::needs_token(req.method, req.path))
+            return httplib::Server::HandlerResponse::Unhandled;
+        const Access access = check_access(
+            options.tokens,
+            http_session::presented_token(req.get_header_value("Authorization"),
+                                          req.get_header_value("Cookie")),
+            Role::Client);
+        if (access == Access::Granted) return httplib::Server::HandlerResponse::Unhandled;
+        if (access == Access::Unauthenticated)
+            res.set_header("WWW-Authenticate", "Bearer");
+        return refuse(res, access == Access::Forbidden ? 403 : 401,
+                      http_session::refusal_message(access));
+    }
+
     void routes() {
         server.set_pre_routing_handler(
             [this](const httplib::Request& req, httplib::Response& res) {
-                return cross_site_check(req, res);
+                const auto cross_site = cross_site_check(req, res);
+                if (cross_site == httplib::Server::HandlerResponse::Handled)
+                    return cross_site;
+                return token_check(req, res);
             });
         render_routes();
+        session_routes();
         image_routes();
         other_routes();
         error_routes();
@@ -582,6 +605,33 @@ struct HttpServer::Impl {
                                 {"count", all->size()},
                                 {"next", end < all->size() ? json(end) : json(nullptr)}});
             }));
+    }
+
+    // The dashboard's sign-in: the session cookie carries the client token (docs/API.md,
+    // "Authentication"). GET needs the token like every route; POST and DELETE do not.
+    void session_routes() {
+        server.Get("/api/session", [](const httplib::Request&, httplib::Response& res) {
+            send_json(res, {{"signed_in", true}});
+        });
+        server.Post(
+            "/api/session", guarded([this](const httplib::Request& req, auto& res) {
+                const std::string token = http_session::parse_sign_in_request(req.body);
+                const Access access = check_access(options.tokens, token, Role::Client);
+                if (access == Access::Granted) {
+                    res.set_header("Set-Cookie", http_session::sign_in_cookie(token));
+                    send_json(res, {{"ok", true}});
+                    return;
+                }
+                if (access == Access::Unauthenticated)
+                    res.set_header("WWW-Authenticate", "Bearer");
+                send_error(res, access == Access::Forbidden ? 403 : 401,
+                           http_session::refusal_message(access));
+            }));
+        server.Delete("/api/session",
+                      [](const httplib::Request&, httplib::Response& res) {
+                          res.set_header("Set-Cookie", http_session::sign_out_cookie());
+                          send_json(res, {{"ok", true}});
+                      });
     }
 
     // What the dashboard draws of one render: preview, heat maps, buckets.
@@ -707,6 +757,15 @@ struct HttpServer::Impl {
     }
 
     void start(const std::string& address) {
+        if (options.tokens.client.empty() || options.tokens.worker.empty() ||
+            options.tokens.client == options.tokens.worker)
+            throw std::invalid_argument(
+                "http: the client and worker tokens must both be set and differ");
+        if (!http_session::can_travel_in_cookie(options.tokens.client))
+            throw std::invalid_argument(
+                "http: the client token must be visible ASCII without ; , \" \\ or % "
+                "(the dashboard's session cookie carries it, and HTTP headers are "
+                "percent-decoded)");
         const size_t colon = address.rfind(':');
         if (colon == std::string::npos)
             throw std::runtime_error("http: address must be host:port, got \"" + address +

@@ -10,11 +10,15 @@
 #include <utility>
 #include <vector>
 
+#include "access.h"
 #include "coordinator.h"
 
 namespace aliquot {
 
 struct HttpOptions {
+    // Every /api/ route needs the client token (docs/API.md, "Authentication"); the
+    // worker token is refused with 403. Both must be set and differ.
+    Tokens tokens;
     // The built dashboard (web/dist); when it has no index.html, / explains how to build
     // it and the API works alone.
     std::filesystem::path web_dir;
@@ -42,7 +46,8 @@ struct HttpOptions {
 class HttpServer {
 public:
     // Listens on `address` (host:port; port 0 picks a free one); throws
-    // std::runtime_error if it cannot.
+    // std::runtime_error if it cannot, std::invalid_argument for options it refuses (no
+    // tokens, the same token for both roles, a client token a cookie cannot carry).
     HttpServer(Coordinator& coordinator, const std::string& address,
                HttpOptions options = {});
     ~HttpServer();

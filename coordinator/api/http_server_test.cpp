@@ -35,6 +35,15 @@ namespace fs = std::filesystem;
 
 constexpr size_t kMaxResponse = 100 * 1024;
 
+// Options with the tokens every server needs; the tests' clients send the client's.
+HttpOptions options_with_tokens() {
+    HttpOptions options;
+    options.tokens = testing::kTestTokens;
+    return options;
+}
+
+const std::string kClientBearer = "Bearer " + testing::kTestTokens.client;
+
 // A worker that answers every job with made-up sums: a smooth image plus per-pixel noise
 // that differs between even and odd samples, so error estimates are non-zero.
 // Registers `worker` (1 thread) for a session, which its calls carry.
@@ -102,7 +111,11 @@ struct RawStream {
     }
 };
 
-RawStream open_stream(int port, const std::string& path = "/api/events") {
+// `credentials`: a header line that carries a token ("Authorization: ..." or
+// "Cookie: ..."), none when empty.
+RawStream open_stream(int port, const std::string& path = "/api/events",
+                      const std::string& credentials = "Authorization: " +
+                                                       kClientBearer) {
     RawStream s;
     s.fd = ::socket(AF_INET, SOCK_STREAM, 0);
     timeval timeout{10, 0};  // generous: a refused or starved request fails, not hangs
@@ -112,9 +125,9 @@ RawStream open_stream(int port, const std::string& path = "/api/events") {
     addr.sin_port = htons(uint16_t(port));
     addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
     if (::connect(s.fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return s;
-    const std::string request = "GET " + path +
-                                " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
-                                "\r\n\r\n";
+    const std::string request =
+        "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) + "\r\n" +
+        (credentials.empty() ? "" : credentials + "\r\n") + "\r\n";
     if (::send(s.fd, request.data(), request.size(), MSG_NOSIGNAL) < 0) return s;
     char buffer[4096];
     std::string got;
@@ -167,13 +180,14 @@ protected:
         std::ofstream(dir_ / "studies" / "no-report" / "image.png") << "png";
 
         coordinator_ = std::make_unique<Coordinator>(CoordinatorOptions{});
-        HttpOptions options;
+        HttpOptions options = options_with_tokens();
         options.web_dir = dir_ / "web";
         options.study_dirs = {{"data", dir_ / "studies"}};
         options.event_interval = std::chrono::milliseconds(50);
         server_ = std::make_unique<HttpServer>(*coordinator_, "127.0.0.1:0", options);
         client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
         client_->set_read_timeout(10, 0);
+        client_->set_bearer_token_auth(testing::kTestTokens.client);
     }
     void TearDown() override {
         server_.reset();
@@ -511,7 +525,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
 
     Coordinator coordinator{CoordinatorOptions{}};
     GrpcServer grpc_server(coordinator, "127.0.0.1:0", testing::test_security());
-    HttpServer http_server(coordinator, "127.0.0.1:0");
+    HttpServer http_server(coordinator, "127.0.0.1:0", options_with_tokens());
     auto stub = v1::ClientService::NewStub(
         grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_server.port()),
                             grpc::InsecureChannelCredentials()));
@@ -539,6 +553,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
     }
     httplib::Client client("127.0.0.1", http_server.port());
     client.set_read_timeout(5, 0);
+    client.set_bearer_token_auth(testing::kTestTokens.client);
     for (const std::string& name : {fifo.string(), (dir / "secret.obj").string()}) {
         auto res =
             client.Post("/api/renders", json{{"scene", name}}.dump(), "application/json");
@@ -574,6 +589,7 @@ TEST_F(HttpServerTest, EventsAnnounceRendersRoundsAndWorkers) {
     std::thread reader([&] {
         httplib::Client c("127.0.0.1", server_->port());
         c.set_read_timeout(30, 0);
+        c.set_bearer_token_auth(testing::kTestTokens.client);
         std::string buffer;
         c.Get("/api/events", [&](const char* data, size_t n) {
             buffer.append(data, n);
@@ -763,6 +779,7 @@ TEST_F(HttpServerTest, EventStreamsOverTheCapAreRefusedAndHealthStillAnswers) {
     httplib::Client c("127.0.0.1", server_->port());
     c.set_connection_timeout(5, 0);
     c.set_read_timeout(5, 0);
+    c.set_bearer_token_auth(testing::kTestTokens.client);
     auto health = c.Get("/healthz");
     ASSERT_TRUE(health) << "/healthz got no answer with " << open << " streams open";
     EXPECT_EQ(health->status, 200);
@@ -804,9 +821,10 @@ TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
         CoordinatorOptions co;
         co.data_dir = dir / "data";
         Coordinator coordinator(co);
-        HttpServer server(coordinator, "127.0.0.1:0");
+        HttpServer server(coordinator, "127.0.0.1:0", options_with_tokens());
         httplib::Client c("127.0.0.1", server.port());
         c.set_read_timeout(10, 0);
+        c.set_bearer_token_auth(testing::kTestTokens.client);
         auto list = [&] {
             auto res = c.Get("/api/renders");
             EXPECT_TRUE(res && res->status == 200);
@@ -871,8 +889,9 @@ TEST(HttpServerMemory, ASubmissionPastTheMemoryBudgetGets429) {
     CoordinatorOptions options;
     options.memory_limit = 1024;
     Coordinator coordinator(options);
-    HttpServer server(coordinator, "127.0.0.1:0", HttpOptions{});
+    HttpServer server(coordinator, "127.0.0.1:0", options_with_tokens());
     httplib::Client client("127.0.0.1", server.port());
+    client.set_bearer_token_auth(testing::kTestTokens.client);
     auto res =
         client.Post("/api/renders", R"({"scene":"cornell-box","resolution":"64x64"})",
                     "application/json");
@@ -881,6 +900,243 @@ TEST(HttpServerMemory, ASubmissionPastTheMemoryBudgetGets429) {
     const json body = json::parse(res->body);
     EXPECT_NE(body.dump().find("--memory-limit"), std::string::npos) << res->body;
     EXPECT_TRUE(coordinator.list(10).empty());
+}
+
+// ---- authentication (issue 13): the client token, as a bearer or a session cookie ----
+
+// What a request for `path` carrying `headers` (and no token of the fixture's) gets.
+httplib::Result get_with(int port, const std::string& path,
+                         const httplib::Headers& headers) {
+    httplib::Client c("127.0.0.1", port);
+    c.set_read_timeout(10, 0);
+    return c.Get(path.c_str(), headers);
+}
+
+// The session cookie a sign-in response sets, as a Cookie header sends it back.
+std::string cookie_sent_back(const httplib::Response& res) {
+    const std::string set = res.get_header_value("Set-Cookie");
+    return set.substr(0, set.find(';'));
+}
+
+// Routes of every kind: a list, one render, its image and maps, a study's file, the
+// session, and a route that does not exist (which must not tell that it does not).
+std::vector<std::string> guarded_paths(const std::string& id) {
+    return {"/api/renders",
+            "/api/renders/" + id,
+            "/api/renders/" + id + "/preview.png",
+            "/api/renders/" + id + "/maps?kind=error",
+            "/api/renders/" + id + "/rounds",
+            "/api/workers",
+            "/api/studies",
+            "/api/studies/data/equal-budget/report.md",
+            "/api/studies/data/equal-budget/charts/error.png",
+            "/api/session",
+            "/api/no-such-route"};
+}
+
+TEST_F(HttpServerTest, WithoutTheClientTokenEveryApiRouteAnswers401) {
+    const std::string id = submit({{"resolution", "8x8"}, {"strategy", {{"spp", 2}}}});
+    fake_jobs(*coordinator_, "w1");
+    const int port = server_->port();
+    const std::vector<httplib::Headers> refused = {
+        {},
+        {{"Authorization", "Bearer not-the-token-0123456789"}},
+        {{"Authorization", "Basic " + http_api::base64(testing::kTestTokens.client)}},
+        {{"Cookie", "aliquot_session=not-the-token-0123456789"}},
+        {{"Cookie", "other=" + testing::kTestTokens.client}},
+    };
+    for (const std::string& path : guarded_paths(id)) {
+        for (const httplib::Headers& headers : refused) {
+            auto res = get_with(port, path, headers);
+            ASSERT_TRUE(res) << path;
+            EXPECT_EQ(res->status, 401) << path << ": " << res->body;
+            EXPECT_EQ(res->get_header_value("WWW-Authenticate"), "Bearer") << path;
+            EXPECT_EQ(res->get_header_value("Content-Type"), "application/json") << path;
+            const json body = json::parse(res->body, nullptr, false);
+            ASSERT_TRUE(body.is_object() && body["error"].is_string()) << res->body;
+            EXPECT_NE(body["error"].get<std::string>().find("client token"),
+                      std::string::npos);
+            EXPECT_EQ(res->body.find(testing::kTestTokens.client), std::string::npos);
+            EXPECT_FALSE(res->has_header("Set-Cookie")) << path;
+        }
+    }
+    RawStream events = open_stream(port, "/api/events", "");
+    EXPECT_EQ(events.status, 401) << events.head;
+    EXPECT_NE(events.head.find("WWW-Authenticate: Bearer"), std::string::npos);
+    EXPECT_TRUE(body_json(events)["error"].is_string());
+}
+
+TEST_F(HttpServerTest, TheWorkerTokenIsRefusedWith403) {
+    const std::string id = submit({{"resolution", "8x8"}, {"strategy", {{"spp", 2}}}});
+    fake_jobs(*coordinator_, "w1");
+    const httplib::Headers worker = {
+        {"Authorization", "Bearer " + testing::kTestTokens.worker}};
+    for (const std::string& path : guarded_paths(id)) {
+        auto res = get_with(server_->port(), path, worker);
+        ASSERT_TRUE(res) << path;
+        EXPECT_EQ(res->status, 403) << path << ": " << res->body;
+        EXPECT_NE(json::parse(res->body)["error"].get<std::string>().find("worker's"),
+                  std::string::npos);
+        EXPECT_EQ(res->body.find(testing::kTestTokens.worker), std::string::npos);
+    }
+    EXPECT_EQ(open_stream(server_->port(), "/api/events",
+                          "Authorization: Bearer " + testing::kTestTokens.worker)
+                  .status,
+              403);
+}
+
+TEST_F(HttpServerTest, TheClientTokenOpensEveryRoute) {
+    const std::string id = submit({{"resolution", "8x8"}, {"strategy", {{"spp", 2}}}});
+    fake_jobs(*coordinator_, "w1");
+    const httplib::Headers bearer = {{"Authorization", kClientBearer}};
+    for (const std::string& path : guarded_paths(id)) {
+        auto res = get_with(server_->port(), path, bearer);
+        ASSERT_TRUE(res) << path;
+        EXPECT_EQ(res->status, path == "/api/no-such-route" ? 404 : 200)
+            << path << ": " << res->body;
+    }
+    EXPECT_EQ(get_json("/api/session")["signed_in"], true);
+    RawStream events = open_stream(server_->port());
+    EXPECT_EQ(events.status, 200);
+    EXPECT_TRUE(events.read_until("\"hello\""));
+}
+
+TEST_F(HttpServerTest, HealthAndTheDashboardsFilesNeedNoToken) {
+    std::ofstream(dir_ / "web" / "app.js") << "console.log(1)";
+    httplib::Client anonymous("127.0.0.1", server_->port());
+    for (const char* path : {"/healthz", "/", "/index.html", "/app.js"}) {
+        auto res = anonymous.Get(path);
+        ASSERT_TRUE(res) << path;
+        EXPECT_EQ(res->status, 200) << path << ": " << res->body;
+    }
+}
+
+TEST_F(HttpServerTest, SigningInSetsACookieThatAloneOpensTheApi) {
+    httplib::Client browser("127.0.0.1", server_->port());
+    browser.set_read_timeout(10, 0);
+    const std::string sign_in = json{{"token", testing::kTestTokens.client}}.dump();
+    auto res = browser.Post("/api/session", sign_in, "application/json");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(json::parse(res->body)["ok"], true);
+    const std::string set = res->get_header_value("Set-Cookie");
+    EXPECT_EQ(set.rfind("aliquot_session=", 0), 0u) << set;
+    for (const char* attribute : {"; HttpOnly", "; SameSite=Strict", "; Path=/"})
+        EXPECT_NE(set.find(attribute), std::string::npos) << attribute << ": " << set;
+    EXPECT_EQ(res->body.find(testing::kTestTokens.client), std::string::npos);
+
+    const httplib::Headers cookie = {{"Cookie", "theme=dark; " + cookie_sent_back(*res)}};
+    auto list = browser.Get("/api/renders", cookie);
+    ASSERT_TRUE(list);
+    EXPECT_EQ(list->status, 200) << list->body;
+    auto session = browser.Get("/api/session", cookie);
+    ASSERT_TRUE(session);
+    EXPECT_EQ(json::parse(session->body)["signed_in"], true);
+    auto submitted =
+        browser.Post("/api/renders", cookie,
+                     R"({"resolution":"8x8","strategy":{"spp":2}})", "application/json");
+    ASSERT_TRUE(submitted);
+    EXPECT_EQ(submitted->status, 201) << submitted->body;
+    RawStream events =
+        open_stream(server_->port(), "/api/events", "Cookie: " + cookie_sent_back(*res));
+    EXPECT_EQ(events.status, 200);
+    EXPECT_TRUE(events.read_until("\"hello\""));
+
+    // Signing out expires the same cookie.
+    auto out = browser.Delete("/api/session", cookie, "{}", "application/json");
+    ASSERT_TRUE(out);
+    EXPECT_EQ(out->status, 200) << out->body;
+    const std::string cleared = out->get_header_value("Set-Cookie");
+    EXPECT_EQ(cleared.rfind("aliquot_session=;", 0), 0u) << cleared;
+    EXPECT_NE(cleared.find("Max-Age=0"), std::string::npos) << cleared;
+    EXPECT_NE(cleared.find("SameSite=Strict"), std::string::npos) << cleared;
+}
+
+TEST_F(HttpServerTest, AWrongSignInSetsNoCookie) {
+    httplib::Client browser("127.0.0.1", server_->port());
+    struct Case {
+        std::string body;
+        int status;
+    };
+    const std::vector<Case> cases = {
+        {json{{"token", "not-the-token-0123456789"}}.dump(), 401},
+        {json{{"token", ""}}.dump(), 401},
+        {json{{"token", testing::kTestTokens.worker}}.dump(), 403},
+        {R"({"token": 12})", 400},
+        {R"({})", 400},
+        {"not json", 400},
+    };
+    for (const Case& c : cases) {
+        auto res = browser.Post("/api/session", c.body, "application/json");
+        ASSERT_TRUE(res) << c.body;
+        EXPECT_EQ(res->status, c.status) << c.body << ": " << res->body;
+        EXPECT_FALSE(res->has_header("Set-Cookie")) << c.body;
+        EXPECT_TRUE(json::parse(res->body)["error"].is_string()) << res->body;
+        EXPECT_EQ(res->body.find(testing::kTestTokens.worker), std::string::npos);
+    }
+    // The cross-site checks come first: another site's page cannot sign a browser in.
+    const std::string right = json{{"token", testing::kTestTokens.client}}.dump();
+    auto foreign = browser.Post("/api/session", {{"Origin", "http://evil.example"}},
+                                right, "application/json");
+    ASSERT_TRUE(foreign);
+    EXPECT_EQ(foreign->status, 403);
+    EXPECT_FALSE(foreign->has_header("Set-Cookie"));
+    auto form =
+        browser.Post("/api/session", "token=x", "application/x-www-form-urlencoded");
+    ASSERT_TRUE(form);
+    EXPECT_EQ(form->status, 415);
+    EXPECT_FALSE(form->has_header("Set-Cookie"));
+}
+
+TEST_F(HttpServerTest, ARefusedRequestChangesNothing) {
+    const std::string id = submit({{"resolution", "64x64"}, {"strategy", {{"spp", 64}}}});
+    const std::string body = R"({"resolution":"8x8","strategy":{"spp":2}})";
+    for (const httplib::Headers& headers :
+         {httplib::Headers{},
+          httplib::Headers{{"Authorization", "Bearer " + testing::kTestTokens.worker}},
+          httplib::Headers{
+              {"Cookie", "aliquot_session=" + testing::kTestTokens.worker}}}) {
+        httplib::Client c("127.0.0.1", server_->port());
+        auto submitted = c.Post("/api/renders", headers, body, "application/json");
+        ASSERT_TRUE(submitted);
+        EXPECT_TRUE(submitted->status == 401 || submitted->status == 403)
+            << submitted->body;
+        auto cancelled = c.Post(("/api/renders/" + id + "/cancel").c_str(), headers, "{}",
+                                "application/json");
+        ASSERT_TRUE(cancelled);
+        EXPECT_TRUE(cancelled->status == 401 || cancelled->status == 403)
+            << cancelled->body;
+    }
+    const json list = get_json("/api/renders");
+    ASSERT_EQ(list["renders"].size(), 1u);
+    EXPECT_EQ(list["renders"][0]["state"], "running");
+}
+
+TEST(HttpServerTokens, RefusesToStartWithoutTwoDifferentTokens) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    const std::string t = testing::kTestTokens.client;
+    for (const Tokens& tokens : {Tokens{}, Tokens{t, ""}, Tokens{"", t}, Tokens{t, t}}) {
+        HttpOptions options;
+        options.tokens = tokens;
+        EXPECT_THROW(HttpServer(coordinator, "127.0.0.1:0", options),
+                     std::invalid_argument);
+    }
+}
+
+// The session cookie carries the client token as it is, so one that would end or quote
+// the cookie, or that the HTTP library would percent-decode, is refused at start rather
+// than making sign-in fail later.
+TEST(HttpServerTokens, RefusesAClientTokenACookieCannotCarry) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    for (const char* odd : {"client;token-0123456789", "client,token-0123456789",
+                            "client\"token-0123456789", "client\\token-0123456789",
+                            "client%41token-0123456789"}) {
+        HttpOptions options;
+        options.tokens = {odd, testing::kTestTokens.worker};
+        EXPECT_THROW(HttpServer(coordinator, "127.0.0.1:0", options),
+                     std::invalid_argument)
+            << odd;
+    }
 }
 
 }  // namespace

@@ -2,7 +2,8 @@
 // loopback, the built dashboard in headless Chromium (Debian's chromium, playwright-core).
 // It submits a render from the page, watches it converge (progress, preview, heat maps,
 // one chart point per round), cancels one, compares two, reads a study report, kills the
-// worker and sees it turn lost, and saves a screenshot of every page.
+// worker and sees it turn lost, and saves a screenshot of every page. The farm runs with
+// its tokens: the page signs in with DATA/client.token first, the worker uses DATA/worker.token.
 //
 // Usage: node e2e.mjs path/to/aliquot [output-dir]   (run.sh installs what it needs)
 import { spawn } from "node:child_process";
@@ -115,8 +116,12 @@ const grpcPort = await freePort();
 const httpPort = await freePort();
 const BASE = `http://127.0.0.1:${httpPort}`;
 
-async function api(pathname, init) {
-  const res = await fetch(BASE + pathname, init);
+// The coordinator writes its client token at its first start; read once it answers.
+let clientToken = null;
+const withToken = (headers = {}) => ({ ...headers, Authorization: `Bearer ${clientToken}` });
+
+async function api(pathname, init = {}) {
+  const res = await fetch(BASE + pathname, { ...init, headers: withToken(init.headers) });
   const body = await res.json();
   if (!res.ok) throw new Error(`${pathname}: ${res.status} ${body.error}`);
   return body;
@@ -142,7 +147,16 @@ await check("coordinator serves the API and the built dashboard", async () => {
   await waitFor(async () => (await fetch(`${BASE}/healthz`)).ok, { timeout: 20000, what: "/healthz" });
   const index = await (await fetch(`${BASE}/`)).text();
   assert(index.includes("<title>Aliquot</title>"), "GET / is not the dashboard");
-  worker = start("worker", ["worker", "--coordinator", `127.0.0.1:${grpcPort}`, "--threads", "1", "--name", "e2e-worker"]);
+  clientToken = fs.readFileSync(path.join(DATA, "client.token"), "utf8").trim();
+  assert(/^[0-9a-f]{64}$/.test(clientToken), "DATA/client.token is not a 64-digit hex token");
+  const workerToken = path.join(DATA, "worker.token");
+  worker = start("worker", [
+    "worker",
+    "--coordinator", `127.0.0.1:${grpcPort}`,
+    "--token-file", workerToken,
+    "--threads", "1",
+    "--name", "e2e-worker",
+  ]);
   await waitFor(async () => (await api("/api/workers")).workers.length === 1, { what: "the worker to register" });
 });
 
@@ -175,6 +189,22 @@ await check("cross-site requests are refused with a JSON error", async () => {
   assert(page.status === 403, `GET / with a foreign Host: ${page.status}`);
   const probe = await rawRequest("GET", "/healthz", { Host: "10.0.0.7:8080" });
   assert(probe.status === 200, `/healthz with a pod IP as Host: ${probe.status}`);
+  assert((await api("/api/renders")).renders.length === 0, "a refused request created a render");
+});
+
+// Issue 13: the API wants the client token; the worker's is the wrong role.
+await check("the API refuses requests without the client token", async () => {
+  const workerToken = fs.readFileSync(path.join(DATA, "worker.token"), "utf8").trim();
+  for (const pathname of ["/api/renders", "/api/events", "/api/workers", "/api/session"]) {
+    const none = await rawRequest("GET", pathname, {});
+    assert(none.status === 401, `GET ${pathname} without a token: ${none.status}`);
+    assert(typeof JSON.parse(none.body).error === "string", `GET ${pathname}: no JSON error`);
+    const worker = await rawRequest("GET", pathname, { Authorization: `Bearer ${workerToken}` });
+    assert(worker.status === 403, `GET ${pathname} with the worker token: ${worker.status}`);
+  }
+  const spec = JSON.stringify({ scene: "cornell-box", resolution: "8x8", strategy: { spp: 1 } });
+  const post = await rawRequest("POST", "/api/renders", { "Content-Type": "application/json" }, spec);
+  assert(post.status === 401, `POST without a token: ${post.status}`);
   assert((await api("/api/renders")).renders.length === 0, "a refused request created a render");
 });
 
@@ -250,6 +280,40 @@ const pixels = (selector) =>
   });
 
 const attr = (selector, name) => page.$eval(selector, (el, n) => el.getAttribute(n), name).catch(() => null);
+
+await check("without the cookie the page shows the sign-in view, not an error", async () => {
+  await page.goto(`${BASE}/#/renders`);
+  await page.waitForSelector("#sign-in-form");
+  const where = await page.textContent("#sign-in-where");
+  assert(where.includes("DATA/client.token"), `the view says "${where}"`);
+  assert((await attr("#sign-in-token", "type")) === "password", "the token field is not a password field");
+  assert(await page.isHidden("#sign-out"), "sign-out offered before signing in");
+  assert(!(await page.$("#renders-table")), "the renders page showed without a session");
+  await shot("sign-in");
+});
+
+await check("a wrong token or the worker's is refused with a message", async () => {
+  await page.fill("#sign-in-token", "not-the-client-token-0123456789");
+  await page.click("#sign-in-button");
+  const wrong = await page.waitForSelector("#sign-in-message.error").then((e) => e.textContent());
+  assert(/not the client token/.test(wrong), `message was "${wrong}"`);
+  await page.fill("#sign-in-token", fs.readFileSync(path.join(DATA, "worker.token"), "utf8").trim());
+  await page.click("#sign-in-button");
+  await waitFor(async () => /worker token/.test(await page.textContent("#sign-in-message")), { what: "the worker-token message" });
+  assert(!(await context.cookies(BASE)).some((c) => c.name === "aliquot_session"), "a refused sign-in set a cookie");
+  await shot("sign-in-refused");
+});
+
+await check("signing in with the client token shows the dashboard", async () => {
+  await page.fill("#sign-in-token", clientToken);
+  await page.click("#sign-in-button");
+  await page.waitForSelector("#renders-table");
+  await page.waitForSelector('#live[data-status="live"]');
+  assert(await page.isVisible("#sign-out"), "no sign-out control");
+  const cookie = (await context.cookies(BASE)).find((c) => c.name === "aliquot_session");
+  assert(cookie && cookie.httpOnly && cookie.sameSite === "Strict", `cookie ${JSON.stringify({ ...cookie, value: "..." })}`);
+  assert(!(await page.evaluate(() => document.cookie)).includes("aliquot_session"), "the page's scripts can read the cookie");
+});
 
 await check("dashboard loads with a live update stream", async () => {
   await page.goto(`${BASE}/#/renders`);
@@ -412,7 +476,7 @@ await check("studies: none yet, then a report with its table and chart", async (
   await shot("studies-empty");
   const dir = path.join(DATA, "studies", "e2e-equal-budget");
   fs.mkdirSync(path.join(dir, "charts"), { recursive: true });
-  const png = Buffer.from(await (await fetch(`${BASE}/api/renders/${renderId}/preview.png?exposure=0`)).arrayBuffer());
+  const png = Buffer.from(await (await fetch(`${BASE}/api/renders/${renderId}/preview.png?exposure=0`, { headers: withToken() })).arrayBuffer());
   fs.writeFileSync(path.join(dir, "charts", "dammertz.png"), png);
   fs.writeFileSync(
     path.join(dir, "report.md"),
@@ -498,6 +562,23 @@ await check("a refused live stream is retried with backoff, then goes live", asy
   // What the browser logs about the refused streams is expected here.
   for (let i = pageErrors.length - 1; i >= 0; i--)
     if (/EventSource|503|Service Unavailable/.test(pageErrors[i])) pageErrors.splice(i, 1);
+});
+
+await check("sign out returns to the sign-in view, and a stale cookie does too", async () => {
+  await page.goto(`${BASE}/#/workers`);
+  await page.waitForSelector("#workers-table");
+  await page.click("#sign-out");
+  await page.waitForSelector("#sign-in-form");
+  assert(!(await context.cookies(BASE)).some((c) => c.name === "aliquot_session"), "the cookie is still there");
+  await page.reload();
+  await page.waitForSelector("#sign-in-form");
+  // What a browser holds after the coordinator's client token was replaced.
+  await context.addCookies([{ name: "aliquot_session", value: "an-old-client-token-0123456789", url: BASE }]);
+  await page.reload();
+  await page.waitForSelector("#sign-in-form");
+  await page.fill("#sign-in-token", clientToken);
+  await page.click("#sign-in-button");
+  await page.waitForSelector("#workers-table"); // back where the address says
 });
 
 await check("API responses stay under 100 KB", async () => {

@@ -1,5 +1,6 @@
 // The coordinator's JSON API (docs/API.md) as typed calls. Every failure becomes an
-// ApiError carrying the server's own message.
+// ApiError carrying the server's own message; a 401 (no or a stale session cookie) also
+// tells whoever listens through onUnauthenticated, so that any call can bring up sign-in.
 
 export interface RenderSummary {
   id: string;
@@ -113,6 +114,13 @@ export class ApiError extends Error {
   }
 }
 
+let unauthenticated: () => void = () => {};
+
+/** Sets what runs whenever the API answers 401: the page is not, or no longer, signed in. */
+export function onUnauthenticated(fn: () => void): void {
+  unauthenticated = fn;
+}
+
 async function parse<T>(res: Response): Promise<T> {
   const text = await res.text();
   let body: unknown = null;
@@ -126,6 +134,7 @@ async function parse<T>(res: Response): Promise<T> {
       body && typeof body === "object" && "error" in body
         ? String((body as { error: unknown }).error)
         : text || res.statusText;
+    if (res.status === 401) unauthenticated();
     throw new ApiError(message, res.status);
   }
   return body as T;
@@ -146,9 +155,20 @@ export async function postJSON<T>(path: string, body?: unknown): Promise<T> {
   );
 }
 
+export async function deleteJSON<T>(path: string): Promise<T> {
+  return parse<T>(
+    await fetch(path, { method: "DELETE", headers: { "Content-Type": "application/json" }, body: "{}" }),
+  );
+}
+
 const enc = encodeURIComponent;
 
 export const api = {
+  /** Answers only when the page is signed in (or sends a token): 401 otherwise. */
+  session: () => getJSON<{ signed_in: boolean }>("/api/session"),
+  /** Sets the session cookie (HttpOnly: this page never sees it again). */
+  signIn: (token: string) => postJSON<{ ok: boolean }>("/api/session", { token }),
+  signOut: () => deleteJSON<{ ok: boolean }>("/api/session"),
   renders: (limit = 200) =>
     getJSON<{ renders: RenderSummary[]; now_ms: number }>(`/api/renders?limit=${limit}`),
   render: (id: string) => getJSON<RenderDetail>(`/api/renders/${enc(id)}`),

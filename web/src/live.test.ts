@@ -101,6 +101,30 @@ describe("Live", () => {
     expect(sources.length).toBe(1);
   });
 
+  it("tells the page of each refusal, which may stop it for good", () => {
+    vi.useFakeTimers();
+    const sources: FakeSource[] = [];
+    const live = new Live("/api/events", () => {
+      const s = new FakeSource();
+      sources.push(s);
+      return s;
+    });
+    let refusals = 0;
+    live.onRefused = () => refusals++;
+    live.start();
+    sources[0].accept();
+    sources[0].readyState = 0; // dropped, not refused: the browser retries
+    sources[0].onerror?.({} as Event);
+    expect(refusals).toBe(0);
+    sources[0].refuse();
+    expect(refusals).toBe(1);
+    live.onRefused = () => live.stop(); // what a 401 leads to: the sign-in view
+    vi.advanceTimersByTime(2600);
+    sources[1].refuse();
+    vi.advanceTimersByTime(120000);
+    expect(sources.length).toBe(2);
+  });
+
   it("waits 2 s doubling up to a minute, with at most a quarter more", () => {
     expect(reconnectDelay(1, () => 0)).toBe(2000);
     expect(reconnectDelay(2, () => 0)).toBe(4000);

@@ -45,6 +45,11 @@ export class Live {
   private timer: ReturnType<typeof setTimeout> | null = null;
   status: "connecting" | "live" | "reconnecting" = "connecting";
   onStatus: (s: Live["status"]) => void = () => {};
+  /**
+   * Runs when the server refuses a stream. EventSource does not say why, so the page asks
+   * elsewhere whether it is still signed in (a 401 here means it is not).
+   */
+  onRefused: () => void = () => {};
 
   constructor(
     private readonly url = "/api/events",
@@ -75,6 +80,8 @@ export class Live {
         this.timer = null;
         this.start();
       }, reconnectDelay(this.failures));
+      // Last: it may stop this stream for good (signed out), which cancels the retry.
+      this.onRefused();
     };
     source.onmessage = (m) => {
       let e: LiveEvent;

@@ -1,12 +1,16 @@
-// The dashboard: hash routes to pages, one live-update stream shared by all of them.
+// The dashboard: hash routes to pages, one live-update stream shared by all of them; the
+// sign-in view instead while the API answers 401.
 import "./style.css";
+import { api, onUnauthenticated } from "./api";
 import { Live } from "./live";
 import { ComparePage } from "./pages/compare";
 import type { Page } from "./pages/page";
 import { RenderPage } from "./pages/render";
 import { RendersPage } from "./pages/renders";
+import { SignInPage } from "./pages/signin";
 import { StudiesPage } from "./pages/studies";
 import { WorkersPage } from "./pages/workers";
+import { SessionGate } from "./session";
 import { StorageBanner } from "./storage";
 
 const app = document.getElementById("app")!;
@@ -49,6 +53,35 @@ live.onStatus = (s) => {
 };
 live.subscribe((e) => storage.onEvent(e));
 live.subscribe((e) => page?.onEvent?.(e));
-window.addEventListener("hashchange", show);
-show();
-live.start();
+
+const gate = new SessionGate({
+  showDashboard() {
+    document.body.dataset.session = "signed-in";
+    show();
+    live.start();
+  },
+  showSignIn(message) {
+    document.body.dataset.session = "signed-out";
+    live.stop();
+    storage.show("");
+    page?.dispose?.();
+    page = new SignInPage(() => gate.signedIn(), message);
+    app.replaceChildren(page.el);
+    page.el.querySelector("input")?.focus();
+  },
+});
+onUnauthenticated(() => gate.signedOut());
+live.onRefused = () => void gate.check(api.session);
+
+document.getElementById("sign-out")!.addEventListener("click", async () => {
+  try {
+    await api.signOut();
+    gate.signedOut();
+  } catch (e) {
+    gate.signedOut(`cannot sign out: ${(e as Error).message}`);
+  }
+});
+window.addEventListener("hashchange", () => {
+  if (gate.state === "signed-in") show();
+});
+void gate.check(api.session);

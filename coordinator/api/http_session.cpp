@@ -1,0 +1,95 @@
+#include "http_session.h"
+
+#include <nlohmann/json.hpp>
+
+#include "http_api.h"
+
+namespace aliquot::http_session {
+
+namespace {
+
+std::string_view trim(std::string_view s) {
+    while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+    while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+    return s;
+}
+
+// RFC 6265's cookie-octet: visible ASCII but for `"`, `,`, `;` and `\`.
+bool cookie_octet(char c) {
+    return c > ' ' && c < 127 && c != '"' && c != ',' && c != ';' && c != '\\';
+}
+
+}  // namespace
+
+bool can_travel_in_cookie(std::string_view token) {
+    if (token.empty()) return false;
+    for (const char c : token)
+        if (!cookie_octet(c) || c == '%') return false;
+    return true;
+}
+
+bool needs_token(std::string_view method, std::string_view path) {
+    // Everything under /api, however it is spelled below it: a route added later is
+    // guarded without anyone remembering to.
+    if (path != "/api" && !path.starts_with("/api/")) return false;
+    if (path == "/api/session") return method != "POST" && method != "DELETE";
+    return true;
+}
+
+std::string presented_token(std::string_view authorization,
+                            std::string_view cookie_header) {
+    const std::string_view bearer = bearer_token(authorization);
+    return bearer.empty() ? cookie_token(cookie_header) : std::string(bearer);
+}
+
+std::string cookie_token(std::string_view cookie_header) {
+    // "a=1; aliquot_session=TOKEN; b=2" (RFC 6265, 5.4); the first of ours counts.
+    while (!cookie_header.empty()) {
+        const size_t end = cookie_header.find(';');
+        const std::string_view pair = trim(cookie_header.substr(0, end));
+        const size_t eq = pair.find('=');
+        if (eq != std::string_view::npos && trim(pair.substr(0, eq)) == kCookieName) {
+            std::string_view value = trim(pair.substr(eq + 1));
+            if (value.size() >= 2 && value.front() == '"' && value.back() == '"')
+                value = value.substr(1, value.size() - 2);
+            return std::string(value);
+        }
+        if (end == std::string_view::npos) break;
+        cookie_header.remove_prefix(end + 1);
+    }
+    return {};
+}
+
+std::string cookie_attributes() { return "HttpOnly; SameSite=Strict; Path=/"; }
+
+std::string sign_in_cookie(std::string_view token) {
+    return std::string(kCookieName) + "=" + std::string(token) + "; " +
+           cookie_attributes();
+}
+
+std::string sign_out_cookie() {
+    return std::string(kCookieName) + "=; Max-Age=0; " + cookie_attributes();
+}
+
+std::string parse_sign_in_request(const std::string& body) {
+    using http_api::ApiError;
+    const nlohmann::json j = nlohmann::json::parse(body, nullptr, false);
+    if (j.is_discarded() || !j.is_object())
+        throw ApiError(400, "a sign-in is a JSON object: {\"token\": \"...\"}");
+    const auto it = j.find("token");
+    if (it == j.end() || !it->is_string())
+        throw ApiError(400, "/token: the client token, as a string, is required");
+    for (const auto& [key, value] : j.items())
+        if (key != "token") throw ApiError(400, "/" + key + ": unknown field");
+    return it->get<std::string>();
+}
+
+std::string refusal_message(Access access) {
+    if (access == Access::Forbidden)
+        return "the HTTP API needs the client token; the token sent is the worker's";
+    return "the HTTP API needs the client token: send Authorization: Bearer TOKEN, or "
+           "sign "
+           "in with POST /api/session (the coordinator keeps it in DATA/client.token)";
+}
+
+}  // namespace aliquot::http_session

@@ -1,0 +1,84 @@
+#include "http_session.h"
+
+#include <gtest/gtest.h>
+
+#include "http_api.h"
+
+namespace aliquot::http_session {
+namespace {
+
+TEST(NeedsToken, EveryApiRouteButSigningInAndOut) {
+    EXPECT_TRUE(needs_token("GET", "/api/renders"));
+    EXPECT_TRUE(needs_token("POST", "/api/renders"));
+    EXPECT_TRUE(needs_token("GET", "/api/events"));
+    EXPECT_TRUE(needs_token("GET", "/api/studies/data/x/report.md"));
+    EXPECT_TRUE(needs_token("GET", "/api/no-such-route"));
+    EXPECT_TRUE(needs_token("GET", "/api"));
+    EXPECT_TRUE(needs_token("GET", "/api/session"));
+    EXPECT_FALSE(needs_token("POST", "/api/session"));
+    EXPECT_FALSE(needs_token("DELETE", "/api/session"));
+    EXPECT_TRUE(needs_token("POST", "/api/session/x"));
+    EXPECT_FALSE(needs_token("GET", "/healthz"));
+    EXPECT_FALSE(needs_token("GET", "/"));
+    EXPECT_FALSE(needs_token("GET", "/assets/index-1234.js"));
+    EXPECT_FALSE(needs_token("GET", "/apiary.png"));
+}
+
+TEST(PresentedToken, TheBearerWinsOverTheCookie) {
+    EXPECT_EQ(presented_token("Bearer abc", "aliquot_session=def"), "abc");
+    EXPECT_EQ(presented_token("", "aliquot_session=def"), "def");
+    EXPECT_EQ(presented_token("Basic abc", "aliquot_session=def"), "def");
+    EXPECT_EQ(presented_token("", ""), "");
+}
+
+TEST(CookieToken, FindsOurCookieAmongOthers) {
+    EXPECT_EQ(cookie_token("aliquot_session=abc"), "abc");
+    EXPECT_EQ(cookie_token("theme=dark; aliquot_session=abc; lang=en"), "abc");
+    EXPECT_EQ(cookie_token("theme=dark;aliquot_session=\"abc\""), "abc");
+    EXPECT_EQ(cookie_token("aliquot_session=first; aliquot_session=second"), "first");
+    EXPECT_EQ(cookie_token("xaliquot_session=abc"), "");
+    EXPECT_EQ(cookie_token("aliquot_sessionx=abc"), "");
+    EXPECT_EQ(cookie_token("theme=dark"), "");
+    EXPECT_EQ(cookie_token(""), "");
+    EXPECT_EQ(cookie_token("aliquot_session="), "");
+}
+
+TEST(SessionCookie, CarriesTheTokenWithItsAttributes) {
+    EXPECT_EQ(sign_in_cookie("0123abcd"),
+              "aliquot_session=0123abcd; HttpOnly; SameSite=Strict; Path=/");
+    EXPECT_EQ(sign_out_cookie(),
+              "aliquot_session=; Max-Age=0; HttpOnly; SameSite=Strict; Path=/");
+}
+
+TEST(SessionCookie, OnlyTokensACookieCarriesAsTheyAre) {
+    EXPECT_TRUE(can_travel_in_cookie(
+        "9f86d081884c7d659a2feaa0c55ad015a3bf4f1b2b0b822cd15d6c15b0f00a08"));
+    EXPECT_TRUE(can_travel_in_cookie("Client-Token_0123.~!#$&'()*+/:<=>?@[]^`{|}"));
+    for (const char* odd : {"", "a;b", "a,b", "a\"b", "a\\b", "a%41b", "a b", "a\tb"})
+        EXPECT_FALSE(can_travel_in_cookie(odd)) << odd;
+    const std::string token = "Client-Token_0123.~!#$&'()*+/:<=>?@[]^`{|}";
+    const std::string set = sign_in_cookie(token);
+    EXPECT_EQ(cookie_token(set.substr(0, set.find("; "))), token);
+}
+
+TEST(SignInRequest, ReadsTheTokenAndRefusesAnythingElse) {
+    EXPECT_EQ(parse_sign_in_request(R"({"token":"abc"})"), "abc");
+    for (const char* body : {"", "abc", "[]", R"({"token":1})", "{}",
+                             R"({"token":"abc","remember":true})"}) {
+        try {
+            parse_sign_in_request(body);
+            ADD_FAILURE() << body;
+        } catch (const http_api::ApiError& e) {
+            EXPECT_EQ(e.status(), 400) << body;
+        }
+    }
+}
+
+TEST(RefusalMessage, SaysWhereTheTokenIs) {
+    EXPECT_NE(refusal_message(Access::Unauthenticated).find("DATA/client.token"),
+              std::string::npos);
+    EXPECT_NE(refusal_message(Access::Forbidden).find("worker's"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace aliquot::http_session
