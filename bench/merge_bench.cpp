@@ -6,6 +6,7 @@
 
 #include "coordinator.h"
 #include "scene_loader.h"
+#include "synthetic_result.h"
 
 using namespace aliquot;
 
@@ -25,16 +26,7 @@ int main(int argc, char** argv) {
     double seconds = 0;
     const std::string session = coordinator.register_worker("bench", 1).session;
     while (auto grant = coordinator.lease(session, std::chrono::milliseconds(0))) {
-        SampleJobResult r;
-        r.rect = grant->job.rect;
-        r.pixels.resize(r.rect.size());
-        for (size_t i = 0; i < r.pixels.size(); ++i) {
-            PixelSums& p = r.pixels[i];
-            p.samples = grant->job.counts[i];
-            p.even[0] = p.odd[1] = 0.25 * double(p.samples);
-            p.sum_sq_luminance = 0.1 * double(p.samples);
-            p.rays = 6 * p.samples;
-        }
+        const SampleJobResult r = bench::synthetic_result(*grant);
         const auto start = std::chrono::steady_clock::now();
         coordinator.complete(session, grant->lease_id, r);
         seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start)

@@ -1,0 +1,154 @@
+// The coordinator at farm scale: one Coordinator (with a data directory, so rounds are
+// recorded and checkpointed as in production) fed by N simulated workers, threads of this
+// process that lease a job, make a valid synthetic result at once (synthetic_result.h) and
+// complete it. Nothing is traced, so the coordinator is the only thing that can be slow.
+// For each method and worker count, until the render ends or the time is up: pixel-samples
+// merged per second, leases per second, and the Lease and Complete latencies (median and
+// 99th percentile) of the calls that got a job. One JSON object per line.
+//
+// Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
+//        (defaults: 1920x1080 10 1,16,64,256 uniform,dammertz,adaptive,optimal,optimal-time)
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "coordinator.h"
+#include "resolution.h"
+#include "scene_loader.h"
+#include "synthetic_result.h"
+
+using namespace aliquot;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::vector<std::string> split(const std::string& text) {
+    std::vector<std::string> out;
+    std::stringstream in(text);
+    for (std::string item; std::getline(in, item, ',');)
+        if (!item.empty()) out.push_back(item);
+    return out;
+}
+
+double percentile(std::vector<double> v, double q) {
+    if (v.empty()) return 0;
+    std::sort(v.begin(), v.end());
+    return v[std::min(v.size() - 1, size_t(q * double(v.size())))];
+}
+
+struct Run {
+    std::string method;
+    int workers = 0;
+    double seconds = 0;
+    uint64_t samples = 0, leases = 0;
+    uint32_t rounds = 0;
+    std::string state;
+    std::vector<double> lease_ms, complete_ms;
+};
+
+Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
+        double seconds) {
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-farm-scale-" + std::to_string(getpid()));
+    fs::remove_all(dir);
+    Run out;
+    out.method = method;
+    out.workers = workers;
+    {
+        CoordinatorOptions options;
+        options.data_dir = dir;
+        Coordinator coordinator(options);
+        RenderSpec spec;
+        spec.scene_name = "cornell-box";
+        spec.scene_json = self_contained_scene_json("cornell-box");
+        spec.width = width;
+        spec.height = height;
+        spec.strategy.method = method;
+        spec.strategy.budget = uint64_t(64) * width * height;  // 64 spp on average
+        spec.strategy.max_variance = 1e-4;  // dammertz: keep splitting past a few rounds
+        const std::string id = coordinator.submit(spec);
+
+        std::atomic<bool> stop{false};
+        std::mutex mutex;
+        const auto start = Clock::now();
+        std::vector<std::thread> threads;
+        for (int w = 0; w < workers; ++w)
+            threads.emplace_back([&, w] {
+                const std::string session =
+                    coordinator.register_worker("sim-" + std::to_string(w), 1).session;
+                std::vector<double> leases, completes;
+                while (!stop) {
+                    const auto asked = Clock::now();
+                    auto grant =
+                        coordinator.lease(session, std::chrono::milliseconds(100));
+                    if (!grant) continue;
+                    const auto granted = Clock::now();
+                    const SampleJobResult result = bench::synthetic_result(*grant);
+                    const auto sent = Clock::now();
+                    coordinator.complete(session, grant->lease_id, result);
+                    const auto done = Clock::now();
+                    leases.push_back(
+                        std::chrono::duration<double, std::milli>(granted - asked).count());
+                    completes.push_back(
+                        std::chrono::duration<double, std::milli>(done - sent).count());
+                }
+                std::lock_guard lock(mutex);
+                out.lease_ms.insert(out.lease_ms.end(), leases.begin(), leases.end());
+                out.complete_ms.insert(out.complete_ms.end(), completes.begin(),
+                                       completes.end());
+            });
+        uint64_t seen = 0;
+        while (Clock::now() - start < std::chrono::duration<double>(seconds) &&
+               !is_terminal(coordinator.info(id)->state))
+            seen = coordinator.wait_for_change(seen, std::chrono::milliseconds(50));
+        out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
+        const RenderInfo info = *coordinator.info(id);
+        stop = true;
+        coordinator.stop();
+        for (std::thread& t : threads) t.join();
+        out.samples = info.samples_done;
+        out.rounds = info.rounds_done;
+        out.state = std::string(to_string(info.state));
+        out.leases = out.lease_ms.size();
+    }
+    fs::remove_all(dir);
+    return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    const Resolution size = parse_resolution(argc > 1 ? argv[1] : "1920x1080");
+    const double seconds = argc > 2 ? std::atof(argv[2]) : 10;
+    std::vector<int> counts;
+    for (const std::string& n : split(argc > 3 ? argv[3] : "1,16,64,256"))
+        counts.push_back(std::max(1, std::atoi(n.c_str())));
+    const std::vector<std::string> methods =
+        split(argc > 4 ? argv[4] : "uniform,dammertz,adaptive,optimal,optimal-time");
+    for (const std::string& method : methods)
+        for (const int workers : counts) {
+            const Run r = run(size.width, size.height, method, workers, seconds);
+            std::printf(
+                "{\"image\": \"%ux%u\", \"method\": \"%s\", \"workers\": %d, "
+                "\"seconds\": %.2f, \"state\": \"%s\", \"rounds\": %u, "
+                "\"pixel_samples_per_second\": %.0f, \"leases_per_second\": %.0f, "
+                "\"lease_ms_p50\": %.3f, \"lease_ms_p99\": %.3f, "
+                "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f}\n",
+                size.width, size.height, method.c_str(), workers, r.seconds,
+                r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
+                double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
+                percentile(r.lease_ms, 0.99), percentile(r.complete_ms, 0.5),
+                percentile(r.complete_ms, 0.99));
+            std::fflush(stdout);
+        }
+}
