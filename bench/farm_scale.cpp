@@ -1,13 +1,15 @@
 // The coordinator at farm scale: one Coordinator (with a data directory, so rounds are
 // recorded and checkpointed as in production) fed by N simulated workers, threads of this
-// process that lease a job, make a valid synthetic result at once (synthetic_result.h) and
-// complete it. Nothing is traced, so the coordinator is the only thing that can be slow.
-// For each method and worker count, until the render ends or the time is up: pixel-samples
-// merged per second, leases per second, and the Lease and Complete latencies (median and
-// 99th percentile) of the calls that got a job. One JSON object per line.
+// process that lease a job, make a valid synthetic result at once (synthetic_result.h)
+// and complete it. Nothing is traced, so the coordinator is the only thing that can be
+// slow. For each method and worker count, until the render ends or the time is up:
+// pixel-samples merged per second, leases per second, and the Lease and Complete
+// latencies (median and 99th percentile) of the calls that got a job. One JSON object per
+// line.
 //
 // Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
-//        (defaults: 1920x1080 10 1,16,64,256 uniform,dammertz,adaptive,optimal,optimal-time)
+//        (defaults: 1920x1080 10 1,16,64,256
+//        uniform,dammertz,adaptive,optimal,optimal-time)
 #include <unistd.h>
 
 #include <algorithm>
@@ -58,8 +60,8 @@ struct Run {
 Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         double seconds) {
     namespace fs = std::filesystem;
-    const fs::path dir = fs::temp_directory_path() /
-                         ("aliquot-farm-scale-" + std::to_string(getpid()));
+    const fs::path dir =
+        fs::temp_directory_path() / ("aliquot-farm-scale-" + std::to_string(getpid()));
     fs::remove_all(dir);
     Run out;
     out.method = method;
@@ -98,7 +100,8 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                     coordinator.complete(session, grant->lease_id, result);
                     const auto done = Clock::now();
                     leases.push_back(
-                        std::chrono::duration<double, std::milli>(granted - asked).count());
+                        std::chrono::duration<double, std::milli>(granted - asked)
+                            .count());
                     completes.push_back(
                         std::chrono::duration<double, std::milli>(done - sent).count());
                 }

@@ -20,7 +20,8 @@ inline SampleJobResult synthetic_result(const LeaseGrant& grant) {
             const double u = double(r.rect.x + x) / grant.geometry.width;
             const double v = double(r.rect.y + y) / grant.geometry.height;
             const double radiance = 0.2 + 0.6 * u * v;
-            const double noise = 0.05 + 0.5 * std::pow(std::sin(6.0 * u) * std::cos(4.0 * v), 2);
+            const double noise =
+                0.05 + 0.5 * std::pow(std::sin(6.0 * u) * std::cos(4.0 * v), 2);
             PixelSums& p = r.pixels[i];
             p.samples = grant.job.counts[i];
             const double n = double(p.samples);

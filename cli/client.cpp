@@ -1,5 +1,6 @@
 #include "client.h"
 
+#include <cctype>
 #include <cstdio>
 #include <thread>
 
@@ -21,13 +22,31 @@ std::unique_ptr<grpc::ClientContext> ClientConnection::context(int seconds) cons
     return ctx;
 }
 
+// gRPC reports a failed TLS handshake as an unreachable coordinator. Whether TLS is the
+// likely cause, and what to do about it, for the one line the user reads.
+static std::string tls_hint(const grpc::Status& status, bool using_tls) {
+    std::string message = status.error_message();
+    for (char& c : message) c = char(std::tolower(static_cast<unsigned char>(c)));
+    const bool handshake = message.find("ssl") != std::string::npos ||
+                           message.find("tls") != std::string::npos ||
+                           message.find("handshake") != std::string::npos ||
+                           message.find("certificate") != std::string::npos;
+    if (using_tls && handshake)
+        return "; TLS handshake failed: is the coordinator's certificate signed by the "
+               "--tls-ca CA and issued for this address, and does the coordinator serve "
+               "TLS?";
+    if (using_tls) return "";
+    // A plaintext client that reaches a TLS port sees its connection closed.
+    return "; if the coordinator serves TLS (--tls-cert), pass --tls-ca with its CA";
+}
+
 void ClientConnection::check(const grpc::Status& status, const std::string& what) const {
     if (status.ok()) return;
     switch (status.error_code()) {
         case grpc::StatusCode::UNAVAILABLE:
         case grpc::StatusCode::DEADLINE_EXCEEDED:
             throw CommandError("cannot reach coordinator at " + address_ + " (" + what +
-                               ")");
+                               ")" + tls_hint(status, !endpoint_.tls_ca_pem.empty()));
         default:
             throw CommandError(what + ": " + status.error_message());
     }

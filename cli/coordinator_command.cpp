@@ -171,6 +171,10 @@ struct CoordinatorCommand {
             // default from a build tree, the source tree's docs/studies and out/ (where
             // `aliquot study` writes unless told otherwise).
             http_options.allowed_hosts = allowed_hosts;
+            // The dashboard and its API carry the same tokens and images as gRPC: under
+            // TLS they are served over HTTPS with the same certificate.
+            http_options.tls_cert = tls_cert;
+            http_options.tls_key = tls_key;
             http_options.study_dirs = {{"data", fs::path(data_dir) / "studies"}};
             const fs::path repo = executable_dir() / ".." / "..";
             if (!study_dirs.empty()) {
@@ -185,8 +189,9 @@ struct CoordinatorCommand {
                             fs::weakly_canonical(dir));
             }
             http = std::make_unique<HttpServer>(coordinator, http_address, http_options);
-            std::fprintf(stderr, "coordinator: HTTP on %s (port %d), dashboard from %s\n",
-                         http_address.c_str(), http->port(),
+            std::fprintf(stderr,
+                         "coordinator: HTTP%s on %s (port %d), dashboard from %s\n",
+                         tls_cert.empty() ? "" : "S", http_address.c_str(), http->port(),
                          http_options.web_dir.string().c_str());
         }
         int sig = 0;

@@ -10,6 +10,8 @@ packages=(
     libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
     python3 python3-venv python3-pip
     libcpp-httplib-dev zlib1g-dev clang-format
+    # tests/tls/run.sh: a throwaway CA and certificates, and HTTPS requests.
+    openssl curl
     # scripts/fuzz.sh: clang, and the compiler-rt archives that carry libFuzzer
     # (libclang_rt.fuzzer) and the sanitizers for Debian's clang 14.
     clang libclang-rt-14-dev

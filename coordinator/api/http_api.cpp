@@ -400,14 +400,18 @@ bool is_json_content_type(const std::string& content_type) {
     return type == "application/json";
 }
 
-bool origin_matches_host(const std::string& origin, const std::string& host) {
-    const auto drop_default_port = [](std::string s) {
-        if (s.size() > 3 && s.compare(s.size() - 3, 3, ":80") == 0)
-            s.resize(s.size() - 3);
+bool origin_matches_host(const std::string& origin, const std::string& host, bool https) {
+    const std::string default_port = https ? ":443" : ":80";
+    const auto drop_default_port = [&](std::string s) {
+        if (s.size() > default_port.size() &&
+            s.compare(s.size() - default_port.size(), default_port.size(),
+                      default_port) == 0)
+            s.resize(s.size() - default_port.size());
         return s;
     };
     if (host.empty()) return false;
-    return drop_default_port(lower(origin)) == "http://" + drop_default_port(lower(host));
+    return drop_default_port(lower(origin)) ==
+           (https ? "https://" : "http://") + drop_default_port(lower(host));
 }
 
 void parse_cancel_request(const std::string& body) {

@@ -96,8 +96,10 @@ private:
 bool is_json_content_type(const std::string& content_type);
 
 // Whether an Origin header names the site the request's Host header names, served over
-// plain HTTP: "http://" + host, ignoring case and a default :80.
-bool origin_matches_host(const std::string& origin, const std::string& host);
+// HTTP ("http://" + host, a default :80 ignored) or, when `https`, over HTTPS
+// ("https://" + host, a default :443 ignored); case is ignored. A page served over one
+// scheme is another origin than the same host over the other.
+bool origin_matches_host(const std::string& origin, const std::string& host, bool https);
 
 // The body of POST /api/renders/{id}/cancel: a JSON object with no fields, "{}".
 void parse_cancel_request(const std::string& body);

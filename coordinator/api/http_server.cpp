@@ -124,6 +124,24 @@ std::string first_heading(const std::filesystem::path& md) {
     return {};
 }
 
+// The server object: an SSLServer when the options name a certificate. SSLServer loads
+// both files in its constructor and only says whether that worked, so the message names
+// what to check.
+std::unique_ptr<httplib::Server> make_server(const HttpOptions& o) {
+    if (o.tls_cert.empty() && o.tls_key.empty())
+        return std::make_unique<httplib::Server>();
+    if (o.tls_cert.empty() || o.tls_key.empty())
+        throw std::invalid_argument("http: a TLS certificate and its key go together");
+    auto server =
+        std::make_unique<httplib::SSLServer>(o.tls_cert.c_str(), o.tls_key.c_str());
+    if (!server->is_valid())
+        throw std::runtime_error(
+            "http: cannot use TLS certificate " + o.tls_cert.string() + " with key " +
+            o.tls_key.string() +
+            " (unreadable, not PEM, or a key of another certificate)");
+    return server;
+}
+
 std::string query(const httplib::Request& req, const std::string& name,
                   const std::string& fallback) {
     return req.has_param(name.c_str()) ? req.get_param_value(name.c_str()) : fallback;
@@ -138,7 +156,9 @@ constexpr size_t kFreeThreads = 8;
 struct HttpServer::Impl {
     Coordinator& coordinator;
     HttpOptions options;
-    httplib::Server server;
+    std::unique_ptr<httplib::Server> owned_server;  // Server, or SSLServer under TLS
+    httplib::Server& server;
+    const bool https;  // what the Origin of a same-site request starts with
     std::optional<http_api::HostPolicy> hosts;  // set in start(), once the port is known
     EventHub hub;
     std::thread listener, broadcaster;
@@ -159,7 +179,12 @@ struct HttpServer::Impl {
     uint64_t seen_worker_samples = 0;
     std::chrono::steady_clock::time_point workers_sent;
 
-    Impl(Coordinator& c, HttpOptions o) : coordinator(c), options(std::move(o)) {}
+    Impl(Coordinator& c, HttpOptions o)
+        : coordinator(c),
+          options(std::move(o)),
+          owned_server(make_server(options)),
+          server(*owned_server),
+          https(!options.tls_cert.empty()) {}
 
     // ---- renders ----
 
@@ -502,11 +527,11 @@ struct HttpServer::Impl {
         const bool mutating =
             req.method != "GET" && req.method != "HEAD" && req.method != "OPTIONS";
         if (mutating && req.has_header("Origin") &&
-            !http_api::origin_matches_host(req.get_header_value("Origin"), host))
+            !http_api::origin_matches_host(req.get_header_value("Origin"), host, https))
             return refuse(res, 403,
                           "cross-origin request refused: Origin \"" +
                               req.get_header_value("Origin").substr(0, 100) +
-                              "\" is not http://" + host);
+                              "\" is not " + (https ? "https://" : "http://") + host);
         if (mutating &&
             !http_api::is_json_content_type(req.get_header_value("Content-Type")))
             return refuse(
@@ -618,7 +643,8 @@ struct HttpServer::Impl {
                 const std::string token = http_session::parse_sign_in_request(req.body);
                 const Access access = check_access(options.tokens, token, Role::Client);
                 if (access == Access::Granted) {
-                    res.set_header("Set-Cookie", http_session::sign_in_cookie(token));
+                    res.set_header("Set-Cookie",
+                                   http_session::sign_in_cookie(token, https));
                     send_json(res, {{"ok", true}});
                     return;
                 }
@@ -627,11 +653,11 @@ struct HttpServer::Impl {
                 send_error(res, access == Access::Forbidden ? 403 : 401,
                            http_session::refusal_message(access));
             }));
-        server.Delete("/api/session",
-                      [](const httplib::Request&, httplib::Response& res) {
-                          res.set_header("Set-Cookie", http_session::sign_out_cookie());
-                          send_json(res, {{"ok", true}});
-                      });
+        server.Delete(
+            "/api/session", [this](const httplib::Request&, httplib::Response& res) {
+                res.set_header("Set-Cookie", http_session::sign_out_cookie(https));
+                send_json(res, {{"ok", true}});
+            });
     }
 
     // What the dashboard draws of one render: preview, heat maps, buckets.

@@ -41,13 +41,18 @@ struct HttpOptions {
     // (a compose or Kubernetes service name): "NAME" on any port or "NAME:PORT". Every
     // other Host is refused with 403 (docs/SECURITY.md, "Cross-site requests").
     std::vector<std::string> allowed_hosts;
+    // PEM files of the certificate (chain) and its private key: serve HTTPS, not HTTP.
+    // Both or neither; the coordinator passes its --tls-cert and --tls-key, the same pair
+    // as gRPC's.
+    std::filesystem::path tls_cert, tls_key;
 };
 
 class HttpServer {
 public:
     // Listens on `address` (host:port; port 0 picks a free one); throws
-    // std::runtime_error if it cannot, std::invalid_argument for options it refuses (no
-    // tokens, the same token for both roles, a client token a cookie cannot carry).
+    // std::runtime_error if it cannot, or cannot load the TLS certificate and key;
+    // std::invalid_argument for options it refuses (no tokens, the same token for both
+    // roles, a client token a cookie cannot carry).
     HttpServer(Coordinator& coordinator, const std::string& address,
                HttpOptions options = {});
     ~HttpServer();

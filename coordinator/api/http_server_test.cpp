@@ -506,9 +506,51 @@ TEST(HttpServerHosts, AllowListAndListenAddressDecideTheHost) {
     EXPECT_TRUE(http_api::is_json_content_type("Application/JSON ; charset=utf-8"));
     EXPECT_FALSE(http_api::is_json_content_type("application/jsonp"));
     EXPECT_FALSE(http_api::is_json_content_type(""));
-    EXPECT_TRUE(http_api::origin_matches_host("http://Example.org", "example.org:80"));
-    EXPECT_FALSE(http_api::origin_matches_host("https://example.org", "example.org"));
-    EXPECT_FALSE(http_api::origin_matches_host("http://example.org.evil", "example.org"));
+    EXPECT_TRUE(
+        http_api::origin_matches_host("http://Example.org", "example.org:80", false));
+    EXPECT_FALSE(
+        http_api::origin_matches_host("https://example.org", "example.org", false));
+    EXPECT_FALSE(
+        http_api::origin_matches_host("http://example.org.evil", "example.org", false));
+}
+
+// Under TLS the dashboard's own page is https://HOST: that is the one same-site Origin,
+// and the plain-HTTP origin of the same host is another site (a page served by whatever
+// answers port 80 there).
+TEST(HttpServerHosts, UnderTlsTheSameSiteOriginIsHttps) {
+    EXPECT_TRUE(
+        http_api::origin_matches_host("https://127.0.0.1:8443", "127.0.0.1:8443", true));
+    EXPECT_TRUE(
+        http_api::origin_matches_host("HTTPS://Example.org", "example.org:443", true));
+    EXPECT_TRUE(
+        http_api::origin_matches_host("https://example.org:443", "example.org", true));
+    EXPECT_FALSE(
+        http_api::origin_matches_host("http://127.0.0.1:8443", "127.0.0.1:8443", true));
+    EXPECT_FALSE(
+        http_api::origin_matches_host("http://example.org", "example.org:80", true));
+    EXPECT_FALSE(
+        http_api::origin_matches_host("https://example.org:80", "example.org", true));
+    EXPECT_FALSE(
+        http_api::origin_matches_host("https://example.org.evil", "example.org", true));
+}
+
+// A certificate that cannot be loaded stops the coordinator at start with the files
+// named, instead of a server that refuses every handshake.
+TEST(HttpServerTls, AMissingOrHalfTlsConfigurationIsRefusedAtStart) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    HttpOptions half;
+    half.tls_cert = "cert.pem";
+    EXPECT_THROW(HttpServer(coordinator, "127.0.0.1:0", half), std::invalid_argument);
+    HttpOptions missing;
+    missing.tls_cert = "/nonexistent/aliquot-cert.pem";
+    missing.tls_key = "/nonexistent/aliquot-key.pem";
+    try {
+        HttpServer server(coordinator, "127.0.0.1:0", missing);
+        ADD_FAILURE() << "a missing certificate was accepted";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("aliquot-cert.pem"), std::string::npos)
+            << e.what();
+    }
 }
 
 // Issue 13: a submitted scene that names a mesh file is refused over gRPC without the

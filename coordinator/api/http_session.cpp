@@ -60,15 +60,17 @@ std::string cookie_token(std::string_view cookie_header) {
     return {};
 }
 
-std::string cookie_attributes() { return "HttpOnly; SameSite=Strict; Path=/"; }
-
-std::string sign_in_cookie(std::string_view token) {
-    return std::string(kCookieName) + "=" + std::string(token) + "; " +
-           cookie_attributes();
+std::string cookie_attributes(bool https) {
+    return std::string("HttpOnly; SameSite=Strict; Path=/") + (https ? "; Secure" : "");
 }
 
-std::string sign_out_cookie() {
-    return std::string(kCookieName) + "=; Max-Age=0; " + cookie_attributes();
+std::string sign_in_cookie(std::string_view token, bool https) {
+    return std::string(kCookieName) + "=" + std::string(token) + "; " +
+           cookie_attributes(https);
+}
+
+std::string sign_out_cookie(bool https) {
+    return std::string(kCookieName) + "=; Max-Age=0; " + cookie_attributes(https);
 }
 
 std::string parse_sign_in_request(const std::string& body) {

@@ -37,12 +37,13 @@ std::string cookie_token(std::string_view cookie_header);
 // The attributes every session cookie carries, set and cleared alike: the one place they
 // are decided. HttpOnly keeps the token from the page's scripts; SameSite=Strict keeps
 // the browser from sending it with any request another site starts.
-std::string cookie_attributes();
+// Under TLS (`https`) also Secure: the browser never sends it over plain HTTP.
+std::string cookie_attributes(bool https);
 // The Set-Cookie value that signs a browser in with `token`, which must be able to travel
 // in a cookie as it is.
-std::string sign_in_cookie(std::string_view token);
+std::string sign_in_cookie(std::string_view token, bool https);
 // The Set-Cookie value that signs it out: the same cookie, expired.
-std::string sign_out_cookie();
+std::string sign_out_cookie(bool https);
 
 // The token in the body of POST /api/session, {"token": "..."}. Throws
 // http_api::ApiError(400) naming what is wrong, never echoing the body.

@@ -44,10 +44,15 @@ TEST(CookieToken, FindsOurCookieAmongOthers) {
 }
 
 TEST(SessionCookie, CarriesTheTokenWithItsAttributes) {
-    EXPECT_EQ(sign_in_cookie("0123abcd"),
+    EXPECT_EQ(sign_in_cookie("0123abcd", false),
               "aliquot_session=0123abcd; HttpOnly; SameSite=Strict; Path=/");
-    EXPECT_EQ(sign_out_cookie(),
+    EXPECT_EQ(sign_out_cookie(false),
               "aliquot_session=; Max-Age=0; HttpOnly; SameSite=Strict; Path=/");
+    // Under TLS the browser must never send it over plain HTTP.
+    EXPECT_EQ(sign_in_cookie("0123abcd", true),
+              "aliquot_session=0123abcd; HttpOnly; SameSite=Strict; Path=/; Secure");
+    EXPECT_EQ(sign_out_cookie(true),
+              "aliquot_session=; Max-Age=0; HttpOnly; SameSite=Strict; Path=/; Secure");
 }
 
 TEST(SessionCookie, OnlyTokensACookieCarriesAsTheyAre) {
@@ -57,7 +62,7 @@ TEST(SessionCookie, OnlyTokensACookieCarriesAsTheyAre) {
     for (const char* odd : {"", "a;b", "a,b", "a\"b", "a\\b", "a%41b", "a b", "a\tb"})
         EXPECT_FALSE(can_travel_in_cookie(odd)) << odd;
     const std::string token = "Client-Token_0123.~!#$&'()*+/:<=>?@[]^`{|}";
-    const std::string set = sign_in_cookie(token);
+    const std::string set = sign_in_cookie(token, false);
     EXPECT_EQ(cookie_token(set.substr(0, set.find("; "))), token);
 }
 

@@ -6,8 +6,11 @@
 # reachable here), builds deploy/Dockerfile, brings up a coordinator and 3 workers, submits a
 # render from the host CLI, kills one worker container in the middle of it, and checks the
 # fetched EXR is byte-identical to `aliquot render` of the same render on the host. Then the
-# dashboard answers 200, a crashed worker is restarted, the workers scale to 4, and
-# everything is torn down (volumes too), after a failure as well. The Kubernetes manifests
+# dashboard answers 200, a crashed worker is restarted, the workers scale to 4, the farm is
+# recreated with deploy/docker-compose.tls.yml and renders over TLS, and everything is torn
+# down (volumes too), after a failure as well. The tokens and TLS files are made by
+# deploy/make-secrets.sh in the run's temporary directory (ALIQUOT_SECRETS); the host CLI
+# carries the client token in ALIQUOT_TOKEN. The Kubernetes manifests
 # are validated alongside (tests/compose/k8s_check.sh). docs/DEPLOY.md has the details.
 #
 # Usage: tests/compose/run.sh [path/to/aliquot]     (needs root, or sudo, for Docker)
@@ -183,7 +186,7 @@ dockerfile_keeps_up() {
 import glob, re, sys
 # Tools for tests and development (the format check, the fuzzers), not for building the image.
 NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "python3-pip", "nodejs", "npm",
-                     "golang-go", "clang", "clang-format", "libclang-rt-14-dev"}
+                     "golang-go", "clang", "clang-format", "libclang-rt-14-dev", "openssl", "curl"}
 # Built only with -DALIQUOT_FUZZ=ON, by scripts/fuzz.sh.
 DIRS_NOT_FOR_THE_IMAGE = {"fuzz"}
 dockerfile = open("deploy/Dockerfile").read()
@@ -223,10 +226,12 @@ wait_for() {  # wait_for SECONDS COMMAND...: until COMMAND succeeds
     done
 }
 
-coordinator_answers() { "$ALIQUOT" status --coordinator "$ADDR" >/dev/null 2>&1; }
+# The host CLI's TLS options: none until the farm is recreated with TLS.
+TLS_ARGS=()
+coordinator_answers() { "$ALIQUOT" status --coordinator "$ADDR" "${TLS_ARGS[@]}" >/dev/null 2>&1; }
 
 workers_alive() {  # workers_alive N: N workers registered and not lost
-    "$ALIQUOT" workers --json --coordinator "$ADDR" 2>/dev/null | python3 -c '
+    "$ALIQUOT" workers --json --coordinator "$ADDR" "${TLS_ARGS[@]}" 2>/dev/null | python3 -c '
 import json, sys
 ws = json.load(sys.stdin)
 sys.exit(0 if sum(w["state"] != "lost" for w in ws) >= int(sys.argv[1]) else 1)' "$1"
@@ -334,7 +339,7 @@ trap 'fail "interrupted"; exit 1' INT TERM
 bash tests/compose/k8s_check.sh >"$TMP/k8s.log" 2>&1 &
 K8S_PID=$!
 
-install_missing docker.io docker-compose debootstrap || { fail "install docker.io docker-compose debootstrap"; exit 1; }
+install_missing docker.io docker-compose debootstrap openssl curl || { fail "install docker.io docker-compose debootstrap openssl curl"; exit 1; }
 # ALIQUOT_COMPOSE picks the compose command ("docker compose" for v2); by default Debian's
 # docker-compose (v1), else `docker compose`.
 if [[ -n ${ALIQUOT_COMPOSE:-} ]]; then
@@ -347,7 +352,25 @@ fi
 start_engine || { fail "start dockerd"; exit 1; }
 say "engine up ($(docker version -f '{{.Server.Version}}' 2>/dev/null)), compose: $("${COMPOSE[@]}" version --short 2>/dev/null)"
 
+# The farm's secrets as an operator makes them (tokens, a CA and the coordinator's
+# certificate), here in the run's directory; the host CLI's client token.
+export ALIQUOT_SECRETS=$TMP/secrets
+if bash deploy/make-secrets.sh --tls >"$TMP/secrets.log" 2>&1; then
+    ok "deploy/make-secrets.sh --tls makes the tokens and TLS files"
+else
+    cat "$TMP/secrets.log"
+    fail "deploy/make-secrets.sh --tls"
+    exit 1
+fi
+ALIQUOT_TOKEN=$(cat "$ALIQUOT_SECRETS/client.token")
+export ALIQUOT_TOKEN
+
 if dc config -q; then ok "compose file is valid for ${COMPOSE[*]}"; else fail "compose file is invalid for ${COMPOSE[*]}"; fi
+if dc -f deploy/docker-compose.tls.yml config -q; then
+    ok "compose file with the TLS override is valid"
+else
+    fail "compose file with the TLS override is invalid"
+fi
 
 dockerfile_keeps_up && ok "the Dockerfile covers install-deps.sh's packages and CMake's directories" ||
     fail "the Dockerfile covers install-deps.sh's packages and CMake's directories"
@@ -396,7 +419,14 @@ else
 fi
 wait_for 30 coordinator_answers && ok "host CLI reaches the coordinator on $ADDR" ||
     { fail "host CLI reaches the coordinator on $ADDR"; exit 1; }
-wait_for 30 workers_alive 3 && ok "3 workers registered" || fail "3 workers registered"
+wait_for 30 workers_alive 3 && ok "3 workers registered with the worker token" || fail "3 workers registered"
+# The worker token is not a client's.
+if ALIQUOT_TOKEN=$(cat "$ALIQUOT_SECRETS/worker.token") "$ALIQUOT" status --coordinator "$ADDR" \
+    >/dev/null 2>"$TMP/wrong-token.log"; then
+    fail "a client with the worker token is refused"
+else
+    ok "a client with the worker token is refused: $(cat "$TMP/wrong-token.log")"
+fi
 
 RENDER_ID=$("$ALIQUOT" submit --coordinator "$ADDR" --json "${RENDER[@]}" | json_field id) ||
     { fail "submit from the host CLI"; exit 1; }
@@ -456,6 +486,41 @@ if dc up -d --no-build --scale worker=4 >"$TMP/scale.log" 2>&1 && wait_for 30 wo
 else
     cat "$TMP/scale.log"
     fail "scale to 4 workers"
+fi
+
+# The same farm recreated with TLS (deploy/docker-compose.tls.yml): the data volume is
+# kept; the coordinator serves gRPC and HTTPS with the certificate make-secrets.sh signed
+# for `coordinator` and 127.0.0.1; the workers and the host CLI trust its CA.
+COMPOSE_FILE_ARGS+=(-f deploy/docker-compose.tls.yml)
+TLS_ARGS=(--tls-ca "$ALIQUOT_SECRETS/ca.pem")
+if dc up -d --no-build --scale worker=2 >"$TMP/tls-up.log" 2>&1 && wait_for 30 coordinator_answers; then
+    ok "recreated with TLS: the coordinator is healthy and answers the CLI with --tls-ca"
+else
+    cat "$TMP/tls-up.log"
+    fail "recreate the farm with TLS"
+fi
+if "$ALIQUOT" status --coordinator "$ADDR" >/dev/null 2>"$TMP/plain.log"; then
+    fail "a client without --tls-ca is refused by the TLS farm"
+else
+    ok "a client without --tls-ca is refused: $(cat "$TMP/plain.log")"
+fi
+wait_for 30 workers_alive 2 && ok "2 workers registered over TLS" || fail "2 workers registered over TLS"
+if "$ALIQUOT" submit --coordinator "$ADDR" "${TLS_ARGS[@]}" --scene cornell-box --resolution 32x32 \
+    --spp 8 --out "$TMP/tls.exr" >"$TMP/tls-submit.log" 2>&1 &&
+    "$ALIQUOT" render --scene cornell-box --resolution 32x32 --spp 8 --out "$TMP/tls-embedded.exr" \
+        >/dev/null 2>&1 && cmp -s "$TMP/tls.exr" "$TMP/tls-embedded.exr"; then
+    ok "a render over TLS is byte-identical to aliquot render"
+else
+    cat "$TMP/tls-submit.log"
+    fail "a render over TLS is byte-identical to aliquot render"
+fi
+if ((HAS_HTTP)); then
+    if curl -sS --max-time 5 --cacert "$ALIQUOT_SECRETS/ca.pem" -H "Authorization: Bearer $ALIQUOT_TOKEN" \
+        "https://127.0.0.1:$ALIQUOT_HTTP_PORT/healthz" | grep -q '"ok":true'; then
+        ok "HTTPS /healthz answers with the CA"
+    else
+        fail "HTTPS /healthz answers with the CA"
+    fi
 fi
 COMPLETED=1
 exit 0
