@@ -52,6 +52,9 @@ public:
     bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
 
     uint32_t sphere_geometry() const { return sphere_geom_id_; }
+    // The Embree scene itself, for bench/embree_limits alone: it times Embree's packet
+    // and stream queries on this very BVH, which the tracer does not use.
+    RTCSceneTy* embree_handle() const { return scene_; }
 
 private:
     Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x,
