@@ -192,41 +192,141 @@ Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
     return hit;
 }
 
-void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int count,
-                                   Hit* hits, bool* found) const {
-    if (count < 0 || count > kPacket)
-        throw std::invalid_argument("intersect_packet: more rays than a packet holds");
+namespace {
+
+// Lane i of a packet from ray (origin, dir, tmax); lanes past the count repeat ray 0 and
+// are masked off.
+template <typename RayN>
+void fill_lane(RayN& ray, int i, const Vec3& origin, const Vec3& dir, float tmax) {
+    ray.org_x[i] = origin.x;
+    ray.org_y[i] = origin.y;
+    ray.org_z[i] = origin.z;
+    ray.dir_x[i] = dir.x;
+    ray.dir_y[i] = dir.y;
+    ray.dir_z[i] = dir.z;
+    ray.tnear[i] = 0.0f;
+    ray.tfar[i] = tmax;
+    ray.time[i] = 0.0f;
+    ray.mask[i] = ~0u;
+    ray.id[i] = unsigned(i);
+    ray.flags[i] = 0;
+}
+
+void check_count(int count) {
+    if (count < 0 || count > EmbreeScene::kPacket)
+        throw std::invalid_argument("packet query: more rays than a packet holds");
+}
+
+// Embree's packet queries by width, so one template serves 4, 8 and 16.
+void occluded_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRay4* r) {
+    rtcOccluded4(v, s, c, r);
+}
+void occluded_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRay8* r) {
+    rtcOccluded8(v, s, c, r);
+}
+void occluded_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRay16* r) {
+    rtcOccluded16(v, s, c, r);
+}
+void intersect_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRayHit4* r) {
+    rtcIntersect4(v, s, c, r);
+}
+void intersect_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRayHit8* r) {
+    rtcIntersect8(v, s, c, r);
+}
+void intersect_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRayHit16* r) {
+    rtcIntersect16(v, s, c, r);
+}
+
+template <int N, typename RayN>
+void occluded_width(RTCScene scene, const Vec3* origins, const Vec3* dirs,
+                    const float* tmax, int count, bool* occluded) {
+    RTCIntersectContext context = incoherent_context();
+    alignas(64) RayN ray;
+    alignas(64) int valid[N];
+    for (int i = 0; i < N; ++i) {
+        const int from = i < count ? i : 0;
+        valid[i] = i < count ? -1 : 0;
+        fill_lane(ray, i, origins[from], dirs[from], tmax[from]);
+    }
+    occluded_n(valid, scene, &context, &ray);
+    // Embree marks an occluded ray by setting tfar to -inf.
+    for (int i = 0; i < count; ++i) occluded[i] = ray.tfar[i] < 0.0f;
+}
+
+// Closest hits of `count` <= N rays; calls hit(i, t, geom, prim, u, v, ng) for those
+// that hit and found[i] for all.
+template <int N, typename RayHitN, typename OnHit>
+void intersect_width(RTCScene scene, const Vec3* origins, const Vec3* dirs, int count,
+                     bool coherent, bool* found, OnHit on_hit) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    alignas(64) RTCRayHit16 rh;
-    alignas(64) int valid[kPacket];
-    for (int i = 0; i < kPacket; ++i) {
+    context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT
+                             : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    alignas(64) RayHitN rh;
+    alignas(64) int valid[N];
+    for (int i = 0; i < N; ++i) {
+        const int from = i < count ? i : 0;
         valid[i] = i < count ? -1 : 0;
-        const Vec3& d = dirs[i < count ? i : 0];
-        rh.ray.org_x[i] = origin.x;
-        rh.ray.org_y[i] = origin.y;
-        rh.ray.org_z[i] = origin.z;
-        rh.ray.dir_x[i] = d.x;
-        rh.ray.dir_y[i] = d.y;
-        rh.ray.dir_z[i] = d.z;
-        rh.ray.tnear[i] = 0.0f;
-        rh.ray.tfar[i] = std::numeric_limits<float>::infinity();
-        rh.ray.time[i] = 0.0f;
-        rh.ray.mask[i] = ~0u;
-        rh.ray.id[i] = unsigned(i);
-        rh.ray.flags[i] = 0;
+        fill_lane(rh.ray, i, origins[from], dirs[from],
+                  std::numeric_limits<float>::infinity());
         rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
-    rtcIntersect16(valid, scene_, &context, &rh);
+    intersect_n(valid, scene, &context, &rh);
     for (int i = 0; i < count; ++i) {
         found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (found[i])
-            hits[i] =
-                to_hit(rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
-                       rh.hit.v[i], rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+            on_hit(i, rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
+                   rh.hit.v[i], rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
     }
+}
+
+}  // namespace
+
+void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int count,
+                                   Hit* hits, bool* found) const {
+    const Vec3 origins[kPacket] = {origin, origin, origin, origin, origin, origin,
+                                   origin, origin, origin, origin, origin, origin,
+                                   origin, origin, origin, origin};
+    intersect_packet(origins, dirs, count, hits, found, true);
+}
+
+// The narrowest packet that holds `count` rays: Embree's packet kernels cost about the
+// same per query whatever lanes are masked off, so a few rays in a 16-wide packet would
+// cost more than one query each. One ray alone takes the single-ray kernel. The width is
+// a function of the count, so the result is too.
+void EmbreeScene::occluded_packet(const Vec3* origins, const Vec3* dirs,
+                                  const float* tmax, int count, bool* occluded) const {
+    check_count(count);
+    if (count == 1)
+        occluded[0] = this->occluded(origins[0], dirs[0], tmax[0]);
+    else if (count <= 4)
+        occluded_width<4, RTCRay4>(scene_, origins, dirs, tmax, count, occluded);
+    else if (count <= 8)
+        occluded_width<8, RTCRay8>(scene_, origins, dirs, tmax, count, occluded);
+    else
+        occluded_width<16, RTCRay16>(scene_, origins, dirs, tmax, count, occluded);
+}
+
+void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int count,
+                                   Hit* hits, bool* found, bool coherent) const {
+    check_count(count);
+    const auto on_hit = [&](int i, float t, uint32_t geom, uint32_t prim, float u,
+                            float v, float nx, float ny, float nz) {
+        hits[i] = to_hit(t, geom, prim, u, v, nx, ny, nz);
+    };
+    if (count == 1)
+        found[0] = intersect(origins[0], dirs[0], std::numeric_limits<float>::infinity(),
+                             hits[0]);
+    else if (count <= 4)
+        intersect_width<4, RTCRayHit4>(scene_, origins, dirs, count, coherent, found,
+                                       on_hit);
+    else if (count <= 8)
+        intersect_width<8, RTCRayHit8>(scene_, origins, dirs, count, coherent, found,
+                                       on_hit);
+    else
+        intersect_width<16, RTCRayHit16>(scene_, origins, dirs, count, coherent, found,
+                                         on_hit);
 }
 
 bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,

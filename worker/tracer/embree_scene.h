@@ -48,6 +48,14 @@ public:
     static constexpr int kPacket = 16;
     void intersect_packet(const Vec3& origin, const Vec3* dirs, int count, Hit* hits,
                           bool* found) const;
+    // The same for rays from their own origins (a batch of paths' next bounces);
+    // `coherent` is Embree's hint that the rays travel together.
+    void intersect_packet(const Vec3* origins, const Vec3* dirs, int count, Hit* hits,
+                          bool* found, bool coherent = false) const;
+    // occluded() for up to kPacket rays in one packet query: shadow rays toward the light
+    // from a batch of paths, which trace ~1.8x faster so (bench/embree_limits).
+    void occluded_packet(const Vec3* origins, const Vec3* dirs, const float* tmax,
+                         int count, bool* occluded) const;
     // Whether anything lies along origin + t*dir for t in (0, tmax).
     bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
 

@@ -17,9 +17,28 @@ struct Radiance {
     uint32_t rays = 0;  // Embree queries (closest-hit and shadow), the deterministic cost
 };
 
+// One path between Embree queries: its throughput, radiance so far, next ray, and the
+// next-event shadow ray its last vertex asked for (what radiance() would keep in locals).
+struct PathState {
+    Vec3 L{0, 0, 0};
+    Vec3 beta{1, 1, 1};
+    Vec3 o, d;                   // the ray to the next vertex
+    float eta = 1.0f;            // product of relative IORs crossed: Mitsuba's RR uses it
+    float prev_bsdf_pdf = 0.0f;  // solid-angle pdf of the direction that led here
+    bool prev_specular = true;   // camera rays and delta lobes take emission unweighted
+    int depth = 0;
+    uint32_t rays = 1;  // the camera ray, traced by the caller
+    // The shadow ray of the last vertex: added to L as shadow_L if nothing blocks it.
+    bool shadow = false;
+    Vec3 shadow_origin, shadow_dir, shadow_L;
+    float shadow_tmax = 0;
+};
+
 class PathTracer {
 public:
     static constexpr int kRussianRouletteDepth = 5;
+    // Paths radiance_batch advances together.
+    static constexpr int kBatch = 64;
 
     explicit PathTracer(const Scene& scene);
 
@@ -33,8 +52,20 @@ public:
     Radiance radiance(const Vec3& origin, const Vec3& dir, const Hit* first,
                       SampleRng& rng) const;
 
+    // The radiance of `count` (at most kBatch) camera rays from `origin`, traced together
+    // a vertex at a time: camera rays, shadow rays and bounces as Embree packets of the
+    // paths still going, in sample order. out[i] is what radiance() would give rngs[i]'s
+    // path up to Embree's rounding, which may differ between its packet and single-ray
+    // kernels: callers make batches from what the render fixes (trace_job.cpp).
+    void radiance_batch(const Vec3& origin, const Vec3* dirs, int count, SampleRng* rngs,
+                        Radiance* out) const;
+
 private:
     const Material& material_at(const Hit& hit) const;
+    // Shades the vertex `hit` of path `s`: its emission, a shadow ray toward the light
+    // (s.shadow; the caller traces it), the next direction and Russian roulette. Whether
+    // the path goes on, along (s.o, s.d).
+    bool shade(PathState& s, const Hit& hit, SampleRng& rng) const;
 
     const Scene& scene_;
     EmbreeScene embree_;

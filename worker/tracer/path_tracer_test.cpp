@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "camera_model.h"
 #include "scene_loader.h"
@@ -101,6 +102,59 @@ TEST(PathTracer, CountsEveryEmbreeQueryAsARay) {
     // At least the camera ray; at most one closest-hit and one shadow ray per vertex.
     EXPECT_GE(r.rays, 1u);
     EXPECT_LE(r.rays, uint32_t(2 * scene.max_depth));
+}
+
+// The batch traces the same paths as radiance() one by one: the same random draws in the
+// same order, only Embree's packet kernels may round a hit differently. Every width of
+// packet is exercised (batches of 1 to kBatch paths leave partial packets of all sizes).
+TEST(PathTracer, ABatchTracesThePathsRadianceTracesOneByOne) {
+    for (const char* name : {"cornell-box", "cornell-caustics"}) {
+        const Scene scene = load_scene(name);
+        const PathTracer tracer(scene);
+        const CameraModel camera(scene.camera, 32, 32);
+        int paths = 0, same_rays = 0;
+        double diff = 0, total = 0;
+        for (int count : {1, 2, 5, 9, 16, 17, 40, PathTracer::kBatch}) {
+            std::vector<SampleRng> batch_rngs, single_rngs;
+            std::vector<Vec3> dirs(static_cast<size_t>(count), Vec3());
+            for (int k = 0; k < count; ++k) {
+                batch_rngs.emplace_back(5, uint32_t(count), 7, uint64_t(k));
+                single_rngs.emplace_back(5, uint32_t(count), 7, uint64_t(k));
+                const float px = 16.0f + batch_rngs.back().next_float();
+                const float py = 12.0f + batch_rngs.back().next_float();
+                single_rngs.back().next_float();
+                single_rngs.back().next_float();
+                dirs[size_t(k)] = camera.direction(px, py);
+            }
+            std::vector<Radiance> batch(static_cast<size_t>(count), Radiance{});
+            tracer.radiance_batch(camera.origin(), dirs.data(), count, batch_rngs.data(),
+                                  batch.data());
+            for (int k = 0; k < count; ++k) {
+                const Radiance one = tracer.radiance(camera.origin(), dirs[size_t(k)],
+                                                     single_rngs[size_t(k)]);
+                ++paths;
+                same_rays += one.rays == batch[size_t(k)].rays;
+                const Vec3 d = one.value - batch[size_t(k)].value;
+                diff += std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z);
+                total += std::fabs(one.value.x) + std::fabs(one.value.y) +
+                         std::fabs(one.value.z);
+            }
+        }
+        // Rounding can move a path across an edge now and then, never often.
+        EXPECT_GE(same_rays, paths * 95 / 100) << name;
+        EXPECT_LE(diff, 0.05 * total + 1e-6) << name;
+    }
+}
+
+TEST(PathTracer, ABatchLargerThanKBatchIsRefused) {
+    const Scene scene = load_scene("cornell-box");
+    const PathTracer tracer(scene);
+    std::vector<Vec3> dirs(PathTracer::kBatch + 1, Vec3(0, 0, -1));
+    std::vector<SampleRng> rngs(PathTracer::kBatch + 1, SampleRng(1, 0, 0, 0));
+    std::vector<Radiance> out(PathTracer::kBatch + 1);
+    EXPECT_THROW(tracer.radiance_batch({0, 1, 3}, dirs.data(), PathTracer::kBatch + 1,
+                                       rngs.data(), out.data()),
+                 std::invalid_argument);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <optional>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include "camera_model.h"
 
@@ -17,38 +18,37 @@ namespace {
 void trace_row(const PathTracer& tracer, const CameraModel& camera,
                const RenderGeometry& geometry, const SampleJob& job, uint32_t row,
                SampleJobResult& result) {
-    constexpr int kPacket = EmbreeScene::kPacket;
+    constexpr int kBatch = PathTracer::kBatch;
     const PixelRect& r = job.rect;
-    std::array<std::optional<SampleRng>, kPacket> rngs;
-    std::array<Vec3, kPacket> dirs;
-    std::array<Hit, kPacket> hits;
-    std::array<bool, kPacket> found;
+    std::vector<SampleRng> rngs;
+    rngs.reserve(kBatch);
+    std::array<Vec3, kBatch> dirs;
+    std::array<Radiance, kBatch> radiance;
     for (uint32_t col = 0; col < r.width; ++col) {
         const size_t i = size_t(row) * r.width + col;
         const uint32_t x = r.x + col, y = r.y + row;
         PixelSums& sums = result.pixels[i];
         const uint64_t first = job.first_sample[i], end = first + job.counts[i];
-        // The pixel's camera rays leave together, kPacket at a time, cut from its first
+        // The pixel's samples are traced together, kBatch at a time, cut from its first
         // sample here. A job holds all of a pixel's samples of its round, so which
-        // samples share a packet follows from the render's rounds, never from how rounds
-        // are cut into jobs or jobs spread over threads and workers.
-        for (uint64_t k0 = first; k0 < end; k0 += kPacket) {
-            const int n = int(std::min<uint64_t>(kPacket, end - k0));
+        // samples share a batch (and so Embree's packets) follows from the render's
+        // rounds, never from how rounds are cut into jobs or jobs spread over threads and
+        // workers.
+        for (uint64_t k0 = first; k0 < end; k0 += kBatch) {
+            const int n = int(std::min<uint64_t>(kBatch, end - k0));
+            rngs.clear();
             for (int j = 0; j < n; ++j) {
-                SampleRng& rng = rngs[j].emplace(geometry.seed, x, y, k0 + j);
+                SampleRng& rng = rngs.emplace_back(geometry.seed, x, y, k0 + j);
                 // Box filter: a uniform point in the pixel, so the pixel is its area's
                 // average.
                 const float px = float(x) + rng.next_float();
                 const float py = float(y) + rng.next_float();
                 dirs[j] = camera.direction(px, py);
             }
-            tracer.embree().intersect_packet(camera.origin(), dirs.data(), n, hits.data(),
-                                             found.data());
-            for (int j = 0; j < n; ++j) {
-                const Radiance L = tracer.radiance(
-                    camera.origin(), dirs[j], found[j] ? &hits[j] : nullptr, *rngs[j]);
-                add_sample(sums, k0 + j, L.value, L.rays);
-            }
+            tracer.radiance_batch(camera.origin(), dirs.data(), n, rngs.data(),
+                                  radiance.data());
+            for (int j = 0; j < n; ++j)
+                add_sample(sums, k0 + j, radiance[j].value, radiance[j].rays);
         }
     }
 }
