@@ -14,7 +14,8 @@ Output: a float32 RGB OpenEXR (--out), row 0 at the top, red wall on the left
   {"samples": ..., "seconds": ..., "samples_per_second": ..., ...}
 
 `seconds` covers only the mi.render() calls (and forcing their result), never the
-import, the variant set-up or the scene loading.
+import, the variant set-up, the scene loading or the --warmup-spp render (an untimed
+render first, in the same process, that takes the JIT compilation out of the timing).
 
 Passes: with --passes K (or automatically for the LLVM variant, which otherwise
 traces every sample of the image in one wavefront and runs out of memory at high
@@ -103,6 +104,9 @@ def main(argv=None):
     ap.add_argument("--max-seconds", type=float, default=None,
                     help="stop after the pass that takes the render time past this; the "
                          "image then has fewer spp than asked (reported as spp)")
+    ap.add_argument("--warmup-spp", type=int, default=0,
+                    help="render once at this spp first, untimed and discarded (for the "
+                         "LLVM variant: JIT compilation out of the timing); default 0: none")
     ap.add_argument("--progress", action="store_true",
                     help="print per-pass progress to stderr")
     args = ap.parse_args(argv)
@@ -122,7 +126,7 @@ def main(argv=None):
     if args.spp % passes != 0:
         ap.error(f"--passes {passes} does not divide --spp {args.spp}")
     spp_per_pass = args.spp // passes
-    if args.variant == "scalar_rgb" and (args.seed + passes) * w * h >= 2**32:
+    if args.variant == "scalar_rgb" and (args.seed + passes + (args.warmup_spp > 0)) * w * h >= 2**32:
         ap.error("seed too large: Mitsuba's scalar variant seeds pixels with seed*W*H+p "
                  "in 32 bits, so (seed+passes)*W*H must stay below 2^32")
 
@@ -154,6 +158,20 @@ def main(argv=None):
     scene_dict["integrator"] = {"type": "path", "max_depth": args.max_depth,
                                 "rr_depth": args.rr_depth}
     scene = mi.load_dict(scene_dict)
+
+    warmup_seconds = None
+    if args.warmup_spp > 0:
+        # Same process, same scene: Dr.Jit compiles (or loads from its kernel cache) the
+        # path tracer here; a seed outside every timed pass's, and the image is dropped.
+        seed_arg = args.seed + passes
+        if not variant.startswith("scalar"):
+            seed_arg = dr.opaque(mi.UInt32, seed_arg)
+        t0 = time.perf_counter()
+        img = mi.render(scene, spp=args.warmup_spp, seed=seed_arg)
+        dr.eval(img)
+        dr.sync_thread()
+        warmup_seconds = time.perf_counter() - t0
+        del img
 
     accum = np.zeros((h, w, 3), dtype=np.float64)
     seconds = 0.0
@@ -209,6 +227,8 @@ def main(argv=None):
         "threads": threads,
         "max_depth": args.max_depth,
         "rr_depth": args.rr_depth,
+        "warmup_spp": args.warmup_spp,
+        "warmup_seconds": warmup_seconds,
         "output": args.out,
     }), flush=True)
     return 0
