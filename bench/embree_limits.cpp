@@ -1,10 +1,11 @@
 // The limit, measured: raw Embree throughput on a scene's BVH (the tracer's own, built by
 // EmbreeScene) for every query kind Embree 3 offers, on two ray sets with 2 threads:
-//   incoherent: origins spread through the scene's bounds, directions uniform on the sphere
+//   incoherent: origins spread through the scene's bounds, directions uniform on the
+//   sphere
 //               (what `aliquot bench` calls raw rays);
 //   ours:       the rays our path tracer casts, made by following its paths on this scene
-//               (cosine-weighted bounces from diffuse surfaces, mirror and refraction from
-//               specular ones, next-event shadow rays toward a point on the light,
+//               (cosine-weighted bounces from diffuse surfaces, mirror and refraction
+//               from specular ones, next-event shadow rays toward a point on the light,
 //               Russian roulette after the fifth vertex): the bounce rays (closest hit)
 //               and the shadow rays (any hit), camera rays left out.
 // Closest hits: rtcIntersect1, rtcIntersect4/8/16 (packets of consecutive rays, SoA
@@ -47,7 +48,8 @@ struct RaySets {
     std::vector<Ray> closest, shadow;
 };
 
-const Material& material_of(const Scene& scene, const EmbreeScene& embree, const Hit& hit) {
+const Material& material_of(const Scene& scene, const EmbreeScene& embree,
+                            const Hit& hit) {
     if (hit.geom_id == embree.sphere_geometry())
         return scene.materials[scene.spheres[hit.prim_id].material];
     return scene.materials[scene.meshes[hit.geom_id].material];
@@ -71,14 +73,14 @@ RaySets our_rays(const Scene& scene, const EmbreeScene& embree, size_t paths) {
             const Vec3 p = o + d * hit.t;
             const bool front = dot(d, hit.ng) < 0;
             const Vec3 n = front ? hit.ng : -hit.ng;
-            const float eps = 1e-4f * std::max({std::fabs(p.x), std::fabs(p.y),
-                                                std::fabs(p.z), 1.0f});
+            const float eps =
+                1e-4f * std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z), 1.0f});
             const Material& mat = material_of(scene, embree, hit);
             Vec3 wo;
             if (mat.kind == Material::Kind::Diffuse) {
                 if (!lights.empty()) {
-                    const LightSample ls =
-                        lights.sample(rng.next_float(), rng.next_float(), rng.next_float());
+                    const LightSample ls = lights.sample(
+                        rng.next_float(), rng.next_float(), rng.next_float());
                     Vec3 to = ls.position - p;
                     const float dist = std::sqrt(dot(to, to));
                     to = to / dist;
@@ -123,7 +125,8 @@ std::vector<Ray> incoherent_rays(const Scene& scene, size_t count) {
         const float z = 1.0f - 2.0f * rng.next_float();
         const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
         const float phi = 2.0f * float(std::numbers::pi) * rng.next_float();
-        rays[i] = {o, {r * std::cos(phi), r * std::sin(phi), z},
+        rays[i] = {o,
+                   {r * std::cos(phi), r * std::sin(phi), z},
                    std::numeric_limits<float>::infinity()};
     }
     return rays;
@@ -209,8 +212,8 @@ Kernel single(bool closest) {
 }
 
 template <int N, typename RayHitN, typename RayN>
-Kernel packet(bool closest, void (*intersect)(const int*, RTCScene, RTCIntersectContext*,
-                                              RayHitN*),
+Kernel packet(bool closest,
+              void (*intersect)(const int*, RTCScene, RTCIntersectContext*, RayHitN*),
               void (*occluded)(const int*, RTCScene, RTCIntersectContext*, RayN*)) {
     return [=](RTCScene scene, const Ray* rays, size_t count) {
         return Packet<N, RayHitN, RayN>::run(
@@ -272,7 +275,8 @@ double measure(RTCScene scene, const std::vector<Ray>& rays, const Kernel& kerne
             });
         for (std::thread& t : pool) t.join();
         const double s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+                .count();
         best = std::max(best, double(rays.size()) / s);
         answered = total;
     }
@@ -296,15 +300,19 @@ int main(int argc, char** argv) {
     };
     const std::vector<Query> queries = {
         {"rtcIntersect1", true, single(true)},
-        {"rtcIntersect4", true, packet<4, RTCRayHit4, RTCRay4>(true, rtcIntersect4, rtcOccluded4)},
-        {"rtcIntersect8", true, packet<8, RTCRayHit8, RTCRay8>(true, rtcIntersect8, rtcOccluded8)},
+        {"rtcIntersect4", true,
+         packet<4, RTCRayHit4, RTCRay4>(true, rtcIntersect4, rtcOccluded4)},
+        {"rtcIntersect8", true,
+         packet<8, RTCRayHit8, RTCRay8>(true, rtcIntersect8, rtcOccluded8)},
         {"rtcIntersect16", true,
          packet<16, RTCRayHit16, RTCRay16>(true, rtcIntersect16, rtcOccluded16)},
         {"rtcIntersect1M incoherent", true, stream(true, false)},
         {"rtcIntersect1M coherent", true, stream(true, true)},
         {"rtcOccluded1", false, single(false)},
-        {"rtcOccluded4", false, packet<4, RTCRayHit4, RTCRay4>(false, rtcIntersect4, rtcOccluded4)},
-        {"rtcOccluded8", false, packet<8, RTCRayHit8, RTCRay8>(false, rtcIntersect8, rtcOccluded8)},
+        {"rtcOccluded4", false,
+         packet<4, RTCRayHit4, RTCRay4>(false, rtcIntersect4, rtcOccluded4)},
+        {"rtcOccluded8", false,
+         packet<8, RTCRayHit8, RTCRay8>(false, rtcIntersect8, rtcOccluded8)},
         {"rtcOccluded16", false,
          packet<16, RTCRayHit16, RTCRay16>(false, rtcIntersect16, rtcOccluded16)},
         {"rtcOccluded1M incoherent", false, stream(false, false)},

@@ -4,7 +4,7 @@ import { Live, reconnectDelay, throttle, type EventSourceLike } from "./live";
 describe("throttle", () => {
   afterEach(() => vi.useRealTimers());
   it("runs at once, then folds calls within the interval into one trailing run", () => {
-    vi.useFakeTimers();
+    vi.useFakeTimers({ toFake: ["setTimeout", "clearTimeout", "Date", "performance"] });
     let runs = 0;
     const t = throttle(() => runs++, 1000);
     t();

@@ -125,19 +125,20 @@ export class Live {
 /**
  * Runs `fn` at most once per `ms`: the first call at once, later ones folded into one
  * trailing call. What keeps a page from fetching faster than once a second however many
- * rounds finish.
+ * rounds finish. Timed by the monotonic clock: the wall clock (Date.now) may be set back
+ * while the page runs, and a throttle timed by it would then run early.
  */
 export function throttle(fn: () => void, ms: number): { (): void; cancel(): void } {
-  let last = 0;
+  let last = -Infinity;
   let timer: ReturnType<typeof setTimeout> | null = null;
   const run = () => {
     timer = null;
-    last = Date.now();
+    last = performance.now();
     fn();
   };
   const call = () => {
     if (timer) return;
-    const wait = last + ms - Date.now();
+    const wait = last + ms - performance.now();
     if (wait <= 0) run();
     else timer = setTimeout(run, wait);
   };
