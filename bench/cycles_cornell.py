@@ -49,9 +49,12 @@ import argparse
 import json
 import math
 import os
-import re
 import sys
 import time
+
+# The WxH parser the Mitsuba side uses, so both renderers read --resolution alike.
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests", "validation"))
+from mitsuba_cornell import parse_resolution  # noqa: E402
 
 # Mitsuba 3.9.1 mi.cornell_box(): albedos, light radiance, camera.
 WHITE = (0.885809, 0.698859, 0.666422)
@@ -74,16 +77,6 @@ SHAPES = [
     ("cube", "white", (-0.33, -0.4, -0.28), [("y", 18.25)], (0.3, 0.61, 0.3)),   # large box
     ("rectangle", "light", (0, 0.99, 0.01), [("x", 90)], (0.23, 0.19, 0.19)),    # light
 ]
-
-
-def parse_resolution(text):
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-    if not m:
-        raise argparse.ArgumentTypeError(f"expected WxH (e.g. 256x256), got {text!r}")
-    w, h = int(m.group(1)), int(m.group(2))
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise argparse.ArgumentTypeError(f"resolution {w}x{h} out of range 1..16384")
-    return w, h
 
 
 def rotation(axis, degrees):
