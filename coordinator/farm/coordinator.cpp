@@ -482,6 +482,7 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
         }
     }
     w.lost = false;
+    if (w.registered) alive_.insert(name);
     return w;
 }
 
@@ -533,7 +534,8 @@ void Coordinator::forget_silent_workers(int64_t now_ms) {
         const WorkerEntry& w = it->second;
         if (w.lost && w.unrecorded == 0 && now_ms - w.last_seen_ms > after &&
             !named.count(it->first))
-            it = workers_.erase(it);  // its row stays in the store, marked lost
+            it = workers_.erase(it);  // its row stays in the store, marked lost (and
+                                      // a lost worker is not in alive_)
         else
             ++it;
     }
@@ -556,6 +558,7 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
     w.registered = true;
+    alive_.insert(name);
     // A full disk must not keep workers out: the row is written again when it returns.
     if (store_) {
         try {
@@ -581,7 +584,7 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
     const std::string worker = worker_of_session(session);
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
-        const std::set<std::string> alive = alive_workers();
+        const std::set<std::string>& alive = alive_workers();
         for (const std::string& id : order_) {
             RenderSession& s = *sessions_[id];
             if (s.state() != RenderState::Running || !s.has_pending()) continue;
@@ -706,13 +709,6 @@ size_t Coordinator::worker_sessions() {
     return worker_sessions_.size();
 }
 
-std::set<std::string> Coordinator::alive_workers() const {
-    std::set<std::string> alive;
-    for (const auto& [name, w] : workers_)
-        if (w.registered && !w.lost) alive.insert(name);
-    return alive;
-}
-
 void Coordinator::forget_ended_leases() {
     for (auto it = lease_render_.begin(); it != lease_render_.end();) {
         const auto session = sessions_.find(it->second.render);
@@ -771,6 +767,7 @@ void Coordinator::tick() {
         }
         if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
             w.lost = true;
+            alive_.erase(name);
             any = true;
             if (store_) {
                 try {

@@ -177,7 +177,9 @@ private:
     // A random lease id, not 0 and not one out now.
     uint64_t new_lease_id() const;
     // Workers registered here and not lost: those a job may go to (RenderSession::issue).
-    std::set<std::string> alive_workers() const;
+    // Kept up to date as workers register, are lost and come back, rather than built on
+    // every lease and result: at 256 workers building it was 256 string copies a job.
+    const std::set<std::string>& alive_workers() const { return alive_; }
     // Drops lease_render_ entries whose lease ended (expired, render finished or gone).
     void forget_ended_leases();
     // Sessions holding a lease now.
@@ -216,6 +218,7 @@ private:
     std::unordered_map<std::string, SessionEntry> worker_sessions_;  // by session
     std::map<std::string, std::string> scenes_;                      // hash -> json
     std::map<std::string, WorkerEntry> workers_;
+    std::set<std::string> alive_;  // names in workers_ that registered and are not lost
     std::map<std::string, std::string>
         bucket_shapes_;  // render -> last stored bucket layout
     struct CheckpointTiming {
