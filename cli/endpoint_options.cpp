@@ -1,14 +1,32 @@
 #include "endpoint_options.h"
 
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
 
 #include "commands.h"
 #include "token_file.h"
 
 namespace aliquot::cli {
+
+namespace {
+
+// Whether `path` exists now or within `wait`: `aliquot coordinator & aliquot worker`
+// started together in one directory race to it, and the coordinator writes its tokens a
+// moment after it starts.
+bool appears_within(const std::filesystem::path& path, std::chrono::milliseconds wait) {
+    const auto until = std::chrono::steady_clock::now() + wait;
+    while (!std::filesystem::exists(path)) {
+        if (std::chrono::steady_clock::now() >= until) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return true;
+}
+
+}  // namespace
 
 void EndpointOptions::add_to(CLI::App& cmd, Role role) {
     const std::string name(to_string(role));
@@ -39,7 +57,7 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
         } else if (const char* env = std::getenv("ALIQUOT_TOKEN"); env && *env) {
             endpoint.token = env;
             check_token(endpoint.token, "ALIQUOT_TOKEN");
-        } else if (std::filesystem::exists(local)) {
+        } else if (appears_within(local, std::chrono::seconds(5))) {
             endpoint.token = read_token_file(local);
         } else {
             throw CommandError("no " + name +
