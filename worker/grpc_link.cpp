@@ -88,11 +88,33 @@ std::optional<LeaseGrant> GrpcLink::lease(const std::string& session,
     check(stub_->stub->Lease(context(wait).get(), req, &reply), address_);
     if (reply.register_first())
         throw WorkerUnknown("coordinator " + address_ + " does not know this worker");
+    return grant_of(reply);
+}
+
+std::optional<LeaseGrant> GrpcLink::grant_of(const v1::LeaseReply& reply) {
     if (!reply.has_lease()) return std::nullopt;
     const v1::Lease& l = reply.lease();
     return LeaseGrant{l.lease_id(),        l.render_id(),
                       l.scene_hash(),      {l.width(), l.height(), l.seed()},
                       from_proto(l.job()), l.lease_ms()};
+}
+
+CompleteOutcome GrpcLink::complete_and_lease(const std::string& session,
+                                             uint64_t lease_id,
+                                             const SampleJobResult& result,
+                                             std::chrono::milliseconds wait,
+                                             std::optional<LeaseGrant>& next) {
+    v1::CompleteRequest req;
+    req.set_session(session);
+    req.set_lease_id(lease_id);
+    to_proto(result, *req.mutable_result());
+    req.set_lease_next(true);
+    req.set_next_wait_ms(uint32_t(wait.count()));
+    v1::CompleteReply reply;
+    check(stub_->stub->Complete(context(wait).get(), req, &reply), address_);
+    // A coordinator that does not know the worker any more says so on the next Lease.
+    next = reply.next().register_first() ? std::nullopt : grant_of(reply.next());
+    return {from_proto(reply.status()), reply.message()};
 }
 
 CompleteOutcome GrpcLink::complete(const std::string& session, uint64_t lease_id,

@@ -10,6 +10,9 @@
 #include "lease.h"
 
 namespace aliquot {
+namespace v1 {
+class LeaseReply;
+}
 
 class GrpcLink : public WorkerLink {
 public:
@@ -21,6 +24,10 @@ public:
                                     std::chrono::milliseconds wait) override;
     CompleteOutcome complete(const std::string& session, uint64_t lease_id,
                              const SampleJobResult& result) override;
+    CompleteOutcome complete_and_lease(const std::string& session, uint64_t lease_id,
+                                       const SampleJobResult& result,
+                                       std::chrono::milliseconds wait,
+                                       std::optional<LeaseGrant>& next) override;
     std::optional<std::string> fetch_scene(const std::string& session,
                                            const std::string& hash) override;
     bool renew(const std::string& session, uint64_t lease_id) override;
@@ -29,6 +36,8 @@ public:
               const std::string& reason) override;
 
 private:
+    // The grant in a Lease answer, if any.
+    static std::optional<LeaseGrant> grant_of(const v1::LeaseReply& reply);
     // A call's context: a deadline `extra` past the usual, and the worker token.
     std::unique_ptr<grpc::ClientContext> context(
         std::chrono::milliseconds extra = {}) const;

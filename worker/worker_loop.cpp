@@ -4,6 +4,7 @@
 #include <functional>
 #include <random>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "trace_job.h"
@@ -159,8 +160,10 @@ void WorkerLoop::thread_main() {
     enable_flush_to_zero();
     Retries retries{Backoff(options_.backoff_initial, options_.reconnect_max),
                     Backoff(options_.backoff_initial, options_.failure_max)};
+    std::optional<LeaseGrant> next;  // the lease that came back with the last result
     while (!stopping_) {
-        std::optional<LeaseGrant> grant = next_lease(retries);
+        std::optional<LeaseGrant> grant =
+            next ? std::exchange(next, std::nullopt) : next_lease(retries);
         if (!grant) continue;
         {
             std::lock_guard lock(held_mutex_);
@@ -172,9 +175,16 @@ void WorkerLoop::thread_main() {
             reregister(retries.registrations, retries.announced);
         } else if (traced.result) {
             release(grant->lease_id);  // from here on the result answers for the lease
-            return_result(*grant, *traced.result, retries);
+            next = return_result(*grant, *traced.result, retries);
         } else {
             hand_back(*grant, traced, retries);
+        }
+    }
+    if (next) {  // stopping with a lease not yet begun: give it back at once
+        try {
+            link_.abandon(session(), next->lease_id);
+        } catch (const std::exception&) {
+            // It expires on its own.
         }
     }
 }
@@ -240,10 +250,14 @@ WorkerLoop::Traced WorkerLoop::trace(const LeaseGrant& grant) {
     return out;
 }
 
-void WorkerLoop::return_result(const LeaseGrant& grant, const SampleJobResult& result,
-                               Retries& retries) {
+std::optional<LeaseGrant> WorkerLoop::return_result(const LeaseGrant& grant,
+                                                    const SampleJobResult& result,
+                                                    Retries& retries) {
+    std::optional<LeaseGrant> next;
     try {
-        const CompleteOutcome outcome = link_.complete(session(), grant.lease_id, result);
+        // The next lease rides on the reply: one round trip a job (docs/FARM.md).
+        const CompleteOutcome outcome = link_.complete_and_lease(
+            session(), grant.lease_id, result, options_.lease_wait, next);
         if (outcome.status == CompleteStatus::Merged) {
             samples_traced_ += result.total_samples();
             ++jobs_done_;
@@ -266,6 +280,7 @@ void WorkerLoop::return_result(const LeaseGrant& grant, const SampleJobResult& r
             seconds_text(wait));
         sleep_unless_stopping(wait);
     }
+    return next;
 }
 
 void WorkerLoop::hand_back(const LeaseGrant& grant, const Traced& traced,

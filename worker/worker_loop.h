@@ -53,8 +53,10 @@ private:
     // A lease, or nullopt after waiting as the failure asked (then ask again).
     std::optional<LeaseGrant> next_lease(Retries& retries);
     Traced trace(const LeaseGrant& grant);
-    void return_result(const LeaseGrant& grant, const SampleJobResult& result,
-                       Retries& retries);
+    // Returns the result and, when it merged, the next lease with it (nullopt: ask).
+    std::optional<LeaseGrant> return_result(const LeaseGrant& grant,
+                                            const SampleJobResult& result,
+                                            Retries& retries);
     // A lease not traced to the end: reported as failed (with why) or abandoned.
     void hand_back(const LeaseGrant& grant, const Traced& traced, Retries& retries);
     void keeper_main();

@@ -231,30 +231,7 @@ public:
     Status Lease(ServerContext* ctx, const v1::LeaseRequest* req,
                  v1::LeaseReply* reply) override {
         if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
-        const auto wait =
-            std::chrono::milliseconds(std::min<uint32_t>(req->wait_ms(), 30000));
-        std::optional<LeaseGrant> grant;
-        try {
-            grant = c_.lease(req->session(), wait);
-        } catch (const WorkerUnknown&) {
-            // Registered with a coordinator before a restart: it must register again,
-            // with its threads, before it gets work.
-            reply->set_register_first(true);
-            return Status::OK;
-        }
-        if (!grant) {
-            reply->set_retry_after_ms(0);  // long-poll already waited; ask again at once
-            return Status::OK;
-        }
-        v1::Lease* l = reply->mutable_lease();
-        l->set_lease_id(grant->lease_id);
-        l->set_render_id(grant->render_id);
-        l->set_scene_hash(grant->scene_hash);
-        l->set_width(grant->geometry.width);
-        l->set_height(grant->geometry.height);
-        l->set_seed(grant->geometry.seed);
-        aliquot::to_proto(grant->job, *l->mutable_job());
-        l->set_lease_ms(grant->lease_ms);
+        answer_lease(req->session(), req->wait_ms(), *reply);
         return Status::OK;
     }
 
@@ -283,6 +260,9 @@ public:
                 c_.complete(req->session(), req->lease_id(), result);
             reply->set_status(to_proto(outcome.status));
             reply->set_message(outcome.message);
+            // One round trip a job: the next lease rides on the reply.
+            if (req->lease_next() && outcome.status == CompleteStatus::Merged)
+                answer_lease(req->session(), req->next_wait_ms(), *reply->mutable_next());
         });
     }
 
@@ -321,6 +301,34 @@ public:
     }
 
 private:
+    // What Lease answers `session`, waiting up to `wait_ms` for work (at most 30 s).
+    void answer_lease(const std::string& session, uint32_t wait_ms,
+                      v1::LeaseReply& reply) {
+        const auto wait = std::chrono::milliseconds(std::min<uint32_t>(wait_ms, 30000));
+        std::optional<LeaseGrant> grant;
+        try {
+            grant = c_.lease(session, wait);
+        } catch (const WorkerUnknown&) {
+            // Registered with a coordinator before a restart: it must register again,
+            // with its threads, before it gets work.
+            reply.set_register_first(true);
+            return;
+        }
+        if (!grant) {
+            reply.set_retry_after_ms(0);  // long-poll already waited; ask again at once
+            return;
+        }
+        v1::Lease* l = reply.mutable_lease();
+        l->set_lease_id(grant->lease_id);
+        l->set_render_id(grant->render_id);
+        l->set_scene_hash(grant->scene_hash);
+        l->set_width(grant->geometry.width);
+        l->set_height(grant->geometry.height);
+        l->set_seed(grant->geometry.seed);
+        aliquot::to_proto(grant->job, *l->mutable_job());
+        l->set_lease_ms(grant->lease_ms);
+    }
+
     // Runs `call`; a session the coordinator does not know becomes UNAUTHENTICATED.
     template <typename Call>
     static Status known(Call&& call) {

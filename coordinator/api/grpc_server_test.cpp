@@ -144,6 +144,41 @@ TEST_F(WorkerServiceTest, RejectsAResultWithTheWrongPixelCountAndReissuesTheJob)
     EXPECT_EQ(coordinator_->info(id_)->state, RenderState::Done);
 }
 
+// Issue 14: one round trip a job. A Complete asking for the next lease gets it on its
+// reply after a merged result, and none after a refused one (that worker backs off).
+TEST_F(WorkerServiceTest, ACompleteCarriesTheNextLeaseAfterAMergedResult) {
+    RenderSpec second = spec_;
+    second.seed = 4;
+    const std::string id2 = coordinator_->submit(second);
+    const v1::Lease first = lease();
+    const auto complete_and_lease = [&](const v1::Lease& l,
+                                        const v1::SampleJobResult& result) {
+        testing::TokenContext ctx(Role::Worker);
+        v1::CompleteRequest req;
+        req.set_session(session_);
+        req.set_lease_id(l.lease_id());
+        *req.mutable_result() = result;
+        req.set_lease_next(true);
+        req.set_next_wait_ms(0);
+        v1::CompleteReply reply;
+        EXPECT_TRUE(stub_->Complete(&ctx, req, &reply).ok());
+        return reply;
+    };
+    const v1::CompleteReply merged = complete_and_lease(first, trace(first));
+    EXPECT_EQ(merged.status(), v1::COMPLETE_STATUS_MERGED);
+    ASSERT_TRUE(merged.next().has_lease());
+    const v1::Lease& next = merged.next().lease();
+    EXPECT_EQ(next.render_id(), id2);
+    EXPECT_EQ(coordinator_->leases_out(), 1u);
+
+    v1::SampleJobResult wrong = trace(next);
+    wrong.mutable_samples()->RemoveLast();
+    const v1::CompleteReply rejected = complete_and_lease(next, wrong);
+    EXPECT_EQ(rejected.status(), v1::COMPLETE_STATUS_REJECTED);
+    EXPECT_FALSE(rejected.has_next());
+    EXPECT_EQ(coordinator_->leases_out(), 0u);  // the job waits for a lease asked for
+}
+
 TEST_F(WorkerServiceTest, RejectsNegativeSampleCounts) {
     const v1::Lease l = lease();
     v1::SampleJobResult bad = trace(l);

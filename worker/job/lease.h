@@ -75,6 +75,24 @@ public:
                                             std::chrono::milliseconds wait) = 0;
     virtual CompleteOutcome complete(const std::string& session, uint64_t lease_id,
                                      const SampleJobResult& result) = 0;
+    // complete, then, when the result merged, lease the next job (waiting up to `wait`)
+    // into `next`: one round trip a job where a link can make it one (GrpcLink). No lease
+    // leaves `next` empty, and the worker asks with lease() as usual; the outcome is the
+    // result's either way.
+    virtual CompleteOutcome complete_and_lease(const std::string& session,
+                                               uint64_t lease_id,
+                                               const SampleJobResult& result,
+                                               std::chrono::milliseconds wait,
+                                               std::optional<LeaseGrant>& next) {
+        const CompleteOutcome outcome = complete(session, lease_id, result);
+        next.reset();
+        if (outcome.status != CompleteStatus::Merged) return outcome;
+        try {
+            next = lease(session, wait);
+        } catch (const WorkerUnknown&) {
+        }
+        return outcome;
+    }
     virtual std::optional<std::string> fetch_scene(const std::string& session,
                                                    const std::string& hash) = 0;
     // False when the lease is not (or no longer) this session's.
