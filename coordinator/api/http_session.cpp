@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "http_api.h"
+#include "json_field.h"
 
 namespace aliquot::http_session {
 
@@ -74,16 +75,20 @@ std::string sign_out_cookie(bool https) {
 }
 
 std::string parse_sign_in_request(const std::string& body) {
-    using http_api::ApiError;
-    const nlohmann::json j = nlohmann::json::parse(body, nullptr, false);
-    if (j.is_discarded() || !j.is_object())
-        throw ApiError(400, "a sign-in is a JSON object: {\"token\": \"...\"}");
-    const auto it = j.find("token");
-    if (it == j.end() || !it->is_string())
-        throw ApiError(400, "/token: the client token, as a string, is required");
-    for (const auto& [key, value] : j.items())
-        if (key != "token") throw ApiError(400, "/" + key + ": unknown field");
-    return it->get<std::string>();
+    try {
+        const nlohmann::json doc = parse_json(body);
+        const JsonField root(doc);
+        root.expect_object("a sign-in is a JSON object: {\"token\": \"...\"}");
+        root.allow_keys({"token"});
+        return root.require("token").string("the client token, as a string");
+    } catch (const JsonError& e) {
+        // Not JSON at all: the parser's message would quote the body, which holds a
+        // secret; say what is expected instead.
+        if (!e.pointer())
+            throw http_api::ApiError(400,
+                                     "a sign-in is a JSON object: {\"token\": \"...\"}");
+        throw http_api::ApiError(400, e.what());
+    }
 }
 
 std::string refusal_message(Access access) {

@@ -68,14 +68,24 @@ TEST(SessionCookie, OnlyTokensACookieCarriesAsTheyAre) {
 
 TEST(SignInRequest, ReadsTheTokenAndRefusesAnythingElse) {
     EXPECT_EQ(parse_sign_in_request(R"({"token":"abc"})"), "abc");
-    for (const char* body : {"", "abc", "[]", R"({"token":1})", "{}",
-                             R"({"token":"abc","remember":true})"}) {
+    for (const char* body :
+         {"", "abc", "[]", R"({"token":1})", "{}", R"({"token":"abc","remember":true})",
+          R"({"token":"abc","token":"def"})"}) {
         try {
             parse_sign_in_request(body);
             ADD_FAILURE() << body;
         } catch (const http_api::ApiError& e) {
             EXPECT_EQ(e.status(), 400) << body;
         }
+    }
+}
+
+TEST(SignInRequest, ABodyThatIsNotJsonIsNotQuotedBack) {
+    try {
+        parse_sign_in_request(R"({"token": s3cr3t-t0ken-value})");
+        ADD_FAILURE() << "accepted";
+    } catch (const http_api::ApiError& e) {
+        EXPECT_EQ(std::string(e.what()).find("s3cr3t"), std::string::npos) << e.what();
     }
 }
 
