@@ -1,11 +1,27 @@
 #include "access.h"
 
+#include <stdexcept>
+
 #include "secret.h"
+#include "token_file.h"
 
 namespace aliquot {
 
 std::string_view to_string(Role role) {
     return role == Role::Client ? "client" : "worker";
+}
+
+void check_tokens(const Tokens& tokens) {
+    try {
+        check_token(tokens.client, "the client token");
+        check_token(tokens.worker, "the worker token");
+    } catch (const TokenError& e) {
+        throw std::invalid_argument(e.what());
+    }
+    if (tokens.client == tokens.worker)
+        throw std::invalid_argument(
+            "the client and worker tokens are the same: a token names its role, so they "
+            "must differ");
 }
 
 std::string_view bearer_token(std::string_view authorization) {

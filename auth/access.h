@@ -17,6 +17,10 @@ struct Tokens {
     std::string worker;
 };
 
+// Throws std::invalid_argument unless both tokens are usable (check_token) and differ:
+// what every server that admits callers by them checks first.
+void check_tokens(const Tokens& tokens);
+
 enum class Access {
     Granted,
     Unauthenticated,  // no token, or one that is neither role's: gRPC UNAUTHENTICATED,

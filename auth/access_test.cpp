@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <stdexcept>
+
 namespace aliquot {
 namespace {
 
@@ -40,6 +42,20 @@ TEST(CheckAccess, TheMessageNamesTheRoleNeverTheToken) {
     EXPECT_NE(m.find("worker token"), std::string::npos);
     EXPECT_EQ(m.find(kTokens.worker), std::string::npos);
     EXPECT_EQ(access_message(Access::Granted, Role::Client), "");
+}
+
+TEST(CheckTokens, BothUsableAndDifferentOrRefused) {
+    EXPECT_NO_THROW(check_tokens(kTokens));
+    EXPECT_THROW(check_tokens({}), std::invalid_argument);
+    EXPECT_THROW(check_tokens({kTokens.client, ""}), std::invalid_argument);
+    EXPECT_THROW(check_tokens({kTokens.client, kTokens.client}), std::invalid_argument);
+    EXPECT_THROW(check_tokens({"short", kTokens.worker}), std::invalid_argument);
+    // What a cookie or an HTTP header would split, quote or percent-decode.
+    for (const char* odd : {"client;token-0123456789", "client,token-0123456789",
+                            "client\"token-0123456789", "client\\token-0123456789",
+                            "client%41token-0123456789", "client token-0123456789",
+                            "client\ttoken-0123456789"})
+        EXPECT_THROW(check_tokens({odd, kTokens.worker}), std::invalid_argument) << odd;
 }
 
 }  // namespace

@@ -367,10 +367,7 @@ std::shared_ptr<grpc::ServerCredentials> server_credentials(const GrpcSecurity& 
 
 GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
                        GrpcSecurity security) {
-    if (security.tokens.client.empty() || security.tokens.worker.empty() ||
-        security.tokens.client == security.tokens.worker)
-        throw std::invalid_argument(
-            "gRPC: the client and worker tokens must both be set and differ");
+    check_tokens(security.tokens);
     if (security.tls_cert_pem.empty() != security.tls_key_pem.empty())
         throw std::invalid_argument("gRPC: TLS needs both a certificate and its key");
     services_ = std::make_unique<Services>(coordinator, security.tokens);

@@ -783,15 +783,9 @@ struct HttpServer::Impl {
     }
 
     void start(const std::string& address) {
-        if (options.tokens.client.empty() || options.tokens.worker.empty() ||
-            options.tokens.client == options.tokens.worker)
-            throw std::invalid_argument(
-                "http: the client and worker tokens must both be set and differ");
-        if (!http_session::can_travel_in_cookie(options.tokens.client))
-            throw std::invalid_argument(
-                "http: the client token must be visible ASCII without ; , \" \\ or % "
-                "(the dashboard's session cookie carries it, and HTTP headers are "
-                "percent-decoded)");
+        // A usable token is also one the session cookie carries as it is (RFC 6750's
+        // b64token alphabet has no ; , " \ or %).
+        check_tokens(options.tokens);
         const size_t colon = address.rfind(':');
         if (colon == std::string::npos)
             throw std::runtime_error("http: address must be host:port, got \"" + address +

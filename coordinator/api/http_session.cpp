@@ -15,19 +15,7 @@ std::string_view trim(std::string_view s) {
     return s;
 }
 
-// RFC 6265's cookie-octet: visible ASCII but for `"`, `,`, `;` and `\`.
-bool cookie_octet(char c) {
-    return c > ' ' && c < 127 && c != '"' && c != ',' && c != ';' && c != '\\';
-}
-
 }  // namespace
-
-bool can_travel_in_cookie(std::string_view token) {
-    if (token.empty()) return false;
-    for (const char c : token)
-        if (!cookie_octet(c) || c == '%') return false;
-    return true;
-}
 
 bool needs_token(std::string_view method, std::string_view path) {
     // Everything under /api, however it is spelled below it: a route added later is

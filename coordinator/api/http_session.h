@@ -14,12 +14,6 @@ namespace aliquot::http_session {
 
 inline constexpr std::string_view kCookieName = "aliquot_session";
 
-// Whether `token` can be a cookie's value as it is: visible ASCII but `;`, `,`, `"` and
-// `\`, which end or quote a cookie, and `%`, because the HTTP library percent-decodes
-// request headers before the server sees them. Every token the coordinator makes (hex)
-// can.
-bool can_travel_in_cookie(std::string_view token);
-
 // Whether a request needs the client token. /healthz and the dashboard's files (anything
 // outside /api/) hold no data and must load for the page to show its sign-in view;
 // signing in and out (POST and DELETE /api/session) are how a browser gets and drops the
@@ -39,8 +33,8 @@ std::string cookie_token(std::string_view cookie_header);
 // the browser from sending it with any request another site starts.
 // Under TLS (`https`) also Secure: the browser never sends it over plain HTTP.
 std::string cookie_attributes(bool https);
-// The Set-Cookie value that signs a browser in with `token`, which must be able to travel
-// in a cookie as it is.
+// The Set-Cookie value that signs a browser in with `token` (check_tokens made sure a
+// cookie carries it as it is).
 std::string sign_in_cookie(std::string_view token, bool https);
 // The Set-Cookie value that signs it out: the same cookie, expired.
 std::string sign_out_cookie(bool https);

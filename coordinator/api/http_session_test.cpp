@@ -55,13 +55,11 @@ TEST(SessionCookie, CarriesTheTokenWithItsAttributes) {
               "aliquot_session=; Max-Age=0; HttpOnly; SameSite=Strict; Path=/; Secure");
 }
 
-TEST(SessionCookie, OnlyTokensACookieCarriesAsTheyAre) {
-    EXPECT_TRUE(can_travel_in_cookie(
-        "9f86d081884c7d659a2feaa0c55ad015a3bf4f1b2b0b822cd15d6c15b0f00a08"));
-    EXPECT_TRUE(can_travel_in_cookie("Client-Token_0123.~!#$&'()*+/:<=>?@[]^`{|}"));
-    for (const char* odd : {"", "a;b", "a,b", "a\"b", "a\\b", "a%41b", "a b", "a\tb"})
-        EXPECT_FALSE(can_travel_in_cookie(odd)) << odd;
-    const std::string token = "Client-Token_0123.~!#$&'()*+/:<=>?@[]^`{|}";
+// Every character a token may have (check_token: RFC 6750's b64token) survives the
+// cookie unchanged; those that would not are refused for tokens (auth/access_test.cpp).
+TEST(SessionCookie, CarriesEveryTokenCharacterAsItIs) {
+    const std::string token =
+        "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-._~+/=";
     const std::string set = sign_in_cookie(token, false);
     EXPECT_EQ(cookie_token(set.substr(0, set.find("; "))), token);
 }
