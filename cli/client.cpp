@@ -10,9 +10,9 @@
 namespace aliquot::cli {
 
 ClientConnection::ClientConnection(CoordinatorEndpoint endpoint)
-    : endpoint_(std::move(endpoint)), address_(endpoint_.address) {
+    : endpoint_(std::move(endpoint)) {
     stub_ = v1::ClientService::NewStub(
-        grpc::CreateChannel(address_, channel_credentials(endpoint_)));
+        grpc::CreateChannel(endpoint_.address, channel_credentials(endpoint_)));
 }
 
 std::unique_ptr<grpc::ClientContext> ClientConnection::context(int seconds) const {
@@ -45,8 +45,9 @@ void ClientConnection::check(const grpc::Status& status, const std::string& what
     switch (status.error_code()) {
         case grpc::StatusCode::UNAVAILABLE:
         case grpc::StatusCode::DEADLINE_EXCEEDED:
-            throw CommandError("cannot reach coordinator at " + address_ + " (" + what +
-                               ")" + tls_hint(status, !endpoint_.tls_ca_pem.empty()));
+            throw CommandError("cannot reach coordinator at " + endpoint_.address + " (" +
+                               what + ")" +
+                               tls_hint(status, !endpoint_.tls_ca_pem.empty()));
         default:
             throw CommandError(what + ": " + status.error_message());
     }

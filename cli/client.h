@@ -24,11 +24,10 @@ public:
     void authorize(grpc::ClientContext& ctx) const { add_token(ctx, endpoint_); }
     // Throws CommandError for a failed call; `what` names the call for the message.
     void check(const grpc::Status& status, const std::string& what) const;
-    const std::string& address() const { return address_; }
+    const std::string& address() const { return endpoint_.address; }
 
 private:
     CoordinatorEndpoint endpoint_;
-    std::string address_;
     std::unique_ptr<v1::ClientService::Stub> stub_;
 };
 

@@ -20,7 +20,7 @@ struct GrpcLink::Stub {
 };
 
 GrpcLink::GrpcLink(CoordinatorEndpoint endpoint)
-    : stub_(new Stub), endpoint_(std::move(endpoint)), address_(endpoint_.address) {
+    : stub_(new Stub), endpoint_(std::move(endpoint)) {
     grpc::ChannelArguments args;
     // Keepalive matched with the coordinator's server settings
     // (coordinator/api/grpc_server.cpp).
@@ -35,8 +35,8 @@ GrpcLink::GrpcLink(CoordinatorEndpoint endpoint)
     args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
     args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 1000);
     args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
-    stub_->channel =
-        grpc::CreateCustomChannel(address_, channel_credentials(endpoint_), args);
+    stub_->channel = grpc::CreateCustomChannel(endpoint_.address,
+                                               channel_credentials(endpoint_), args);
     stub_->stub = v1::WorkerService::NewStub(stub_->channel);
 }
 
@@ -73,9 +73,10 @@ Registration GrpcLink::register_worker(const std::string& name, uint32_t threads
     req.set_name(name);
     req.set_threads(threads);
     v1::RegisterReply reply;
-    check(stub_->stub->Register(context().get(), req, &reply), address_, true);
+    check(stub_->stub->Register(context().get(), req, &reply), endpoint_.address, true);
     if (reply.session().empty())
-        throw std::runtime_error("coordinator " + address_ + " gave no worker session");
+        throw std::runtime_error("coordinator " + endpoint_.address +
+                                 " gave no worker session");
     return {reply.session(), reply.lease_ms()};
 }
 
@@ -85,9 +86,10 @@ std::optional<LeaseGrant> GrpcLink::lease(const std::string& session,
     req.set_session(session);
     req.set_wait_ms(uint32_t(wait.count()));
     v1::LeaseReply reply;
-    check(stub_->stub->Lease(context(wait).get(), req, &reply), address_);
+    check(stub_->stub->Lease(context(wait).get(), req, &reply), endpoint_.address);
     if (reply.register_first())
-        throw WorkerUnknown("coordinator " + address_ + " does not know this worker");
+        throw WorkerUnknown("coordinator " + endpoint_.address +
+                            " does not know this worker");
     return grant_of(reply);
 }
 
@@ -111,7 +113,7 @@ CompleteOutcome GrpcLink::complete_and_lease(const std::string& session,
     req.set_lease_next(true);
     req.set_next_wait_ms(uint32_t(wait.count()));
     v1::CompleteReply reply;
-    check(stub_->stub->Complete(context(wait).get(), req, &reply), address_);
+    check(stub_->stub->Complete(context(wait).get(), req, &reply), endpoint_.address);
     // A coordinator that does not know the worker any more says so on the next Lease.
     next = reply.next().register_first() ? std::nullopt : grant_of(reply.next());
     return {from_proto(reply.status()), reply.message()};
@@ -124,7 +126,7 @@ CompleteOutcome GrpcLink::complete(const std::string& session, uint64_t lease_id
     req.set_lease_id(lease_id);
     to_proto(result, *req.mutable_result());
     v1::CompleteReply reply;
-    check(stub_->stub->Complete(context().get(), req, &reply), address_);
+    check(stub_->stub->Complete(context().get(), req, &reply), endpoint_.address);
     return {from_proto(reply.status()), reply.message()};
 }
 
@@ -136,7 +138,7 @@ std::optional<std::string> GrpcLink::fetch_scene(const std::string& session,
     v1::FetchSceneReply reply;
     const grpc::Status status = stub_->stub->FetchScene(context().get(), req, &reply);
     if (status.error_code() == grpc::StatusCode::NOT_FOUND) return std::nullopt;
-    check(status, address_);
+    check(status, endpoint_.address);
     return reply.scene_json();
 }
 
@@ -145,7 +147,7 @@ bool GrpcLink::renew(const std::string& session, uint64_t lease_id) {
     req.set_session(session);
     req.set_lease_id(lease_id);
     v1::RenewReply reply;
-    check(stub_->stub->Renew(context().get(), req, &reply), address_);
+    check(stub_->stub->Renew(context().get(), req, &reply), endpoint_.address);
     return reply.valid();
 }
 
@@ -154,7 +156,7 @@ bool GrpcLink::abandon(const std::string& session, uint64_t lease_id) {
     req.set_session(session);
     req.set_lease_id(lease_id);
     v1::RenewReply reply;
-    check(stub_->stub->Abandon(context().get(), req, &reply), address_);
+    check(stub_->stub->Abandon(context().get(), req, &reply), endpoint_.address);
     return reply.valid();
 }
 
@@ -165,7 +167,7 @@ bool GrpcLink::fail(const std::string& session, uint64_t lease_id,
     req.set_lease_id(lease_id);
     req.set_reason(reason);
     v1::FailReply reply;
-    check(stub_->stub->Fail(context().get(), req, &reply), address_);
+    check(stub_->stub->Fail(context().get(), req, &reply), endpoint_.address);
     return reply.accepted();
 }
 

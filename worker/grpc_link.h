@@ -45,7 +45,6 @@ private:
     struct Stub;
     std::unique_ptr<Stub> stub_;
     CoordinatorEndpoint endpoint_;
-    std::string address_;
 };
 
 }  // namespace aliquot
