@@ -30,6 +30,7 @@
 
 #include "camera_model.h"
 #include "embree_scene.h"
+#include "incoherent_rays.h"
 #include "light_sampler.h"
 #include "sampler.h"
 #include "scene_loader.h"
@@ -109,26 +110,12 @@ RaySets our_rays(const Scene& scene, const EmbreeScene& embree, size_t paths) {
     return out;
 }
 
-std::vector<Ray> incoherent_rays(const Scene& scene, size_t count) {
-    Vec3 lo(1e30f), hi(-1e30f);
-    for (const TriangleMesh& m : scene.meshes)
-        for (const Vec3& p : m.positions) {
-            lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-            hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-        }
-    std::vector<Ray> rays(count);
-    for (size_t i = 0; i < count; ++i) {
-        SampleRng rng(12345, 0, 0, i);
-        const Vec3 o = lo + (hi - lo) * Vec3(0.01f + 0.98f * rng.next_float(),
-                                             0.01f + 0.98f * rng.next_float(),
-                                             0.01f + 0.98f * rng.next_float());
-        const float z = 1.0f - 2.0f * rng.next_float();
-        const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-        const float phi = 2.0f * float(std::numbers::pi) * rng.next_float();
-        rays[i] = {o,
-                   {r * std::cos(phi), r * std::sin(phi), z},
-                   std::numeric_limits<float>::infinity()};
-    }
+// incoherent_rays.h's rays, which `aliquot bench` traces too, with no distance limit.
+std::vector<Ray> incoherent(const Scene& scene, size_t count) {
+    std::vector<Ray> rays;
+    rays.reserve(count);
+    for (const RawRay& r : incoherent_rays(scene, count))
+        rays.push_back({r.origin, r.dir, std::numeric_limits<float>::infinity()});
     return rays;
 }
 
@@ -292,7 +279,7 @@ int main(int argc, char** argv) {
     const EmbreeScene embree(scene);
     RTCScene handle = embree.embree_handle();
     const RaySets ours = our_rays(scene, embree, paths);
-    const std::vector<Ray> incoherent = incoherent_rays(scene, ours.closest.size());
+    const std::vector<Ray> incoherent_set = incoherent(scene, ours.closest.size());
     struct Query {
         const char* api;
         bool closest;
@@ -324,7 +311,7 @@ int main(int argc, char** argv) {
             const char* name;
             const std::vector<Ray>* rays;
         };
-        for (const Set& set : {Set{"incoherent", &incoherent},
+        for (const Set& set : {Set{"incoherent", &incoherent_set},
                                Set{q.closest ? "ours: bounce rays" : "ours: shadow rays",
                                    q.closest ? &ours.closest : &ours.shadow}}) {
             uint64_t answered = 0;

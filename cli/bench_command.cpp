@@ -13,6 +13,7 @@
 
 #include "commands.h"
 #include "embedded_render.h"
+#include "incoherent_rays.h"
 #include "path_tracer.h"
 #include "render_options.h"
 #include "scene_loader.h"
@@ -21,33 +22,12 @@ namespace aliquot::cli {
 
 namespace {
 
-// Incoherent rays as a path tracer makes them: origins spread through the scene's bounds,
-// directions uniform on the sphere. Drawn from the same deterministic generator.
+// rtcIntersect1 on incoherent rays (incoherent_rays.h), 4 passes with `threads` threads.
 double raw_embree_rays_per_second(const PathTracer& tracer, const Scene& scene,
                                   int threads) {
-    Vec3 lo(1e30f), hi(-1e30f);
-    for (const TriangleMesh& m : scene.meshes)
-        for (const Vec3& p : m.positions) {
-            lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
-            hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
-        }
-    const Vec3 extent = hi - lo;
     // Rays are made before the clock starts: only rtcIntersect1 is timed.
     constexpr size_t kRays = size_t(1) << 21;
-    struct RawRay {
-        Vec3 origin, dir;
-    };
-    std::vector<RawRay> rays(kRays);
-    for (size_t i = 0; i < kRays; ++i) {
-        SampleRng rng(12345, 0, 0, i);
-        const Vec3 o = lo + extent * Vec3(0.01f + 0.98f * rng.next_float(),
-                                          0.01f + 0.98f * rng.next_float(),
-                                          0.01f + 0.98f * rng.next_float());
-        const float z = 1.0f - 2.0f * rng.next_float();
-        const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
-        const float phi = 2.0f * float(std::numbers::pi) * rng.next_float();
-        rays[i] = {o, {r * std::cos(phi), r * std::sin(phi), z}};
-    }
+    const std::vector<RawRay> rays = incoherent_rays(scene, kRays);
     constexpr int kPasses = 4;
     std::atomic<size_t> next{0};
     std::atomic<uint64_t> hits{0};
