@@ -33,9 +33,7 @@ protected:
         coordinator_ = std::make_unique<Coordinator>(options);
         server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0",
                                                testing::test_security());
-        stub_ = v1::WorkerService::NewStub(
-            grpc::CreateChannel("127.0.0.1:" + std::to_string(server_->port()),
-                                grpc::InsecureChannelCredentials()));
+        stub_ = v1::WorkerService::NewStub(testing::loopback_channel(server_->port()));
 
         RenderSpec& spec = spec_;
         spec.scene_name = "cornell-box";
@@ -233,16 +231,10 @@ TEST(ClientServiceMemory, ASubmissionPastTheMemoryBudgetIsResourceExhausted) {
     options.memory_limit = 1024;
     Coordinator coordinator(options);
     GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
-    auto stub = v1::ClientService::NewStub(
-        grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
-                            grpc::InsecureChannelCredentials()));
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
     testing::TokenContext ctx(Role::Client);
-    v1::SubmitRequest req;
-    req.set_scene_name("cornell-box");
-    req.set_scene_json(self_contained_scene_json("cornell-box"));
-    req.set_width(64);
-    req.set_height(64);
-    req.set_strategy_json(R"({"method":"uniform","spp":1})");
+    const v1::SubmitRequest req =
+        testing::small_submission(self_contained_scene_json("cornell-box"), 64);
     v1::RenderInfo reply;
     const grpc::Status status = stub->Submit(&ctx, req, &reply);
     EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
@@ -272,16 +264,10 @@ TEST(ClientServiceReference, ASubmittedReferenceIsWrittenToNoPredictableFile) {
     {
         Coordinator coordinator(CoordinatorOptions{});
         GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
-        auto stub = v1::ClientService::NewStub(
-            grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
-                                grpc::InsecureChannelCredentials()));
+        auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
         testing::TokenContext ctx(Role::Client);
-        v1::SubmitRequest req;
-        req.set_scene_name("cornell-box");
-        req.set_scene_json(self_contained_scene_json("cornell-box"));
-        req.set_width(8);
-        req.set_height(8);
-        req.set_strategy_json(R"({"method":"uniform","spp":1})");
+        v1::SubmitRequest req =
+            testing::small_submission(self_contained_scene_json("cornell-box"), 8);
         req.set_reference_exr(encode_exr(Image(8, 8)));
         v1::RenderInfo reply;
         EXPECT_TRUE(stub->Submit(&ctx, req, &reply).ok());
@@ -443,17 +429,12 @@ namespace {
 TEST(GrpcTokens, NoTokenIsUnauthenticatedAndTheOtherRolesTokenIsPermissionDenied) {
     Coordinator coordinator{CoordinatorOptions{}};
     GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
-    auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
-                                       grpc::InsecureChannelCredentials());
+    auto channel = testing::loopback_channel(server.port());
     auto client = v1::ClientService::NewStub(channel);
     auto worker = v1::WorkerService::NewStub(channel);
 
-    v1::SubmitRequest submit;
-    submit.set_scene_name("cornell-box");
-    submit.set_scene_json(self_contained_scene_json("cornell-box"));
-    submit.set_width(8);
-    submit.set_height(8);
-    submit.set_strategy_json(R"({"method":"uniform","spp":1})");
+    const v1::SubmitRequest submit =
+        testing::small_submission(self_contained_scene_json("cornell-box"), 8);
     v1::RegisterRequest reg;
     reg.set_name("intruder");
     reg.set_threads(1);
@@ -514,9 +495,7 @@ TEST(GrpcTokens, AServerRefusesMissingOrEqualTokens) {
 TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
     Coordinator coordinator{CoordinatorOptions{}};
     GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
-    auto stub = v1::ClientService::NewStub(
-        grpc::CreateChannel("127.0.0.1:" + std::to_string(server.port()),
-                            grpc::InsecureChannelCredentials()));
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
     RenderSpec spec;
     spec.scene_name = "cornell-box";
     spec.scene_json = self_contained_scene_json("cornell-box");

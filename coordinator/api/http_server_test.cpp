@@ -568,9 +568,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
     Coordinator coordinator{CoordinatorOptions{}};
     GrpcServer grpc_server(coordinator, "127.0.0.1:0", testing::test_security());
     HttpServer http_server(coordinator, "127.0.0.1:0", options_with_tokens());
-    auto stub = v1::ClientService::NewStub(
-        grpc::CreateChannel("127.0.0.1:" + std::to_string(grpc_server.port()),
-                            grpc::InsecureChannelCredentials()));
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(grpc_server.port()));
     json scene = json::parse(self_contained_scene_json("cornell-box"));
     for (const std::string& file :
          {fifo.string(), std::string("/dev/zero.obj"), (dir / "secret.obj").string(),
