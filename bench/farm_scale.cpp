@@ -4,8 +4,9 @@
 // and complete it. Nothing is traced, so the coordinator is the only thing that can be
 // slow. For each method and worker count, until the render ends or the time is up:
 // pixel-samples merged per second, leases per second, and the Lease and Complete
-// latencies (median and 99th percentile) of the calls that got a job. One JSON object per
-// line.
+// latencies (median and 99th percentile) of the calls that got a job; round_end_share is
+// the seconds the coordinator spent ending rounds (Coordinator::round_end_seconds) ÷ the
+// render's. One JSON object per line.
 //
 // Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
 //        (defaults: 1920x1080 10 1,16,64,256
@@ -53,6 +54,7 @@ struct Run {
     double seconds = 0;
     uint64_t samples = 0, leases = 0;
     uint32_t rounds = 0;
+    double round_end_seconds = 0;
     std::string state;
     std::vector<double> lease_ms, complete_ms;
 };
@@ -122,6 +124,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         out.samples = info.samples_done;
         out.rounds = info.rounds_done;
         out.state = std::string(to_string(info.state));
+        out.round_end_seconds = coordinator.round_end_seconds();
         out.leases = out.lease_ms.size();
     }
     fs::remove_all(dir);
@@ -146,12 +149,13 @@ int main(int argc, char** argv) {
                 "\"seconds\": %.2f, \"state\": \"%s\", \"rounds\": %u, "
                 "\"pixel_samples_per_second\": %.0f, \"leases_per_second\": %.0f, "
                 "\"lease_ms_p50\": %.3f, \"lease_ms_p99\": %.3f, "
-                "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f}\n",
+                "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f, "
+                "\"round_end_share\": %.4f}\n",
                 size.width, size.height, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
                 percentile(r.lease_ms, 0.99), percentile(r.complete_ms, 0.5),
-                percentile(r.complete_ms, 0.99));
+                percentile(r.complete_ms, 0.99), r.round_end_seconds / r.seconds);
             std::fflush(stdout);
         }
 }

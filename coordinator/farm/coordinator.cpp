@@ -621,8 +621,14 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     if (session_it == sessions_.end())
         return {CompleteStatus::Ignored, "the render is no longer here"};
     RenderSession& s = *session_it->second;
+    const uint32_t rounds_before = s.rounds_done();
+    const auto began = std::chrono::steady_clock::now();
     const CompleteOutcome outcome =
         s.complete(lease_id, worker, result, alive_workers(), options_.failure_policy);
+    if (s.rounds_done() != rounds_before)  // this result ended a round
+        round_end_seconds_ +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
+                .count();
     if (outcome.status == CompleteStatus::Merged) {
         const uint64_t samples = result.total_samples();
         w.samples += samples;
@@ -702,6 +708,11 @@ bool Coordinator::knows_worker(const std::string& name) {
 size_t Coordinator::leases_out() {
     std::lock_guard lock(mutex_);
     return lease_render_.size();
+}
+
+double Coordinator::round_end_seconds() {
+    std::lock_guard lock(mutex_);
+    return round_end_seconds_;
 }
 
 size_t Coordinator::worker_sessions() {

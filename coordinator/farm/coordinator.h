@@ -131,6 +131,11 @@ public:
     size_t leases_out();
     // Worker sessions remembered now: for tests.
     size_t worker_sessions();
+    // Wall seconds, over all renders, of the Complete calls that ended a round (the last
+    // job's merge, the error estimate, the record, the checkpoint copy, planning and
+    // cutting the next round), all under the lock and with none of the round's jobs out:
+    // what the coordinator costs per round (bench/farm_scale).
+    double round_end_seconds();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -229,6 +234,7 @@ private:
     std::map<std::string, CheckpointTiming>
         checkpoint_timing_;  // render -> its checkpoints
     int ticks_ = 0;
+    double round_end_seconds_ = 0;
     bool stopping_ = false;
     std::thread ticker_;
 

@@ -19,6 +19,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// A valid result for `grant`: its sample counts, zero radiance.
+SampleJobResult zero_result(const LeaseGrant& grant) {
+    SampleJobResult result;
+    result.rect = grant.job.rect;
+    result.pixels.assign(grant.job.counts.size(), PixelSums{});
+    for (size_t i = 0; i < grant.job.counts.size(); ++i)
+        result.pixels[i].samples = grant.job.counts[i];
+    return result;
+}
+
 class CoordinatorTest : public ::testing::Test {
 protected:
     CoordinatorTest()
@@ -359,12 +369,8 @@ TEST_F(CoordinatorTest, WorkerSessionsAreBoundedAndASessionHoldingALeaseIsKept) 
     for (int i = 0; i < 1000; ++i) c.register_worker("flood-" + std::to_string(i), 1);
     EXPECT_LE(c.worker_sessions(), 8u);
     // The holder's session survived the flood: its result still merges.
-    SampleJobResult result;
-    result.rect = grant->job.rect;
-    result.pixels.assign(grant->job.counts.size(), PixelSums{});
-    for (size_t i = 0; i < grant->job.counts.size(); ++i)
-        result.pixels[i].samples = grant->job.counts[i];
-    EXPECT_EQ(c.complete(holder, grant->lease_id, result).status, CompleteStatus::Merged);
+    EXPECT_EQ(c.complete(holder, grant->lease_id, zero_result(*grant)).status,
+              CompleteStatus::Merged);
 }
 
 TEST_F(CoordinatorTest, RegisteringIsRefusedWhenEverySessionHoldsALease) {
@@ -391,6 +397,27 @@ TEST_F(CoordinatorTest, SilentSessionsAndLongLostWorkersAreForgotten) {
     // It comes back: told to register again, which works.
     EXPECT_THROW(c.lease(session, std::chrono::milliseconds(0)), WorkerUnknown);
     EXPECT_NO_THROW(c.register_worker("gone", 1));
+}
+
+// bench/farm_scale's per-round share: only the Complete that ends a round is counted.
+TEST_F(CoordinatorTest, CountsTheTimeOfTheCallsThatEndARound) {
+    options.data_dir.clear();
+    Coordinator c(options);
+    RenderSpec spec = small_spec();
+    spec.width = spec.height = 64;  // 16 jobs a round: the first 15 end nothing
+    c.submit(spec);
+    const std::string w = c.register_worker("w", 1).session;
+    for (int job = 0; job < 15; ++job) {
+        const auto grant = c.lease(w, std::chrono::milliseconds(0));
+        ASSERT_TRUE(grant);
+        ASSERT_EQ(c.complete(w, grant->lease_id, zero_result(*grant)).status,
+                  CompleteStatus::Merged);
+    }
+    EXPECT_EQ(c.round_end_seconds(), 0.0);
+    while (auto grant = c.lease(w, std::chrono::milliseconds(0))) {
+        c.complete(w, grant->lease_id, zero_result(*grant));
+    }
+    EXPECT_GT(c.round_end_seconds(), 0.0);
 }
 
 }  // namespace
