@@ -552,10 +552,17 @@ struct HttpServer::Impl {
                                           req.get_header_value("Cookie")),
             Role::Client);
         if (access == Access::Granted) return httplib::Server::HandlerResponse::Unhandled;
+        res.set_header("Connection", "close");  // its body is never read
+        send_refusal(res, access);
+        return httplib::Server::HandlerResponse::Handled;
+    }
+
+    // 401 with WWW-Authenticate (no or a wrong token) or 403 (the worker's), as JSON.
+    static void send_refusal(httplib::Response& res, Access access) {
         if (access == Access::Unauthenticated)
             res.set_header("WWW-Authenticate", "Bearer");
-        return refuse(res, access == Access::Forbidden ? 403 : 401,
-                      http_session::refusal_message(access));
+        send_error(res, access == Access::Forbidden ? 403 : 401,
+                   http_session::refusal_message(access));
     }
 
     void routes() {
@@ -648,10 +655,7 @@ struct HttpServer::Impl {
                     send_json(res, {{"ok", true}});
                     return;
                 }
-                if (access == Access::Unauthenticated)
-                    res.set_header("WWW-Authenticate", "Bearer");
-                send_error(res, access == Access::Forbidden ? 403 : 401,
-                           http_session::refusal_message(access));
+                send_refusal(res, access);
             }));
         server.Delete(
             "/api/session", [this](const httplib::Request&, httplib::Response& res) {
