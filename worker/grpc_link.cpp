@@ -101,33 +101,40 @@ std::optional<LeaseGrant> GrpcLink::grant_of(const v1::LeaseReply& reply) {
                       from_proto(l.job()), l.lease_ms()};
 }
 
+// One Complete call; with `wait`, it also asks for the next lease, which goes to `next`.
+CompleteOutcome GrpcLink::send_result(const std::string& session, uint64_t lease_id,
+                                      const SampleJobResult& result,
+                                      std::optional<std::chrono::milliseconds> wait,
+                                      std::optional<LeaseGrant>* next) {
+    v1::CompleteRequest req;
+    req.set_session(session);
+    req.set_lease_id(lease_id);
+    to_proto(result, *req.mutable_result());
+    if (wait) {
+        req.set_lease_next(true);
+        req.set_next_wait_ms(uint32_t(wait->count()));
+    }
+    v1::CompleteReply reply;
+    check(stub_->stub->Complete(context(wait.value_or(std::chrono::milliseconds{})).get(),
+                                req, &reply),
+          endpoint_.address);
+    // A coordinator that does not know the worker any more says so on the next Lease.
+    if (next)
+        *next = reply.next().register_first() ? std::nullopt : grant_of(reply.next());
+    return {from_proto(reply.status()), reply.message()};
+}
+
 CompleteOutcome GrpcLink::complete_and_lease(const std::string& session,
                                              uint64_t lease_id,
                                              const SampleJobResult& result,
                                              std::chrono::milliseconds wait,
                                              std::optional<LeaseGrant>& next) {
-    v1::CompleteRequest req;
-    req.set_session(session);
-    req.set_lease_id(lease_id);
-    to_proto(result, *req.mutable_result());
-    req.set_lease_next(true);
-    req.set_next_wait_ms(uint32_t(wait.count()));
-    v1::CompleteReply reply;
-    check(stub_->stub->Complete(context(wait).get(), req, &reply), endpoint_.address);
-    // A coordinator that does not know the worker any more says so on the next Lease.
-    next = reply.next().register_first() ? std::nullopt : grant_of(reply.next());
-    return {from_proto(reply.status()), reply.message()};
+    return send_result(session, lease_id, result, wait, &next);
 }
 
 CompleteOutcome GrpcLink::complete(const std::string& session, uint64_t lease_id,
                                    const SampleJobResult& result) {
-    v1::CompleteRequest req;
-    req.set_session(session);
-    req.set_lease_id(lease_id);
-    to_proto(result, *req.mutable_result());
-    v1::CompleteReply reply;
-    check(stub_->stub->Complete(context().get(), req, &reply), endpoint_.address);
-    return {from_proto(reply.status()), reply.message()};
+    return send_result(session, lease_id, result, std::nullopt, nullptr);
 }
 
 std::optional<std::string> GrpcLink::fetch_scene(const std::string& session,

@@ -36,6 +36,10 @@ public:
               const std::string& reason) override;
 
 private:
+    CompleteOutcome send_result(const std::string& session, uint64_t lease_id,
+                                const SampleJobResult& result,
+                                std::optional<std::chrono::milliseconds> wait,
+                                std::optional<LeaseGrant>* next);
     // The grant in a Lease answer, if any.
     static std::optional<LeaseGrant> grant_of(const v1::LeaseReply& reply);
     // A call's context: a deadline `extra` past the usual, and the worker token.
