@@ -123,7 +123,15 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
     if (total >= cap_cost) return std::vector<double>(n, hi);
 
     // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising:
-    // pixel i starts rising at mu = lo / w_i and stops at hi / w_i. Sweep those events.
+    // pixel i starts rising at mu = lo / w_i (its floor gives way to c_i w_i mu) and
+    // stops at hi / w_i (its cap). In the events' order, f just before event k is
+    //     F_k = floor_cost + C_k + S_k mu_k,
+    // C_k and S_k the sums of the earlier events' constants and slopes; F_k rises with k,
+    // and the root lies in the segment before the first k with F_k >= total. That k is
+    // found by bisecting on rank with selection (nth_element), not by sorting: each step
+    // sums only the events it has not yet placed, so the work is linear in the events
+    // where a sort was n log n (at 1920x1080 the sort was a quarter of optimal's round
+    // end).
     struct Event {
         double mu, slope, constant;
     };
@@ -135,11 +143,32 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
         events.push_back({lo / weights[i], cw, -cost(i) * lo});
         events.push_back({hi / weights[i], -cw, cost(i) * hi});
     }
-    std::sort(events.begin(), events.end(),
-              [](const Event& a, const Event& b) { return a.mu < b.mu; });
+    const auto by_mu = [](const Event& a, const Event& b) { return a.mu < b.mu; };
+    // Events [0, first) are placed below the root and summed into (constant, slope); the
+    // crossing event is in [first, last).
     double constant = floor_cost, slope = 0;
+    size_t first = 0, last = events.size();
+    while (last - first > 32) {
+        const size_t mid = first + (last - first) / 2;
+        std::nth_element(events.begin() + first, events.begin() + mid,
+                         events.begin() + last, by_mu);
+        double c = constant, s = slope;
+        for (size_t k = first; k < mid; ++k) {
+            c += events[k].constant;
+            s += events[k].slope;
+        }
+        if (c + s * events[mid].mu >= total) {
+            last = mid + 1;  // the crossing is at mid or before it
+        } else {
+            constant = c + events[mid].constant;  // the crossing is after mid
+            slope = s + events[mid].slope;
+            first = mid + 1;
+        }
+    }
+    std::sort(events.begin() + first, events.begin() + last, by_mu);
     double mu = std::numeric_limits<double>::infinity();
-    for (const Event& e : events) {
+    for (size_t k = first; k < last; ++k) {
+        const Event& e = events[k];
         if (slope > 0 && constant + slope * e.mu >= total) {
             mu = (total - constant) / slope;
             break;

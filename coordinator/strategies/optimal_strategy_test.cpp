@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 #include "strategy_params.h"
 #include "synthetic_source.h"
@@ -53,6 +54,36 @@ TEST(Optimal, OptimalCountsWithCostsSpendTheCostBudget) {
     const auto n = OptimalStrategy::optimal_counts(w, c, 70, 0, 1e9);
     EXPECT_NEAR(n[0] * 1 + n[1] * 2 + n[2] * 4, 70, 1e-9);
     EXPECT_NEAR(n[0], 10, 1e-9);
+}
+
+// Enough pixels that the root is found by bisecting on rank, not only by the final sweep;
+// many equal weights, so ties between events are met too.
+TEST(Optimal, OptimalCountsOverManyPixelsMeetTheLagrangeConditions) {
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> spread(-6, 6);
+    const size_t n = 20000;
+    std::vector<double> w(n), c(n);
+    for (size_t i = 0; i < n; ++i) {
+        w[i] = i % 3 == 0 ? 1.0 : std::exp(spread(rng));
+        c[i] = 1 + double(i % 7);
+    }
+    for (const bool with_costs : {false, true}) {
+        const std::vector<double> costs = with_costs ? c : std::vector<double>{};
+        const double lo = 2, hi = 500;
+        double floor_cost = 0;
+        for (size_t i = 0; i < n; ++i) floor_cost += (with_costs ? c[i] : 1) * lo;
+        const double total = floor_cost * 6;
+        const auto counts = OptimalStrategy::optimal_counts(w, costs, total, lo, hi);
+        double spent = 0, mu = -1;
+        for (size_t i = 0; i < n; ++i) {
+            spent += (with_costs ? c[i] : 1) * counts[i];
+            if (counts[i] > lo && counts[i] < hi) mu = counts[i] / w[i];
+        }
+        EXPECT_NEAR(spent / total, 1.0, 1e-9);
+        ASSERT_GT(mu, 0);
+        for (size_t i = 0; i < n; ++i)
+            ASSERT_NEAR(counts[i], std::clamp(mu * w[i], lo, hi), 1e-6 * counts[i]) << i;
+    }
 }
 
 TEST(Optimal, AllocationMatchesTheAnalyticOptimumForKnownVariances) {
