@@ -110,14 +110,29 @@ void Coordinator::changed() {
     work_ready_.notify_all();
 }
 
+Coordinator::SlotPtr Coordinator::slot_of(const std::string& id) const {
+    const auto it = sessions_.find(id);
+    return it == sessions_.end() ? nullptr : it->second;
+}
+
+std::vector<Coordinator::SlotPtr> Coordinator::slots_in_order() const {
+    std::vector<SlotPtr> out;
+    out.reserve(order_.size());
+    for (const std::string& id : order_) out.push_back(sessions_.at(id));
+    return out;
+}
+
 void Coordinator::attach(std::unique_ptr<RenderSession> session) {
+    auto slot = std::make_shared<RenderSlot>();
+    RenderSlot* raw = slot.get();  // the slot owns the session: it outlives the callbacks
     RenderSession* s = session.get();
-    s->on_round = [this](RenderSession& r, const RoundSummary& round) {
-        record_round(r, round);
+    s->on_round = [this, raw](RenderSession&, const RoundSummary& round) {
+        record_round(*raw, round);
     };
-    s->on_finished = [this](RenderSession& r) { record_end(r); };
+    s->on_finished = [this, raw](RenderSession&) { record_end(*raw); };
+    slot->session = std::move(session);
     order_.push_back(s->id());
-    sessions_[s->id()] = std::move(session);
+    sessions_[s->id()] = std::move(slot);
     s->start();
     if (store_ && s->state() == RenderState::Running)
         backlog_.submit("record " + s->id() + " as running", [this, id = s->id()] {
@@ -126,8 +141,9 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     changed();
 }
 
-void Coordinator::record_round(RenderSession& r, const RoundSummary& round) {
-    round_history_[r.id()].push_back(round);  // for rounds(): see the end of this file
+void Coordinator::record_round(RenderSlot& slot, const RoundSummary& round) {
+    RenderSession& r = *slot.session;
+    slot.round_history.push_back(round);  // for rounds(): see the end of this file
     if (!store_) return;
     try {
         RoundRecord rec;
@@ -150,7 +166,7 @@ void Coordinator::record_round(RenderSession& r, const RoundSummary& round) {
             shape.push_back(
                 {b.rect.x, b.rect.y, b.rect.width, b.rect.height, b.converged});
         }
-        std::string& last_shape = bucket_shapes_[r.id()];
+        std::string& last_shape = slot.bucket_shape;
         if (!buckets.empty() && shape.dump() != last_shape) {
             rec.buckets_json = buckets.dump();
             last_shape = shape.dump();
@@ -160,7 +176,7 @@ void Coordinator::record_round(RenderSession& r, const RoundSummary& round) {
         // between the two re-runs the round, and recording it again is a no-op.
         backlog_.submit("record round " + std::to_string(round.index) + " of " + r.id(),
                         [this, rec] { store_->add_round(rec); });
-        queue_checkpoint(r, round);
+        queue_checkpoint(slot, round);
     } catch (const std::exception& e) {
         // The render goes on; the next round's checkpoint tries again.
         log_error("cannot checkpoint round " + std::to_string(round.index) + " of " +
@@ -168,9 +184,11 @@ void Coordinator::record_round(RenderSession& r, const RoundSummary& round) {
     }
 }
 
-// Called under the lock, after the round's record is queued; may throw (the caller logs).
-void Coordinator::queue_checkpoint(RenderSession& r, const RoundSummary& round) {
-    CheckpointTiming& timing = checkpoint_timing_[r.id()];
+// Called under the render's lock, after the round's record is queued; may throw (the
+// caller logs).
+void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) {
+    RenderSession& r = *slot.session;
+    CheckpointTiming& timing = slot.checkpoint;
     if (!timing.in_flight &&
         checkpoint_due(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - timing.ended)
@@ -180,51 +198,52 @@ void Coordinator::queue_checkpoint(RenderSession& r, const RoundSummary& round) 
         // written by the backlog's thread after the round's record, outside the
         // lock. One copy per render waits at a time: a due checkpoint meanwhile
         // is skipped, and the next round's tries again.
-        struct Pending {
-            Checkpoint cp;
-            bool saved = false;
-        };
-        auto pending = std::make_shared<Pending>(Pending{
-            {r.merged(), r.strategy().save_state(), r.rounds_done(), round.seconds},
-            false});
+        if (!slot.checkpoint_copy)
+            slot.checkpoint_copy = std::make_shared<CheckpointCopy>();
+        const std::shared_ptr<CheckpointCopy> copy = slot.checkpoint_copy;
+        copy->cp.merged = r.merged();  // assigned, not constructed: reuses the memory
+        copy->cp.strategy_state = r.strategy().save_state();
+        copy->cp.rounds_done = r.rounds_done();
+        copy->cp.seconds = round.seconds;
+        copy->saved = false;
         timing.in_flight = true;
+        // The copy stays the backlog's until the write below has run to its end (the
+        // store's row too, which a full disk retries): only then may the next round's
+        // checkpoint reuse it.
         backlog_.submit(
             "record the progress of " + r.id(),
-            [this, id = r.id(), samples = int64_t(round.samples_total), pending] {
-                const auto start = std::chrono::steady_clock::now();
-                if (!pending->saved) {
+            [this, id = r.id(), samples = int64_t(round.samples_total), copy,
+             state = copy->cp.strategy_state.dump(), weak = slot.weak_from_this()] {
+                if (!copy->saved) {
+                    const auto start = std::chrono::steady_clock::now();
                     try {
-                        save_checkpoint(render_dir(id) / "checkpoint.bin", pending->cp);
-                        pending->saved = true;
+                        save_checkpoint(render_dir(id) / "checkpoint.bin", copy->cp);
+                        copy->saved = true;
+                        copy->written = std::chrono::steady_clock::now();
+                        copy->write_seconds =
+                            std::chrono::duration<double>(copy->written - start).count();
                     } catch (const std::exception& e) {
                         // The render goes on; the next round's checkpoint tries
                         // again.
                         log_error("cannot checkpoint " + id + ": " + e.what());
                     }
                 }
-                const auto end = std::chrono::steady_clock::now();
-                {
-                    std::lock_guard lock(mutex_);
-                    if (auto it = checkpoint_timing_.find(id);
-                        it != checkpoint_timing_.end()) {
-                        it->second.in_flight = false;
-                        if (pending->saved) {
-                            it->second.ended = end;
-                            it->second.cost_seconds =
-                                std::chrono::duration<double>(end - start).count();
-                        }
+                // Throws on a full disk: retried, without writing the file again.
+                if (copy->saved) store_->update_render_progress(id, samples, state);
+                if (const SlotPtr slot = weak.lock()) {
+                    std::lock_guard lock(slot->mutex);
+                    slot->checkpoint.in_flight = false;
+                    if (copy->saved) {
+                        slot->checkpoint.ended = copy->written;
+                        slot->checkpoint.cost_seconds = copy->write_seconds;
                     }
                 }
-                // Throws on a full disk: retried, without writing the file again.
-                if (pending->saved)
-                    store_->update_render_progress(id, samples,
-                                                   pending->cp.strategy_state.dump());
             });
     }
 }
 
-void Coordinator::record_end(RenderSession& r) {
-    checkpoint_timing_.erase(r.id());
+void Coordinator::record_end(RenderSlot& slot) {
+    RenderSession& r = *slot.session;
     if (!store_) return;  // the embedded render keeps its session: no disk to read
     // The session stays in memory until this is written, so a retry finds its
     // buffers; then this write drops it. A finished session changes no more, so the
@@ -372,8 +391,16 @@ RenderInfo Coordinator::info_of(const RenderSession& s) const {
 }
 
 std::optional<RenderInfo> Coordinator::info(const std::string& id) {
-    std::lock_guard lock(mutex_);
-    if (auto it = sessions_.find(id); it != sessions_.end()) return info_of(*it->second);
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    if (slot) {
+        std::lock_guard lock(slot->mutex);
+        return info_of(*slot->session);
+    }
+    // Not in memory: finished and evicted (its end is in the store), or unknown.
     if (!store_) return std::nullopt;
     const std::optional<RenderRecord> rec = store_->get_render(id);
     if (!rec) return std::nullopt;
@@ -436,23 +463,35 @@ std::vector<RenderInfo> Coordinator::list(size_t limit) {
 }
 
 std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
+    SlotPtr slot;
     {
         std::lock_guard lock(mutex_);
-        auto it = sessions_.find(id);
-        if (it == sessions_.end()) {
-            if (!store_ || !store_->get_render(id)) return std::nullopt;
-        } else {
-            it->second->cancel();
-            changed();
+        slot = slot_of(id);
+    }
+    if (slot) {
+        {
+            std::lock_guard lock(slot->mutex);
+            slot->session->cancel();
         }
+        std::lock_guard lock(mutex_);
+        forget_ended_leases({}, {id});
+        changed();
+    } else if (!store_ || !store_->get_render(id)) {
+        return std::nullopt;
     }
     return info(id);
 }
 
 std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
-    std::lock_guard lock(mutex_);
-    if (auto it = sessions_.find(id); it != sessions_.end())
-        return it->second->merged().image(aovs);
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    if (slot) {
+        std::lock_guard lock(slot->mutex);
+        return slot->session->merged().image(aovs);
+    }
     if (!store_ || !store_->get_render(id)) return std::nullopt;
     const auto path = render_dir(id) / "image.exr";
     if (!std::filesystem::exists(path)) return std::nullopt;
@@ -482,8 +521,14 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
         }
     }
     w.lost = false;
-    if (w.registered) alive_.insert(name);
+    if (w.registered) set_alive(name, true);
     return w;
+}
+
+void Coordinator::set_alive(const std::string& name, bool alive) {
+    const bool changed_set = alive ? alive_.insert(name).second : alive_.erase(name) > 0;
+    if (changed_set)
+        alive_snapshot_ = std::make_shared<const std::set<std::string>>(alive_);
 }
 
 const std::string& Coordinator::worker_of_session(const std::string& session) {
@@ -558,7 +603,7 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
     w.registered = true;
-    alive_.insert(name);
+    set_alive(name, true);
     // A full disk must not keep workers out: the row is written again when it returns.
     if (store_) {
         try {
@@ -584,62 +629,117 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
     const std::string worker = worker_of_session(session);
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
-        const std::set<std::string>& alive = alive_workers();
-        for (const std::string& id : order_) {
-            RenderSession& s = *sessions_[id];
-            if (s.state() != RenderState::Running || !s.has_pending()) continue;
-            const uint64_t lease_id = new_lease_id();
+        const uint64_t seen = version_;
+        const std::vector<SlotPtr> slots = slots_in_order();
+        const std::shared_ptr<const std::set<std::string>> alive = alive_workers();
+        // Reserved now, so that no other lease takes the id while the lock is let go.
+        const uint64_t lease_id = new_lease_id();
+        lease_render_[lease_id] = {"", session};
+        lock.unlock();
+        // Renders in submission order; one whose lock is busy (a merge, or a round's
+        // end) is passed over at first and waited for only when no other render has a
+        // job, so one render's round end holds up no other render's workers.
+        std::optional<LeaseGrant> grant;
+        std::vector<RenderSlot*> busy;
+        auto try_issue = [&](RenderSlot& slot) {
+            RenderSession& s = *slot.session;
+            if (s.state() != RenderState::Running || !s.has_pending()) return;
             std::optional<SampleJob> job = s.issue(
                 lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
-                alive, options_.failure_policy);
-            if (!job) continue;
-            lease_render_[lease_id] = {id, session};
-            changed();
-            return LeaseGrant{
-                lease_id,        id,
-                s.scene_hash(),  {s.spec().width, s.spec().height, s.spec().seed},
-                std::move(*job), uint32_t(options_.lease_time.count())};
+                *alive, options_.failure_policy);
+            if (job)
+                grant = LeaseGrant{
+                    lease_id,        s.id(),
+                    s.scene_hash(),  {s.spec().width, s.spec().height, s.spec().seed},
+                    std::move(*job), uint32_t(options_.lease_time.count())};
+        };
+        for (const SlotPtr& slot : slots) {
+            std::unique_lock render(slot->mutex, std::try_to_lock);
+            if (!render.owns_lock()) {
+                busy.push_back(slot.get());
+                continue;
+            }
+            try_issue(*slot);
+            if (grant) break;
         }
-        if (work_ready_.wait_until(lock, deadline) == std::cv_status::timeout) break;
+        for (size_t i = 0; !grant && i < busy.size(); ++i) {
+            std::lock_guard render(busy[i]->mutex);
+            try_issue(*busy[i]);
+        }
+        lock.lock();
+        if (grant) {
+            lease_render_[lease_id] = {grant->render_id, session};
+            changed();
+            return grant;
+        }
+        lease_render_.erase(lease_id);
+        // Whatever could give this worker a job (a round planned, a lease given back or
+        // expired, a worker lost) changes version_ under this lock: nothing is missed
+        // between the scan above and this wait.
+        if (!work_ready_.wait_until(lock, deadline,
+                                    [&] { return version_ != seen || stopping_; }))
+            break;
     }
     return std::nullopt;
 }
 
 CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
                                       const SampleJobResult& result) {
+    std::string worker;
+    SlotPtr slot;
+    std::shared_ptr<const std::set<std::string>> alive;
+    {
+        std::lock_guard lock(mutex_);
+        worker = worker_of_session(session);
+        const auto it = lease_render_.find(lease_id);
+        if (it == lease_render_.end() || it->second.render.empty())
+            return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
+        // Someone else's lease: refused before anything is looked at, and it stays with
+        // its holder, whose own result still merges.
+        if (it->second.session != session)
+            return {CompleteStatus::Ignored, "not your lease"};
+        slot = slot_of(it->second.render);
+        lease_render_.erase(it);  // whatever the outcome, this lease has ended
+        if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
+        alive = alive_workers();
+    }
+    // The merge, and when this is the round's last job the round's end, under the
+    // render's lock alone.
+    CompleteOutcome outcome;
+    double round_end = 0;
+    bool render_failed = false;
+    {
+        std::lock_guard render(slot->mutex);
+        RenderSession& s = *slot->session;
+        const uint32_t rounds_before = s.rounds_done();
+        const auto began = std::chrono::steady_clock::now();
+        outcome = s.complete(lease_id, worker, result, *alive, options_.failure_policy);
+        if (s.rounds_done() != rounds_before)  // this result ended a round
+            round_end =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
+                    .count();
+        render_failed = s.state() == RenderState::Failed;
+    }
     std::lock_guard lock(mutex_);
-    const std::string& worker = worker_of_session(session);
-    WorkerEntry& w = workers_.at(worker);
-    const auto it = lease_render_.find(lease_id);
-    if (it == lease_render_.end())
-        return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
-    // Someone else's lease: refused before anything is looked at, and it stays with its
-    // holder, whose own result still merges.
-    if (it->second.session != session) return {CompleteStatus::Ignored, "not your lease"};
-    const auto session_it = sessions_.find(it->second.render);
-    lease_render_.erase(it);  // whatever the outcome, this lease has ended
-    if (session_it == sessions_.end())
-        return {CompleteStatus::Ignored, "the render is no longer here"};
-    RenderSession& s = *session_it->second;
-    const uint32_t rounds_before = s.rounds_done();
-    const auto began = std::chrono::steady_clock::now();
-    const CompleteOutcome outcome =
-        s.complete(lease_id, worker, result, alive_workers(), options_.failure_policy);
-    if (s.rounds_done() != rounds_before)  // this result ended a round
-        round_end_seconds_ +=
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
-                .count();
+    round_end_seconds_ += round_end;
+    if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
-        const uint64_t samples = result.total_samples();
-        w.samples += samples;
-        // A worker's own clock: a NaN or a near-zero time would poison the smoothed rate.
-        if (std::isfinite(result.wall_seconds) && result.wall_seconds >= 1e-3) {
-            // Per-thread rate of this job, times the worker's threads, smoothed.
-            const double rate =
-                double(samples) / result.wall_seconds * std::max(w.threads, 1u);
-            w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
+        // The worker may have been forgotten meanwhile (it was silent for long): its
+        // counts go with it.
+        if (const auto w_it = workers_.find(worker); w_it != workers_.end()) {
+            WorkerEntry& w = w_it->second;
+            const uint64_t samples = result.total_samples();
+            w.samples += samples;
+            // A worker's own clock: a NaN or a near-zero time would poison the smoothed
+            // rate.
+            if (std::isfinite(result.wall_seconds) && result.wall_seconds >= 1e-3) {
+                // Per-thread rate of this job, times the worker's threads, smoothed.
+                const double rate =
+                    double(samples) / result.wall_seconds * std::max(w.threads, 1u);
+                w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
+            }
+            w.unrecorded += samples;  // written by tick(), not once per merged job
         }
-        w.unrecorded += samples;  // written by tick(), not once per merged job
     }
     changed();
     return outcome;
@@ -655,27 +755,42 @@ std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
     return std::nullopt;
 }
 
-RenderSession* Coordinator::held_render(const std::string& session, uint64_t lease_id) {
+Coordinator::SlotPtr Coordinator::held_render(const std::string& session,
+                                              uint64_t lease_id) {
     // Only the holder's word counts: anyone else's leaves the lease with its holder.
     const auto it = lease_render_.find(lease_id);
     if (it == lease_render_.end() || it->second.session != session) return nullptr;
-    const auto s = sessions_.find(it->second.render);
-    return s == sessions_.end() ? nullptr : s->second.get();
+    return slot_of(it->second.render);
 }
 
 bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
-    std::lock_guard lock(mutex_);
-    const std::string& worker = worker_of_session(session);
-    RenderSession* s = held_render(session, lease_id);
-    return s &&
-           s->renew(lease_id, worker, RenderSession::Clock::now() + options_.lease_time);
+    std::string worker;
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        worker = worker_of_session(session);
+        slot = held_render(session, lease_id);
+    }
+    if (!slot) return false;
+    std::lock_guard render(slot->mutex);
+    return slot->session->renew(lease_id, worker,
+                                RenderSession::Clock::now() + options_.lease_time);
 }
 
 bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
+    std::string worker;
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        worker = worker_of_session(session);
+        slot = held_render(session, lease_id);
+    }
+    if (!slot) return false;
+    {
+        std::lock_guard render(slot->mutex);
+        if (!slot->session->abandon(lease_id, worker)) return false;
+    }
     std::lock_guard lock(mutex_);
-    const std::string& worker = worker_of_session(session);
-    RenderSession* s = held_render(session, lease_id);
-    if (!s || !s->abandon(lease_id, worker)) return false;
     lease_render_.erase(lease_id);
     changed();
     return true;
@@ -683,18 +798,29 @@ bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
 
 bool Coordinator::fail(const std::string& session, uint64_t lease_id,
                        const std::string& reason) {
-    std::lock_guard lock(mutex_);
-    const std::string& worker = worker_of_session(session);
-    RenderSession* held = held_render(session, lease_id);
-    if (!held || !held->fail_job(lease_id, worker, reason, alive_workers(),
-                                 options_.failure_policy))
-        return false;
-    RenderSession& s = *held;
-    lease_render_.erase(lease_id);
-    if (s.state() == RenderState::Failed) {
-        log_error(s.id() + " failed: " + s.error());
-        forget_ended_leases();  // the render's other leases ended with it
+    std::string worker;
+    SlotPtr slot;
+    std::shared_ptr<const std::set<std::string>> alive;
+    {
+        std::lock_guard lock(mutex_);
+        worker = worker_of_session(session);
+        slot = held_render(session, lease_id);
+        alive = alive_workers();
     }
+    if (!slot) return false;
+    bool render_failed = false;
+    {
+        std::lock_guard render(slot->mutex);
+        RenderSession& s = *slot->session;
+        if (!s.fail_job(lease_id, worker, reason, *alive, options_.failure_policy))
+            return false;
+        render_failed = s.state() == RenderState::Failed;
+        if (render_failed) log_error(s.id() + " failed: " + s.error());
+    }
+    std::lock_guard lock(mutex_);
+    lease_render_.erase(lease_id);
+    // The render's other leases ended with it.
+    if (render_failed) forget_ended_leases({}, {slot->session->id()});
     changed();
     return true;
 }
@@ -720,28 +846,38 @@ size_t Coordinator::worker_sessions() {
     return worker_sessions_.size();
 }
 
-void Coordinator::forget_ended_leases() {
-    for (auto it = lease_render_.begin(); it != lease_render_.end();) {
-        const auto session = sessions_.find(it->second.render);
-        if (session == sessions_.end() || !session->second->holds(it->first))
-            it = lease_render_.erase(it);
-        else
-            ++it;
-    }
+void Coordinator::forget_ended_leases(const std::vector<uint64_t>& ended,
+                                      const std::set<std::string>& finished) {
+    for (const uint64_t lease : ended) lease_render_.erase(lease);
+    // An empty render is a lease being issued now (lease()): not ended.
+    std::erase_if(lease_render_, [&](const auto& kv) {
+        const std::string& render = kv.second.render;
+        return !render.empty() && (finished.count(render) || !sessions_.count(render));
+    });
 }
 
 std::vector<WorkerStatus> Coordinator::workers() {
+    // Each render's leases under its own lock, then the workers under the coordinator's.
+    std::vector<SlotPtr> slots;
+    {
+        std::lock_guard lock(mutex_);
+        slots = slots_in_order();
+    }
+    std::map<std::string, std::vector<std::string>> leases;  // worker -> "render/job"
+    for (const SlotPtr& slot : slots) {
+        std::lock_guard render(slot->mutex);
+        if (slot->session->finished()) continue;
+        for (auto& [worker, label] : slot->session->leases())
+            leases[worker].push_back(std::move(label));
+    }
     std::lock_guard lock(mutex_);
     std::vector<WorkerStatus> out;
     for (const auto& [name, w] : workers_) {
         WorkerStatus st;
         st.name = name;
         st.threads = w.threads;
-        for (const std::string& id : order_) {
-            const RenderSession& s = *sessions_.at(id);
-            if (s.finished()) continue;
-            for (std::string& l : s.leases_of(name)) st.leases.push_back(std::move(l));
-        }
+        if (auto it = leases.find(name); it != leases.end())
+            st.leases = std::move(it->second);
         st.state = w.lost ? "lost" : (st.leases.empty() ? "idle" : "busy");
         st.samples_traced = w.samples;
         st.samples_per_second = w.lost ? 0 : w.rate;
@@ -757,14 +893,29 @@ std::string Coordinator::storage_warning() {
 }
 
 void Coordinator::tick() {
-    std::lock_guard lock(mutex_);
     backlog_.retry();
+    // Leases past their deadline go back to their renders' queues, under each render's
+    // lock; then, under the coordinator's, they and the leases of renders finished
+    // since are gone for good.
+    std::vector<SlotPtr> slots;
+    {
+        std::lock_guard lock(mutex_);
+        slots = slots_in_order();
+    }
     const auto now = RenderSession::Clock::now();
-    bool any = false;
-    for (auto& [id, s] : sessions_)
-        if (!s->finished() && s->expire(now) > 0) any = true;
-    // Expired leases, and those of renders cancelled or finished since: gone for good.
-    forget_ended_leases();
+    std::vector<uint64_t> expired;
+    std::set<std::string> finished;
+    for (const SlotPtr& slot : slots) {
+        std::lock_guard render(slot->mutex);
+        if (slot->session->finished())
+            finished.insert(slot->session->id());
+        else
+            for (const uint64_t lease : slot->session->expire(now))
+                expired.push_back(lease);
+    }
+    std::lock_guard lock(mutex_);
+    bool any = !expired.empty();
+    forget_ended_leases(expired, finished);
     const int64_t wall = unix_millis_now();
     for (auto& [name, w] : workers_) {
         if (store_ && w.unrecorded > 0) {
@@ -778,7 +929,7 @@ void Coordinator::tick() {
         }
         if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
             w.lost = true;
-            alive_.erase(name);
+            set_alive(name, false);
             any = true;
             if (store_) {
                 try {
@@ -820,13 +971,17 @@ RoundSummary summary_of(const RoundRecord& rec) {
 }  // namespace
 
 std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& id) {
-    std::lock_guard lock(mutex_);
-    const auto live = sessions_.find(id);
-    if (live != sessions_.end()) {
-        std::vector<RoundSummary>& history = round_history_[id];
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    if (slot) {
+        std::lock_guard render(slot->mutex);
+        std::vector<RoundSummary>& history = slot->round_history;
         // A resumed render's history in memory starts at its checkpoint: fill it in from
         // the store once.
-        if (history.size() < live->second->rounds_done() && store_) {
+        if (history.size() < slot->session->rounds_done() && store_) {
             std::vector<RoundSummary> all;
             for (const RoundRecord& rec : store_->rounds(id))
                 all.push_back(summary_of(rec));
@@ -841,9 +996,15 @@ std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& 
 }
 
 std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
-    std::lock_guard lock(mutex_);
-    if (auto it = sessions_.find(id); it != sessions_.end())
-        return it->second->strategy().buckets();
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    if (slot) {
+        std::lock_guard render(slot->mutex);
+        return slot->session->strategy().buckets();
+    }
     if (!store_ || !store_->get_render(id)) return std::nullopt;
     std::vector<Bucket> out;
     const std::vector<RoundRecord> recs = store_->rounds(id);
@@ -926,9 +1087,11 @@ MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t 
 
 uint64_t Coordinator::memory_in_use_locked() const {
     uint64_t total = 0;
-    for (const auto& [id, s] : sessions_)
-        total += render_memory_estimate(s->spec().width, s->spec().height,
-                                        s->spec().reference.has_value());
+    for (const auto& [id, slot] : sessions_) {
+        const RenderSpec& spec = slot->session->spec();  // never changes: no render lock
+        total +=
+            render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
+    }
     return total;
 }
 
@@ -944,16 +1107,14 @@ size_t Coordinator::sessions_in_memory() {
 
 void Coordinator::evict(const std::string& id) {
     const auto it = sessions_.find(id);
-    if (it == sessions_.end() || !it->second->finished()) return;
-    sessions_.erase(it);
+    // Finished sessions change no more, so this reads its state without its lock.
+    if (it == sessions_.end() || !it->second->session->finished()) return;
+    sessions_.erase(it);  // a call that found the slot before keeps it until it is done
     order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
     // Leases of a cancelled render that workers still hold: their results are now
     // answered as unknown, which is what they were (ignored) before.
     std::erase_if(lease_render_,
                   [&id](const auto& kv) { return kv.second.render == id; });
-    round_history_.erase(id);
-    bucket_shapes_.erase(id);
-    checkpoint_timing_.erase(id);
     // glibc keeps freed pages of its arenas for reuse; a finished render's buffers are
     // tens of megabytes, and given back they let the coordinator's size follow its live
     // renders rather than its busiest moment.

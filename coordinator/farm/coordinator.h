@@ -1,6 +1,16 @@
 // Coordinator: every render's session, the leases handed to workers, the workers it has
 // heard from, and (with a data directory) the SQLite record and per-round checkpoints.
 // Transport-free: the gRPC services and the embedded render call the same methods.
+//
+// Locks. Two kinds, never nested. `mutex_` guards the coordinator's maps (renders by id,
+// leases, worker sessions, workers, scenes) and is held for look-ups and bookkeeping
+// only. Each render has a lock of its own (RenderSlot::mutex) for everything its session
+// does: issuing a job, merging a result, and ending a round (error estimate, checkpoint
+// copy, planning and cutting the next one). A call finds its render under `mutex_`, lets
+// it go, works under the render's lock, and takes `mutex_` again to note what changed; so
+// a round end at 1920x1080 (hundreds of milliseconds for optimal) holds up that render's
+// workers only, and renders merge in parallel. Neither lock is taken while the other is
+// held.
 #pragma once
 
 #include <chrono>
@@ -17,6 +27,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "checkpoint.h"
 #include "record_backlog.h"
 #include "render_session.h"
 
@@ -133,8 +144,8 @@ public:
     size_t worker_sessions();
     // Wall seconds, over all renders, of the Complete calls that ended a round (the last
     // job's merge, the error estimate, the record, the checkpoint copy, planning and
-    // cutting the next round), all under the lock and with none of the round's jobs out:
-    // what the coordinator costs per round (bench/farm_scale).
+    // cutting the next round), under the render's lock and with none of the round's jobs
+    // out: what the coordinator costs per round (bench/farm_scale).
     double round_end_seconds();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
@@ -153,6 +164,33 @@ public:
     void stop();
 
 private:
+    struct CheckpointTiming {
+        std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
+        double cost_seconds = 0;                        // how long writing it took
+        bool in_flight = false;  // a copy waits for the writer: no second one meanwhile
+    };
+    // The copy of a render's buffers a checkpoint is written from, kept between
+    // checkpoints so that taking the next copy reuses its memory: a fresh 150 MB copy
+    // at 1920x1080 was mostly the kernel zeroing new pages.
+    struct CheckpointCopy {
+        Checkpoint cp;
+        bool saved = false;  // written to disk (a retried write does not write it again)
+        std::chrono::steady_clock::time_point written{};
+        double write_seconds = 0;
+    };
+    // A render in memory with its own lock, which guards everything here.
+    struct RenderSlot : std::enable_shared_from_this<RenderSlot> {
+        std::mutex mutex;
+        std::unique_ptr<RenderSession> session;
+        // Its completed rounds (for rounds()): from memory for a live render; a resumed
+        // one's earlier rounds are read from the store once.
+        std::vector<RoundSummary> round_history;
+        std::string bucket_shape;  // the last bucket layout stored (record_round)
+        CheckpointTiming checkpoint;
+        std::shared_ptr<CheckpointCopy> checkpoint_copy;  // the backlog's while in flight
+    };
+    using SlotPtr = std::shared_ptr<RenderSlot>;
+
     struct WorkerEntry {
         uint32_t threads = 0;
         int64_t last_seen_ms = 0;
@@ -165,28 +203,42 @@ private:
 
     void resume_unfinished();
     // A session's round and end, queued on the backlog (attach wires them).
-    void record_round(RenderSession& r, const RoundSummary& round);
-    void queue_checkpoint(RenderSession& r, const RoundSummary& round);
-    void record_end(RenderSession& r);
+    // Called under the render's lock (RenderSession's callbacks): they touch the slot and
+    // queue writes on the backlog, never `mutex_`.
+    void record_round(RenderSlot& slot, const RoundSummary& round);
+    void queue_checkpoint(RenderSlot& slot, const RoundSummary& round);
+    void record_end(RenderSlot& slot);
     uint64_t first_free_render_number() const;
     std::string claim_render_id();
+    // Wires a new session's callbacks, starts it and makes it visible; under `mutex_`
+    // (no one else can reach the session yet).
     void attach(std::unique_ptr<RenderSession> session);
+    // The render `id` in memory, or null; under `mutex_`.
+    SlotPtr slot_of(const std::string& id) const;
+    // Every render in memory, in submission order; under `mutex_`.
+    std::vector<SlotPtr> slots_in_order() const;
     RenderInfo info_of(const RenderSession& s) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
     // The name of the worker holding `session`, touched (heard from now); throws
     // WorkerUnknown for a session this coordinator did not issue.
     const std::string& worker_of_session(const std::string& session);
-    // The render whose lease `lease_id` `session` holds; nullptr when it holds none.
-    RenderSession* held_render(const std::string& session, uint64_t lease_id);
+    // The render whose lease `lease_id` `session` holds; null when it holds none.
+    SlotPtr held_render(const std::string& session, uint64_t lease_id);
     // A random lease id, not 0 and not one out now.
     uint64_t new_lease_id() const;
     // Workers registered here and not lost: those a job may go to (RenderSession::issue).
     // Kept up to date as workers register, are lost and come back, rather than built on
-    // every lease and result: at 256 workers building it was 256 string copies a job.
-    const std::set<std::string>& alive_workers() const { return alive_; }
-    // Drops lease_render_ entries whose lease ended (expired, render finished or gone).
-    void forget_ended_leases();
+    // every lease and result (at 256 workers building it was 256 string copies a job);
+    // an immutable snapshot, so a call can use it under its render's lock alone.
+    std::shared_ptr<const std::set<std::string>> alive_workers() const {
+        return alive_snapshot_;
+    }
+    void set_alive(const std::string& name, bool alive);
+    // Drops lease_render_ entries of leases that ended (`ended`) and of renders that are
+    // finished or gone.
+    void forget_ended_leases(const std::vector<uint64_t>& ended,
+                             const std::set<std::string>& finished);
     // Sessions holding a lease now.
     std::set<std::string> sessions_with_leases() const;
     // Drops sessions silent for forget_workers_after that hold no lease, and workers lost
@@ -208,12 +260,11 @@ private:
     std::condition_variable progress_;
     uint64_t version_ = 0;
     uint64_t next_render_number_ = 1;
-    std::map<std::string, std::unique_ptr<RenderSession>> sessions_;  // by id
-    std::vector<std::string> order_;                                  // submission order
+    std::map<std::string, SlotPtr> sessions_;  // by id
+    std::vector<std::string> order_;           // submission order
     struct LeaseOwner {
-        std::string render;  // render id
-        std::string
-            session;  // the worker session that leased it: the only one heard on it
+        std::string render;   // render id
+        std::string session;  // the worker session that leased it: the only one heard
     };
     std::unordered_map<uint64_t, LeaseOwner> lease_render_;  // lease -> owner
     struct SessionEntry {
@@ -224,15 +275,8 @@ private:
     std::map<std::string, std::string> scenes_;                      // hash -> json
     std::map<std::string, WorkerEntry> workers_;
     std::set<std::string> alive_;  // names in workers_ that registered and are not lost
-    std::map<std::string, std::string>
-        bucket_shapes_;  // render -> last stored bucket layout
-    struct CheckpointTiming {
-        std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
-        double cost_seconds = 0;                        // how long writing it took
-        bool in_flight = false;  // a copy waits for the writer: no second one meanwhile
-    };
-    std::map<std::string, CheckpointTiming>
-        checkpoint_timing_;  // render -> its checkpoints
+    std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
+        std::make_shared<const std::set<std::string>>();  // a copy of alive_
     int ticks_ = 0;
     double round_end_seconds_ = 0;
     bool stopping_ = false;
@@ -247,9 +291,6 @@ public:
     // The strategy's current buckets for a live render, or those recorded with the last
     // round of an older one; empty for per-pixel methods; nullopt for an unknown render.
     std::optional<std::vector<Bucket>> buckets(const std::string& id);
-
-private:
-    std::map<std::string, std::vector<RoundSummary>> round_history_;  // by render id
 };
 
 }  // namespace aliquot

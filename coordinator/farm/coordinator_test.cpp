@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -26,6 +28,28 @@ SampleJobResult zero_result(const LeaseGrant& grant) {
     result.pixels.assign(grant.job.counts.size(), PixelSums{});
     for (size_t i = 0; i < grant.job.counts.size(); ++i)
         result.pixels[i].samples = grant.job.counts[i];
+    return result;
+}
+
+// A result that depends on its job alone (pixel, first sample, count), with noise that
+// varies over the image, so adaptive methods decide differently pixel by pixel.
+SampleJobResult made_up_result(const LeaseGrant& grant) {
+    SampleJobResult result = zero_result(grant);
+    for (uint32_t y = 0; y < result.rect.height; ++y)
+        for (uint32_t x = 0; x < result.rect.width; ++x) {
+            const size_t i = size_t(y) * result.rect.width + x;
+            const double px = result.rect.x + x, py = result.rect.y + y;
+            const double n = double(grant.job.counts[i]);
+            const double k = double(grant.job.first_sample[i]);
+            const double noise = 0.1 + 0.4 * std::fabs(std::sin(0.7 * px + 0.3 * py + k));
+            PixelSums& p = result.pixels[i];
+            for (int c = 0; c < 3; ++c) {
+                p.even[c] = 0.5 * n * (0.3 + noise);
+                p.odd[c] = 0.5 * n * (0.3 - noise);
+            }
+            p.sum_sq_luminance = n * (0.09 + noise * noise);
+            p.rays = 3 * grant.job.counts[i];
+        }
     return result;
 }
 
@@ -418,6 +442,89 @@ TEST_F(CoordinatorTest, CountsTheTimeOfTheCallsThatEndARound) {
         c.complete(w, grant->lease_id, zero_result(*grant));
     }
     EXPECT_GT(c.round_end_seconds(), 0.0);
+}
+
+}  // namespace
+}  // namespace aliquot
+
+namespace aliquot {
+namespace {
+
+// Each render has a lock of its own (coordinator.h, "Locks"): many workers leasing and
+// completing across several renders at once, with a client reading every view meanwhile,
+// must leave each render's image exactly as one worker alone makes it.
+TEST_F(CoordinatorTest, RendersMergeInParallelAndEachEndsAsItWouldAlone) {
+    std::vector<RenderSpec> specs;
+    for (const char* method : {"uniform", "optimal", "dammertz", "adaptive"}) {
+        RenderSpec spec = small_spec();
+        spec.width = 40;
+        spec.height = 24;
+        spec.seed = specs.size() + 1;
+        spec.strategy.method = method;
+        if (spec.strategy.method == "uniform") {
+            spec.strategy.spp = 24;
+        } else {
+            spec.strategy.spp = 0;
+            spec.strategy.budget = 40 * 24 * 24;
+        }
+        specs.push_back(spec);
+    }
+    // Leases until every render of `ids` has ended.
+    auto run_to_end = [](Coordinator& c, const std::string& worker,
+                         const std::vector<std::string>& ids) {
+        const std::string session = c.register_worker(worker, 1).session;
+        auto running = [&] {
+            for (const std::string& id : ids)
+                if (!is_terminal(c.info(id)->state)) return true;
+            return false;
+        };
+        while (running())
+            if (auto grant = c.lease(session, std::chrono::milliseconds(20)))
+                c.complete(session, grant->lease_id, made_up_result(*grant));
+    };
+    std::vector<Image> alone;
+    for (const RenderSpec& spec : specs) {
+        CoordinatorOptions in_memory;
+        Coordinator c(in_memory);
+        const std::string id = c.submit(spec);
+        run_to_end(c, "only", {id});
+        ASSERT_EQ(c.info(id)->state, RenderState::Done) << spec.strategy.method;
+        alone.push_back(*c.image(id, true));
+    }
+
+    Coordinator c(options);
+    std::vector<std::string> ids;
+    for (const RenderSpec& spec : specs) ids.push_back(c.submit(spec));
+    std::atomic<bool> done{false};
+    std::thread reader([&] {
+        while (!done) {
+            for (const std::string& id : ids) {
+                c.info(id);
+                c.rounds(id);
+                c.buckets(id);
+                c.image(id, false);
+            }
+            c.list(10);
+            c.workers();
+            c.tick();
+        }
+    });
+    std::vector<std::thread> workers;
+    for (int w = 0; w < 6; ++w)
+        workers.emplace_back([&, w] { run_to_end(c, "w" + std::to_string(w), ids); });
+    for (std::thread& t : workers) t.join();
+    done = true;
+    reader.join();
+    for (size_t r = 0; r < specs.size(); ++r) {
+        ASSERT_EQ(c.info(ids[r])->state, RenderState::Done) << specs[r].strategy.method;
+        const Image together = *c.image(ids[r], true);
+        EXPECT_EQ(together.rgb, alone[r].rgb) << specs[r].strategy.method;
+        ASSERT_EQ(together.extra.size(), alone[r].extra.size());
+        for (size_t e = 0; e < together.extra.size(); ++e)
+            EXPECT_EQ(together.extra[e].values, alone[r].extra[e].values)
+                << specs[r].strategy.method << " " << together.extra[e].name;
+    }
+    EXPECT_EQ(c.leases_out(), 0u);
 }
 
 }  // namespace

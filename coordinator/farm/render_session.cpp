@@ -278,25 +278,25 @@ uint32_t RenderSession::failures_of(const std::string& worker) const {
     return it == worker_failures_.end() ? 0 : it->second;
 }
 
-size_t RenderSession::expire(Clock::time_point now) {
-    size_t n = 0;
+std::vector<uint64_t> RenderSession::expire(Clock::time_point now) {
+    std::vector<uint64_t> expired;
     for (auto it = lease_to_job_.begin(); it != lease_to_job_.end();) {
         JobSlot& slot = jobs_[it->second];
         if (slot.deadline <= now) {
             pending_.push_front(it->second);
+            expired.push_back(it->first);
             it = lease_to_job_.erase(it);
-            ++n;
         } else {
             ++it;
         }
     }
-    return n;
+    return expired;
 }
 
-std::vector<std::string> RenderSession::leases_of(const std::string& worker) const {
-    std::vector<std::string> out;
+std::vector<std::pair<std::string, std::string>> RenderSession::leases() const {
+    std::vector<std::pair<std::string, std::string>> out;
     for (const auto& [lease, j] : lease_to_job_)
-        if (jobs_[j].worker == worker) out.push_back(id_ + "/" + std::to_string(j));
+        out.emplace_back(jobs_[j].worker, id_ + "/" + std::to_string(j));
     return out;
 }
 

@@ -84,15 +84,15 @@ public:
     bool holds(uint64_t lease_id) const { return lease_to_job_.count(lease_id) > 0; }
     // Failures of `worker` on this render's jobs.
     uint32_t failures_of(const std::string& worker) const;
-    // Returns leases whose deadline passed to the pending queue; how many.
-    size_t expire(Clock::time_point now);
+    // Returns leases whose deadline passed to the pending queue; which they were.
+    std::vector<uint64_t> expire(Clock::time_point now);
     void cancel();
     void fail(const std::string& message);
 
     bool has_pending() const { return !pending_.empty(); }
     bool finished() const { return is_terminal(state_); }
-    // "render/job" for each lease `worker` holds.
-    std::vector<std::string> leases_of(const std::string& worker) const;
+    // (worker, "render/job") for each lease out.
+    std::vector<std::pair<std::string, std::string>> leases() const;
 
     const std::string& id() const { return id_; }
     const RenderSpec& spec() const { return spec_; }
