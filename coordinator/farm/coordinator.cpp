@@ -93,6 +93,7 @@ uint64_t Coordinator::first_free_render_number() const {
             next = std::max<uint64_t>(next, n + 1);
     };
     for (const RenderRecord& r : store_->list_renders(0)) consider(r.id);
+    for (const std::string& id : store_->deleted_render_ids()) consider(id);
     std::error_code ec;
     for (const auto& entry :
          std::filesystem::directory_iterator(options_.data_dir / "renders", ec))
@@ -122,6 +123,14 @@ std::vector<Coordinator::SlotPtr> Coordinator::slots_in_order() const {
     return out;
 }
 
+std::vector<Coordinator::SlotPtr> Coordinator::slots_by_priority() const {
+    std::vector<SlotPtr> out = slots_in_order();
+    std::stable_sort(out.begin(), out.end(), [](const SlotPtr& a, const SlotPtr& b) {
+        return a->priority > b->priority;
+    });
+    return out;
+}
+
 void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     auto slot = std::make_shared<RenderSlot>();
     RenderSlot* raw = slot.get();  // the slot owns the session: it outlives the callbacks
@@ -131,6 +140,8 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     };
     s->on_finished = [this, raw](RenderSession&) { record_end(*raw); };
     slot->session = std::move(session);
+    slot->priority = s->spec().priority;
+    slot->number = submissions_++;
     order_.push_back(s->id());
     sessions_[s->id()] = std::move(slot);
     s->start();
@@ -305,6 +316,7 @@ std::string Coordinator::submit(RenderSpec spec) {
         rec.spec_json = spec_json(spec).dump();
         rec.created_at = created;
         rec.samples_planned = int64_t(session->samples_planned());
+        rec.priority = spec.priority;
         if (spec.reference) {
             // Content-addressed: a study judges hundreds of renders against one
             // reference, which is then written once, not once per render.
@@ -344,6 +356,7 @@ void Coordinator::resume_unfinished() {
             spec.scene_json = scene->json;
             if (!rec.reference_path.empty())
                 spec.reference = read_exr(rec.reference_path);
+            spec.priority = int32_t(rec.priority);
             scenes_[rec.scene_hash] = spec.scene_json;
             auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
@@ -365,8 +378,10 @@ void Coordinator::resume_unfinished() {
     }
 }
 
-RenderInfo Coordinator::info_of(const RenderSession& s) const {
+RenderInfo Coordinator::info_of(const RenderSlot& slot, int32_t priority) const {
+    const RenderSession& s = *slot.session;
     RenderInfo info;
+    info.priority = priority;
     info.id = s.id();
     info.scene_name = s.spec().scene_name;
     info.width = s.spec().width;
@@ -392,13 +407,15 @@ RenderInfo Coordinator::info_of(const RenderSession& s) const {
 
 std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     SlotPtr slot;
+    int32_t priority = 0;
     {
         std::lock_guard lock(mutex_);
         slot = slot_of(id);
+        if (slot) priority = slot->priority;
     }
     if (slot) {
         std::lock_guard lock(slot->mutex);
-        return info_of(*slot->session);
+        return info_of(*slot, priority);
     }
     // Not in memory: finished and evicted (its end is in the store), or unknown.
     if (!store_) return std::nullopt;
@@ -415,6 +432,7 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     info.strategy_json = j.value("strategy", nlohmann::json::object()).dump();
     info.method = j.value("strategy", nlohmann::json::object()).value("method", "");
     info.state = rec->state;
+    info.priority = int32_t(rec->priority);
     info.error = rec->error;
     info.samples_done = uint64_t(rec->samples_done);
     info.samples_planned = uint64_t(rec->samples_planned);
@@ -480,6 +498,100 @@ std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
         return std::nullopt;
     }
     return info(id);
+}
+
+std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
+                                                    int32_t priority) {
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    bool finished = true;
+    if (slot) {
+        std::lock_guard render(slot->mutex);
+        finished = slot->session->finished();
+    } else if (!store_ || !store_->get_render(id)) {
+        return std::nullopt;
+    }
+    if (finished)
+        throw RenderFinished("render " + id + " has finished: nothing to schedule");
+    {
+        std::lock_guard lock(mutex_);
+        slot->priority = priority;
+        changed();  // waiting workers look again, in the new order
+    }
+    if (store_) {
+        // The store is written after the order changes: a full disk delays the record,
+        // not the scheduling. A restart before it lands resumes the old priority.
+        backlog_.submit("record the priority of " + id, [this, id, priority] {
+            store_->set_render_priority(id, priority);
+        });
+    }
+    return info(id);
+}
+
+Coordinator::Removal Coordinator::remove(const std::string& id) {
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    if (slot) {
+        {
+            std::lock_guard render(slot->mutex);
+            if (!slot->session->finished()) return Removal::Unfinished;
+        }
+        if (!store_) {
+            std::lock_guard lock(mutex_);
+            evict(id);
+            return Removal::Removed;
+        }
+        // Finished, and its end is being written (then it leaves memory): wait for that.
+        backlog_.wait_idle(std::chrono::seconds(30));
+        std::lock_guard lock(mutex_);
+        if (slot_of(id))
+            throw std::runtime_error("render " + id +
+                                     " is still being written to disk; try again later");
+    }
+    if (!store_) return Removal::Unknown;
+    const std::optional<RenderRecord> rec = store_->get_render(id);
+    if (!rec) return Removal::Unknown;
+    if (!is_terminal(rec->state)) return Removal::Unfinished;
+    if (!store_->delete_render(id, unix_millis_now()))
+        return Removal::Unknown;  // another remove won
+    // The rows are gone first: a crash now leaves files nothing points to, never a row
+    // pointing to no files.
+    std::error_code ec;
+    std::filesystem::remove_all(render_dir(id), ec);
+    if (ec) log_error("cannot delete the files of " + id + ": " + ec.message());
+    if (!rec->reference_path.empty() && !store_->reference_in_use(rec->reference_path))
+        std::filesystem::remove(rec->reference_path, ec);
+    {
+        std::lock_guard lock(mutex_);
+        changed();
+    }
+    return Removal::Removed;
+}
+
+size_t Coordinator::remove_expired(int64_t now_ms) {
+    if (!store_ || options_.keep_finished.count() <= 0) return 0;
+    size_t removed = 0;
+    // In batches, so that a first run over years of renders does not list them all.
+    for (;;) {
+        const std::vector<std::string> ids =
+            store_->finished_before(now_ms - options_.keep_finished.count(), 100);
+        size_t batch = 0;
+        for (const std::string& id : ids) {
+            try {
+                if (remove(id) == Removal::Removed) ++batch;
+            } catch (const std::exception& e) {
+                log_error("retention: cannot delete " + id + ": " + e.what());
+            }
+        }
+        removed += batch;
+        if (batch == 0 || ids.size() < 100) return removed;
+    }
 }
 
 std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
@@ -630,15 +742,16 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
         const uint64_t seen = version_;
-        const std::vector<SlotPtr> slots = slots_in_order();
+        const std::vector<SlotPtr> slots = slots_by_priority();
         const std::shared_ptr<const std::set<std::string>> alive = alive_workers();
         // Reserved now, so that no other lease takes the id while the lock is let go.
         const uint64_t lease_id = new_lease_id();
         lease_render_[lease_id] = {"", session};
         lock.unlock();
-        // Renders in submission order; one whose lock is busy (a merge, or a round's
-        // end) is passed over at first and waited for only when no other render has a
-        // job, so one render's round end holds up no other render's workers.
+        // Renders by priority, in submission order within one; one whose lock is busy (a
+        // merge, or a round's end) is passed over at first and waited for only when no
+        // other render has a job, so one render's round end holds up no other render's
+        // workers.
         std::optional<LeaseGrant> grant;
         std::vector<RenderSlot*> busy;
         auto try_issue = [&](RenderSlot& slot) {
@@ -913,42 +1026,55 @@ void Coordinator::tick() {
             for (const uint64_t lease : slot->session->expire(now))
                 expired.push_back(lease);
     }
-    std::lock_guard lock(mutex_);
-    bool any = !expired.empty();
-    forget_ended_leases(expired, finished);
-    const int64_t wall = unix_millis_now();
-    for (auto& [name, w] : workers_) {
-        if (store_ && w.unrecorded > 0) {
-            try {
-                store_->record_worker_samples(name, int64_t(w.unrecorded),
-                                              w.last_seen_ms);
-            } catch (const std::exception& e) {
-                log_error(e.what());
-            }
-            w.unrecorded = 0;
-        }
-        if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
-            w.lost = true;
-            set_alive(name, false);
-            any = true;
-            if (store_) {
+    bool retention_due = false;
+    {
+        std::lock_guard lock(mutex_);
+        bool any = !expired.empty();
+        forget_ended_leases(expired, finished);
+        const int64_t wall = unix_millis_now();
+        for (auto& [name, w] : workers_) {
+            if (store_ && w.unrecorded > 0) {
                 try {
-                    store_->mark_worker_state(name, "lost");
+                    store_->record_worker_samples(name, int64_t(w.unrecorded),
+                                                  w.last_seen_ms);
                 } catch (const std::exception& e) {
                     log_error(e.what());
                 }
+                w.unrecorded = 0;
+            }
+            if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
+                w.lost = true;
+                set_alive(name, false);
+                any = true;
+                if (store_) {
+                    try {
+                        store_->mark_worker_state(name, "lost");
+                    } catch (const std::exception& e) {
+                        log_error(e.what());
+                    }
+                }
             }
         }
+        forget_silent_workers(wall);
+        if (any) changed();
+        // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the
+        // next one tries again.
+        ++ticks_;
+        if (store_ && ticks_ % 50 == 0) {
+            try {
+                store_->checkpoint();
+            } catch (const std::exception& e) {
+                log_error(e.what());
+            }
+        }
+        retention_due = ticks_ % 300 == 1;  // the first tick, then about once a minute
     }
-    forget_silent_workers(wall);
-    if (any) changed();
-    // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the
-    // next one tries again.
-    if (store_ && ++ticks_ % 50 == 0) {
+    // Outside the lock: deleting a render's files can take a while.
+    if (retention_due) {
         try {
-            store_->checkpoint();
+            remove_expired(unix_millis_now());
         } catch (const std::exception& e) {
-            log_error(e.what());
+            log_error(std::string("retention: ") + e.what());  // tried again next time
         }
     }
 }

@@ -72,6 +72,15 @@ struct CoordinatorOptions {
     // register without end.
     std::chrono::milliseconds forget_workers_after{std::chrono::minutes(10)};
     size_t max_worker_sessions = 4096;
+    // Finished renders are deleted (files, rows, memory) this long after they finished;
+    // zero keeps them for ever. Checked about once a minute (tick).
+    std::chrono::milliseconds keep_finished{0};
+};
+
+// Thrown by set_priority for a render that has finished.
+class RenderFinished : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
 };
 
 // Thrown by register_worker when every one of max_worker_sessions sessions holds a lease.
@@ -88,6 +97,7 @@ struct RenderInfo {
     uint32_t width = 0, height = 0;
     uint64_t seed = 0, samples_done = 0, samples_planned = 0, rays = 0;
     uint32_t rounds_done = 0;
+    int32_t priority = 0;
     double seconds = 0, samples_per_second = 0;
     double error_estimate = -1, error_vs_reference = -1;
     int64_t created_ms = 0, finished_ms = 0;
@@ -113,6 +123,17 @@ public:
     std::optional<RenderInfo> info(const std::string& id);
     std::vector<RenderInfo> list(size_t limit);
     std::optional<RenderInfo> cancel(const std::string& id);
+    // Changes a queued or running render's priority: its next leases follow it. Nullopt
+    // for an unknown render; throws RenderFinished for a finished one.
+    std::optional<RenderInfo> set_priority(const std::string& id, int32_t priority);
+    // Deletes a finished render: its files, its rows (rounds, study links; its scene and
+    // reference when nothing else uses them) and its memory. Nothing deletes a queued or
+    // running render: cancel it first.
+    enum class Removal { Removed, Unknown, Unfinished };
+    Removal remove(const std::string& id);
+    // Deletes the renders that finished more than keep_finished before `now_ms`; how
+    // many. tick() calls it about once a minute.
+    size_t remove_expired(int64_t now_ms);
     std::optional<Image> image(const std::string& id, bool aovs);
     std::vector<WorkerStatus> workers();
     // A counter that grows whenever any render changes; waits up to `timeout` for it to
@@ -188,6 +209,10 @@ private:
         std::string bucket_shape;  // the last bucket layout stored (record_round)
         CheckpointTiming checkpoint;
         std::shared_ptr<CheckpointCopy> checkpoint_copy;  // the backlog's while in flight
+        // Guarded by the coordinator's `mutex_`, not this slot's: lease() orders renders
+        // by it before taking any render's lock.
+        int32_t priority = 0;
+        uint64_t number = 0;  // submission order: FIFO within a priority
     };
     using SlotPtr = std::shared_ptr<RenderSlot>;
 
@@ -217,7 +242,10 @@ private:
     SlotPtr slot_of(const std::string& id) const;
     // Every render in memory, in submission order; under `mutex_`.
     std::vector<SlotPtr> slots_in_order() const;
-    RenderInfo info_of(const RenderSession& s) const;
+    // The same, highest priority first, submission order within one: whom lease()
+    // serves first.
+    std::vector<SlotPtr> slots_by_priority() const;
+    RenderInfo info_of(const RenderSlot& slot, int32_t priority) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
     // The name of the worker holding `session`, touched (heard from now); throws
@@ -260,6 +288,7 @@ private:
     std::condition_variable progress_;
     uint64_t version_ = 0;
     uint64_t next_render_number_ = 1;
+    uint64_t submissions_ = 0;  // renders attached so far: RenderSlot::number
     std::map<std::string, SlotPtr> sessions_;  // by id
     std::vector<std::string> order_;           // submission order
     struct LeaseOwner {

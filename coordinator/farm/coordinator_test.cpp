@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "scene_loader.h"
+#include "store.h"
 
 namespace aliquot {
 namespace {
@@ -525,6 +526,108 @@ TEST_F(CoordinatorTest, RendersMergeInParallelAndEachEndsAsItWouldAlone) {
                 << specs[r].strategy.method << " " << together.extra[e].name;
     }
     EXPECT_EQ(c.leases_out(), 0u);
+}
+
+}  // namespace
+}  // namespace aliquot
+
+namespace aliquot {
+namespace {
+
+// Issue 16: leases go to the highest priority first, FIFO within one.
+TEST_F(CoordinatorTest, AHighPriorityRenderSubmittedBehindTenLowOnesFinishesFirst) {
+    Coordinator c(options);
+    std::vector<std::string> low;
+    for (int i = 0; i < 10; ++i) low.push_back(c.submit(small_spec()));
+    RenderSpec urgent = small_spec();
+    urgent.priority = 10;
+    const std::string high = c.submit(urgent);
+    EXPECT_EQ(c.info(high)->priority, 10);
+    const std::string session = c.register_worker("w", 1).session;
+    std::vector<std::string> finished_order;
+    while (auto grant = c.lease(session, std::chrono::milliseconds(0))) {
+        c.complete(session, grant->lease_id, zero_result(*grant));
+        const std::string& id = grant->render_id;
+        if (is_terminal(c.info(id)->state) &&
+            std::find(finished_order.begin(), finished_order.end(), id) ==
+                finished_order.end())
+            finished_order.push_back(id);
+    }
+    ASSERT_EQ(finished_order.size(), 11u);
+    EXPECT_EQ(finished_order.front(), high);
+    // The low ones in the order they came.
+    EXPECT_EQ(std::vector<std::string>(finished_order.begin() + 1, finished_order.end()),
+              low);
+}
+
+TEST_F(CoordinatorTest, APriorityChangedWhileRunningDecidesTheNextLease) {
+    Coordinator c(options);
+    RenderSpec spec = small_spec();
+    spec.width = spec.height = 64;  // several jobs a round
+    const std::string first = c.submit(spec), second = c.submit(spec);
+    const std::string session = c.register_worker("w", 1).session;
+    EXPECT_EQ(c.lease(session, std::chrono::milliseconds(0))->render_id, first);
+    ASSERT_TRUE(c.set_priority(second, 3));
+    EXPECT_EQ(c.info(second)->priority, 3);
+    EXPECT_EQ(c.lease(session, std::chrono::milliseconds(0))->render_id, second);
+    EXPECT_FALSE(c.set_priority("r-999999", 1));
+    c.cancel(first);
+    EXPECT_THROW(c.set_priority(first, 1), RenderFinished);
+}
+
+TEST_F(CoordinatorTest, DeletingARenderTakesItsFilesRowsAndMemoryButNeverARunningOne) {
+    std::string done_id, running_id;
+    {
+        Coordinator c(options);
+        done_id = c.submit(small_spec());
+        RenderSpec big = small_spec();
+        big.width = big.height = 64;
+        running_id = c.submit(big);
+        const std::string session = c.register_worker("w", 1).session;
+        while (!is_terminal(c.info(done_id)->state)) {
+            auto grant = c.lease(session, std::chrono::milliseconds(0));
+            ASSERT_TRUE(grant);
+            c.complete(session, grant->lease_id, zero_result(*grant));
+        }
+        EXPECT_EQ(c.remove(running_id), Coordinator::Removal::Unfinished);
+        EXPECT_TRUE(c.info(running_id));
+        ASSERT_TRUE(fs::exists(dir / "renders" / done_id));
+        EXPECT_EQ(c.remove(done_id), Coordinator::Removal::Removed);
+        EXPECT_FALSE(c.info(done_id));
+        EXPECT_FALSE(c.image(done_id, false));
+        EXPECT_FALSE(c.rounds(done_id));
+        EXPECT_FALSE(fs::exists(dir / "renders" / done_id));
+        EXPECT_EQ(c.remove(done_id), Coordinator::Removal::Unknown);
+        EXPECT_EQ(c.remove("../../etc"), Coordinator::Removal::Unknown);
+        c.cancel(running_id);
+        EXPECT_EQ(c.remove(running_id), Coordinator::Removal::Removed);
+    }
+    // A restart finds neither, and does not hand their ids out again.
+    Coordinator c(options);
+    EXPECT_FALSE(c.info(done_id));
+    EXPECT_TRUE(c.list(10).empty());
+    EXPECT_NE(c.submit(small_spec()), done_id);
+}
+
+TEST_F(CoordinatorTest, RendersFinishedLongerAgoThanKeptAreDeleted) {
+    options.keep_finished = std::chrono::hours(24);
+    Coordinator c(options);
+    const std::string id = c.submit(small_spec());
+    const std::string running = c.submit(small_spec());
+    const std::string session = c.register_worker("w", 1).session;
+    while (!is_terminal(c.info(id)->state)) {
+        auto grant = c.lease(session, std::chrono::milliseconds(0));
+        ASSERT_TRUE(grant);
+        c.complete(session, grant->lease_id, zero_result(*grant));
+    }
+    // Its end is recorded (and it leaves memory) on the backlog's thread.
+    while (c.sessions_in_memory() > 1)
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    const int64_t now = unix_millis_now();
+    EXPECT_EQ(c.remove_expired(now), 0u);  // finished just now
+    EXPECT_EQ(c.remove_expired(now + 25 * 3600 * 1000), 1u);
+    EXPECT_FALSE(c.info(id));
+    EXPECT_TRUE(c.info(running)) << "a running render is never deleted";
 }
 
 }  // namespace

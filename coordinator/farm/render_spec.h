@@ -18,6 +18,9 @@ struct RenderSpec {
     uint64_t seed = 0;
     StrategyParams strategy;
     std::optional<Image> reference;
+    // Scheduling, not output: leases go to the highest priority first, in submission
+    // order within one; changeable while the render runs (Coordinator::set_priority).
+    int32_t priority = 0;
 };
 
 // A 128-bit content address (32 hex digits) of any bytes; not cryptographic.

@@ -109,13 +109,27 @@ CREATE TABLE study_results (
     PRIMARY KEY (study_id, render_key)
 ) STRICT;
 )sql",
+    // 4: a render's priority (leases go to the highest first), and finished renders by
+    // time for the retention policy.
+    R"sql(
+ALTER TABLE renders ADD COLUMN priority INTEGER NOT NULL DEFAULT 0;
+CREATE INDEX renders_by_finished ON renders(finished_at) WHERE finished_at IS NOT NULL;
+
+-- Renders deleted (by a client or the retention policy): when, and so that their ids
+-- are never handed out again.
+CREATE TABLE deleted_renders (
+    id TEXT PRIMARY KEY,
+    deleted_at INTEGER NOT NULL
+) STRICT;
+)sql",
 };
 
 constexpr int kLatestVersion = int(sizeof(kMigrations) / sizeof(kMigrations[0]));
 
 const std::string kRenderColumns =
     "id, scene_hash, spec_json, state, error, created_at, started_at, finished_at, "
-    "samples_planned, samples_done, strategy_state_json, outcome_json, reference_path";
+    "samples_planned, samples_done, strategy_state_json, outcome_json, reference_path, "
+    "priority";
 
 const std::string kRoundColumns =
     "render_id, idx, samples_in_round, samples_total, seconds, error_estimate, "
@@ -469,6 +483,7 @@ RenderRecord read_render(const Q& q) {
     r.strategy_state_json = q.text(10);
     r.outcome_json = q.text(11);
     r.reference_path = q.text(12);
+    r.priority = q.int64(13);
     return r;
 }
 
@@ -477,7 +492,7 @@ RenderRecord read_render(const Q& q) {
 void RunStore::create_render(const RenderRecord& r) {
     std::lock_guard lock(mutex_);
     static const std::string sql = "INSERT INTO renders (" + kRenderColumns +
-                                   ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
+                                   ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
     query(sql, "create render " + r.id)
         .bind(r.id)
         .bind(r.scene_hash)
@@ -492,7 +507,75 @@ void RunStore::create_render(const RenderRecord& r) {
         .bind(or_null(r.strategy_state_json))
         .bind(or_null(r.outcome_json))
         .bind(or_null(r.reference_path))
+        .bind(r.priority)
         .run();
+}
+
+void RunStore::set_render_priority(const std::string& id, int64_t priority) {
+    std::lock_guard lock(mutex_);
+    Query q = query("UPDATE renders SET priority = ? WHERE id = ?",
+                    "set the priority of render " + id);
+    if (q.bind(priority).bind(id).run() == 0) q.refuse("no such render");
+}
+
+bool RunStore::delete_render(const std::string& id, int64_t now_ms) {
+    std::lock_guard lock(mutex_);
+    const std::string purpose = "delete render " + id;
+    Transaction tx(db_->db, purpose);
+    std::string scene;
+    {
+        Query q = query(
+            "SELECT scene_hash FROM renders WHERE id = ?"
+            " AND state NOT IN ('queued', 'running')",
+            purpose);
+        if (!q.bind(id).step()) return false;
+        scene = q.text(0);
+    }
+    // Its rounds and study links go with it (ON DELETE CASCADE); a study's result keeps
+    // its numbers and loses only the link (SET NULL).
+    query("DELETE FROM renders WHERE id = ?", purpose).bind(id).run();
+    query("INSERT OR REPLACE INTO deleted_renders (id, deleted_at) VALUES (?, ?)",
+          purpose)
+        .bind(id)
+        .bind(now_ms)
+        .run();
+    // A scene no render uses any more is dead weight: scenes are kept for renders only.
+    query(
+        "DELETE FROM scenes WHERE hash = ?"
+        " AND NOT EXISTS (SELECT 1 FROM renders WHERE scene_hash = ?)",
+        purpose)
+        .bind(scene)
+        .bind(scene)
+        .run();
+    tx.commit(purpose);
+    return true;
+}
+
+std::vector<std::string> RunStore::finished_before(int64_t before_ms, size_t limit) {
+    std::lock_guard lock(mutex_);
+    Query q = query(
+        "SELECT id FROM renders WHERE finished_at IS NOT NULL AND finished_at < ?"
+        " AND state NOT IN ('queued', 'running') ORDER BY finished_at LIMIT ?",
+        "list renders finished before " + std::to_string(before_ms));
+    q.bind(before_ms).bind(static_cast<int64_t>(limit));
+    std::vector<std::string> ids;
+    while (q.step()) ids.push_back(q.text(0));
+    return ids;
+}
+
+std::vector<std::string> RunStore::deleted_render_ids() {
+    std::lock_guard lock(mutex_);
+    Query q = query("SELECT id FROM deleted_renders", "list deleted renders");
+    std::vector<std::string> ids;
+    while (q.step()) ids.push_back(q.text(0));
+    return ids;
+}
+
+bool RunStore::reference_in_use(const std::string& path) {
+    std::lock_guard lock(mutex_);
+    Query q = query("SELECT 1 FROM renders WHERE reference_path = ? LIMIT 1",
+                    "look for renders judged against " + path);
+    return q.bind(path).step();
 }
 
 void RunStore::update_render_state(const std::string& id, RenderState state,

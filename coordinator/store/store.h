@@ -60,6 +60,7 @@ struct RenderRecord {
     std::string strategy_state_json;  // what the strategy needs to resume
     std::string outcome_json;         // final statistics, written by finish_render
     std::string reference_path;  // reference EXR the per-round error is measured against
+    int64_t priority = 0;        // leases go to the highest first (changeable)
 };
 
 struct RoundRecord {
@@ -153,6 +154,18 @@ public:
                              const std::string& error, int64_t now_ms);
     void update_render_progress(const std::string& id, int64_t samples_done,
                                 const std::string& strategy_state_json);
+    // Throws "no such render" for an unknown id.
+    void set_render_priority(const std::string& id, int64_t priority);
+    // Deletes a finished render's row, its rounds and its study links, and its scene
+    // when no other render uses it, and notes its id as deleted; false (nothing changes)
+    // when there is no such finished render (unknown, queued or running).
+    bool delete_render(const std::string& id, int64_t now_ms);
+    // Every id delete_render took: never to be handed out again.
+    std::vector<std::string> deleted_render_ids();
+    // Finished renders that finished before `before_ms`, oldest first, at most `limit`.
+    std::vector<std::string> finished_before(int64_t before_ms, size_t limit);
+    // Whether any render is judged against the reference image at `path`.
+    bool reference_in_use(const std::string& path);
     // Moves a render to a terminal state (throws for Queued/Running) with its outcome.
     void finish_render(const std::string& id, RenderState state,
                        const std::string& outcome_json, int64_t now_ms);

@@ -482,3 +482,56 @@ TEST_F(RunStoreTest, RefusesASchemaNewerThanThisBuild) {
 
 }  // namespace
 }  // namespace aliquot
+
+namespace aliquot {
+namespace {
+
+TEST_F(RunStoreTest, APriorityIsStoredAndChanged) {
+    RunStore store(dir);
+    seed(store);
+    RenderRecord high = render("r-2", 20);
+    high.priority = 5;
+    store.create_render(high);
+    EXPECT_EQ(store.get_render("r-1")->priority, 0);
+    EXPECT_EQ(store.get_render("r-2")->priority, 5);
+    store.set_render_priority("r-1", -3);
+    EXPECT_EQ(store.get_render("r-1")->priority, -3);
+    EXPECT_THROW(store.set_render_priority("nope", 1), StoreError);
+}
+
+TEST_F(RunStoreTest, DeletingAFinishedRenderTakesItsRoundsAndItsSceneIfUnused) {
+    RunStore store(dir);
+    seed(store);
+    store.create_render(render("r-2", 20));  // the same scene
+    store.add_round(round_of("r-1", 0));
+    // Neither may go while queued or running.
+    EXPECT_FALSE(store.delete_render("r-1", 60));
+    store.update_render_state("r-1", RenderState::Running, "", 30);
+    EXPECT_FALSE(store.delete_render("r-1", 60));
+    EXPECT_TRUE(store.get_render("r-1"));
+    store.finish_render("r-1", RenderState::Done, "{}", 40);
+    EXPECT_TRUE(store.delete_render("r-1", 60));
+    EXPECT_FALSE(store.get_render("r-1"));
+    EXPECT_TRUE(store.rounds("r-1").empty());
+    EXPECT_TRUE(store.get_scene("h1")) << "r-2 still uses it";
+    EXPECT_FALSE(store.delete_render("r-1", 60)) << "already gone";
+    store.finish_render("r-2", RenderState::Cancelled, "{}", 50);
+    EXPECT_TRUE(store.delete_render("r-2", 70));
+    EXPECT_FALSE(store.get_scene("h1"));
+    EXPECT_EQ(store.deleted_render_ids(), (std::vector<std::string>{"r-1", "r-2"}));
+}
+
+TEST_F(RunStoreTest, FinishedBeforeListsOnlyFinishedRendersOldestFirst) {
+    RunStore store(dir);
+    seed(store);
+    for (const char* id : {"r-2", "r-3", "r-4"}) store.create_render(render(id, 20));
+    store.finish_render("r-3", RenderState::Done, "{}", 300);
+    store.finish_render("r-2", RenderState::Failed, "{}", 200);
+    store.finish_render("r-4", RenderState::Done, "{}", 900);
+    EXPECT_EQ(store.finished_before(500, 10), (std::vector<std::string>{"r-2", "r-3"}));
+    EXPECT_EQ(store.finished_before(500, 1), (std::vector<std::string>{"r-2"}));
+    EXPECT_TRUE(store.finished_before(100, 10).empty());
+}
+
+}  // namespace
+}  // namespace aliquot
