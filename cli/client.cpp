@@ -70,6 +70,7 @@ std::string describe(const RenderInfo& i) {
     std::string s = line;
     if (i.error_vs_reference >= 0)
         s += "  E(ref)=" + std::to_string(i.error_vs_reference);
+    if (i.priority != 0) s += "  priority " + std::to_string(i.priority);
     if (!i.error.empty()) s += "  error: " + i.error;
     return s;
 }

@@ -19,7 +19,8 @@ void register_bench(CLI::App& app);
 void register_coordinator(CLI::App& app);
 void register_worker(CLI::App& app);
 void register_submit(CLI::App& app);
-void register_farm_clients(CLI::App& app);  // status, watch, fetch, cancel, workers
+void register_farm_clients(CLI::App& app);  // status, watch, fetch, cancel, priority,
+                                            // delete, workers
 void register_reference(CLI::App& app);
 void register_study(CLI::App& app);
 

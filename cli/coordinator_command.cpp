@@ -114,11 +114,14 @@ struct CoordinatorCommand {
     uint32_t max_side = 8192;
     std::string memory_limit;  // empty: default_memory_limit()
     uint32_t max_job_failures = FailurePolicy{}.max_job_failures;
+    double keep_days = 0;  // 0: finished renders are kept for ever
 
     void run() {
         if (lease_seconds <= 0) throw CommandError("--lease-seconds: must be positive");
         if (max_job_failures == 0)
             throw CommandError("--max-job-failures: must be 1 or more");
+        if (!(keep_days >= 0 && keep_days <= 36500))
+            throw CommandError("--keep-days: must be 0 (keep for ever) to 36500");
         const uint64_t memory =
             memory_limit.empty() ? default_memory_limit() : parse_bytes(memory_limit);
         // Block the stop signals before any thread starts, then wait for one below.
@@ -148,6 +151,8 @@ struct CoordinatorCommand {
         options.max_side = max_side;
         options.memory_limit = memory;
         options.failure_policy.max_job_failures = max_job_failures;
+        options.keep_finished =
+            std::chrono::milliseconds(int64_t(keep_days * 24 * 3600 * 1000.0));
         Coordinator coordinator(options);
         GrpcServer server(coordinator, grpc_address, security);
         std::fprintf(stderr,
@@ -243,6 +248,11 @@ void register_coordinator(CLI::App& app) {
                         std::to_string(default_memory_limit() >> 20) + "M here)");
     cmd->add_option("--max-job-failures", c->max_job_failures,
                     "workers a job may fail on before its render fails (docs/FARM.md)")
+        ->capture_default_str();
+    cmd->add_option(
+           "--keep-days", c->keep_days,
+           "delete finished renders (image, record, rounds) this many days after "
+           "they finished; 0 keeps them for ever")
         ->capture_default_str();
     cmd->callback([c] { c->run(); });
 }

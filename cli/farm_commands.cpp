@@ -126,6 +126,40 @@ void register_cancel(CLI::App& app) {
     });
 }
 
+void register_priority(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    auto priority = std::make_shared<int32_t>(0);
+    CLI::App* cmd =
+        add_common(app, "priority", "change a queued or running render's priority", o);
+    cmd->add_option("id", o->id, "render id")->required();
+    cmd->add_option("priority", *priority, "the new priority (higher goes first)")
+        ->required();
+    cmd->callback([o, priority] {
+        ClientConnection c(o->coordinator.resolve(Role::Client));
+        v1::SetPriorityRequest req;
+        req.set_id(o->id);
+        req.set_priority(*priority);
+        v1::RenderInfo info;
+        c.check(c.stub().SetPriority(c.context().get(), req, &info), "priority " + o->id);
+        std::cout << describe(from_proto(info)) << std::endl;
+    });
+}
+
+void register_delete(CLI::App& app) {
+    auto o = std::make_shared<FarmOptions>();
+    CLI::App* cmd = add_common(
+        app, "delete", "delete a finished render: its image, record and rounds", o);
+    cmd->add_option("id", o->id, "render id")->required();
+    cmd->callback([o] {
+        ClientConnection c(o->coordinator.resolve(Role::Client));
+        v1::GetRenderRequest req;
+        req.set_id(o->id);
+        v1::DeleteReply reply;
+        c.check(c.stub().Delete(c.context().get(), req, &reply), "delete " + o->id);
+        std::cout << "deleted " << o->id << std::endl;
+    });
+}
+
 nlohmann::json worker_json(const v1::WorkerInfo& w) {
     return {{"name", w.name()},
             {"threads", w.threads()},
@@ -168,6 +202,8 @@ void register_farm_clients(CLI::App& app) {
     register_watch(app);
     register_fetch(app);
     register_cancel(app);
+    register_priority(app);
+    register_delete(app);
     register_workers(app);
 }
 

@@ -23,6 +23,7 @@ struct SubmitCommand {
     EndpointOptions coordinator;
     bool wait = false, json = false, aovs = false;
     std::string out;
+    int32_t priority = 0;
 
     void run() {
         check_render_options(options);
@@ -36,6 +37,7 @@ struct SubmitCommand {
         req.set_width(options.width);
         req.set_height(options.height);
         req.set_seed(options.seed);
+        req.set_priority(priority);
         req.set_strategy_json(nlohmann::json(options.strategy).dump());
         if (!options.reference.empty()) {
             std::ifstream in(options.reference, std::ios::binary);
@@ -86,6 +88,10 @@ void register_submit(CLI::App& app) {
     cmd->add_option("--out", c->out, "write the final EXR here (implies --wait)");
     cmd->add_flag("--aovs", c->aovs, "add channels spp and variance to the EXR");
     cmd->add_flag("--json", c->json, "print JSON");
+    cmd->add_option("--priority", c->priority,
+                    "leases go to the highest priority first, in submission order within "
+                    "one; change it later with `aliquot priority`")
+        ->capture_default_str();
     cmd->callback([c] { c->run(); });
 }
 

@@ -68,6 +68,7 @@ public:
             spec.width = req->width();
             spec.height = req->height();
             spec.seed = req->seed();
+            spec.priority = req->priority();
             spec.strategy = nlohmann::json::parse(
                 req->strategy_json().empty() ? "{}" : req->strategy_json());
             if (!req->reference_exr().empty())
@@ -142,6 +143,34 @@ public:
         if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
         to_proto(*info, *reply);
         return Status::OK;
+    }
+
+    Status SetPriority(ServerContext* ctx, const v1::SetPriorityRequest* req,
+                       v1::RenderInfo* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
+        try {
+            const auto info = c_.set_priority(req->id(), req->priority());
+            if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+            to_proto(*info, *reply);
+            return Status::OK;
+        } catch (const RenderFinished& e) {
+            return {StatusCode::FAILED_PRECONDITION, e.what()};
+        }
+    }
+
+    Status Delete(ServerContext* ctx, const v1::GetRenderRequest* req,
+                  v1::DeleteReply*) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
+        switch (c_.remove(req->id())) {
+            case Coordinator::Removal::Removed:
+                return Status::OK;
+            case Coordinator::Removal::Unknown:
+                return {StatusCode::NOT_FOUND, "no render " + req->id()};
+            case Coordinator::Removal::Unfinished:
+                break;
+        }
+        return {StatusCode::FAILED_PRECONDITION,
+                "render " + req->id() + " has not finished; cancel it first"};
     }
 
     Status FetchImage(ServerContext* ctx, const v1::FetchImageRequest* req,

@@ -64,6 +64,19 @@ void require(bool ok, const std::string& message) {
     if (!ok) throw ApiError(400, message);
 }
 
+// A priority: a whole number in int32's range, negative allowed.
+int32_t priority_number(const json& v) {
+    require(v.is_number_integer(), "'priority' must be a whole number");
+    const int64_t p = v.is_number_unsigned() ? (v.get<uint64_t>() > uint64_t(INT32_MAX)
+                                                    ? int64_t(INT32_MAX) + 1
+                                                    : int64_t(v.get<uint64_t>()))
+                                             : v.get<int64_t>();
+    require(p >= INT32_MIN && p <= INT32_MAX, "'priority' must be between " +
+                                                  std::to_string(INT32_MIN) + " and " +
+                                                  std::to_string(INT32_MAX));
+    return int32_t(p);
+}
+
 uint64_t whole_number(const json& v, const std::string& field, uint64_t top) {
     if (v.is_number_unsigned() && v.get<uint64_t>() <= top) return v.get<uint64_t>();
     if (v.is_number_integer() && v.get<int64_t>() >= 0 &&
@@ -145,6 +158,8 @@ RenderSpec parse_render_request(const std::string& body) {
             have_height = true;
         } else if (key == "seed") {
             spec.seed = whole_number(v, key, std::numeric_limits<uint64_t>::max());
+        } else if (key == "priority") {
+            spec.priority = priority_number(v);
         } else if (key == "strategy") {
             try {
                 spec.strategy = v.get<StrategyParams>();
@@ -155,7 +170,7 @@ RenderSpec parse_render_request(const std::string& body) {
             throw ApiError(400,
                            "unknown field '" + key +
                                "'; expected scene, resolution (or width and height), "
-                               "seed, strategy");
+                               "seed, strategy, priority");
         }
     }
     require(!(have_resolution && (have_width || have_height)),
@@ -412,6 +427,17 @@ bool origin_matches_host(const std::string& origin, const std::string& host, boo
     if (host.empty()) return false;
     return drop_default_port(lower(origin)) ==
            (https ? "https://" : "http://") + drop_default_port(lower(host));
+}
+
+int32_t parse_priority_request(const std::string& body) {
+    const json doc = json::parse(body, nullptr, false);
+    if (doc.is_discarded() || !doc.is_object() || !doc.contains("priority"))
+        throw ApiError(400, "expected a JSON object as the body: {\"priority\": N}");
+    for (const auto& [key, v] : doc.items())
+        if (key != "priority")
+            throw ApiError(400, "unknown field '" + key.substr(0, 64) +
+                                    "'; only priority can be changed");
+    return priority_number(doc["priority"]);
 }
 
 void parse_cancel_request(const std::string& body) {

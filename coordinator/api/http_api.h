@@ -103,5 +103,8 @@ bool origin_matches_host(const std::string& origin, const std::string& host, boo
 
 // The body of POST /api/renders/{id}/cancel: a JSON object with no fields, "{}".
 void parse_cancel_request(const std::string& body);
+// The body of PATCH /api/renders/{id}: {"priority": N}, nothing else. Throws
+// ApiError(400).
+int32_t parse_priority_request(const std::string& body);
 
 }  // namespace aliquot::http_api

@@ -581,7 +581,7 @@ struct HttpServer::Impl {
         dashboard_route();
     }
 
-    // Renders: list, submit, read, cancel, rounds.
+    // Renders: list, submit, read, cancel, change priority, delete, rounds.
     void render_routes() {
         server.Get(
             "/api/renders", guarded([this](const httplib::Request& req, auto& res) {
@@ -616,6 +616,35 @@ struct HttpServer::Impl {
                                            "no render '" + req.matches[1].str() + "'");
                         send_json(res, render_detail(*info));
                     }));
+        server.Patch(
+            R"(/api/renders/([^/]+))",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const int32_t priority = http_api::parse_priority_request(req.body);
+                std::optional<RenderInfo> info;
+                try {
+                    info = coordinator.set_priority(req.matches[1], priority);
+                } catch (const RenderFinished& e) {
+                    throw ApiError(409, e.what());
+                }
+                if (!info)
+                    throw ApiError(404, "no render '" + req.matches[1].str() + "'");
+                send_json(res, render_detail(*info, progress_of(*info)));
+            }));
+        server.Delete(R"(/api/renders/([^/]+))",
+                      guarded([this](const httplib::Request& req, auto& res) {
+                          const std::string id = req.matches[1];
+                          switch (coordinator.remove(id)) {
+                              case Coordinator::Removal::Removed:
+                                  res.status = 204;
+                                  return;
+                              case Coordinator::Removal::Unknown:
+                                  throw ApiError(404, "no render '" + id + "'");
+                              case Coordinator::Removal::Unfinished:
+                                  throw ApiError(409, "render '" + id +
+                                                          "' has not finished; cancel "
+                                                          "it first");
+                          }
+                      }));
         server.Get(
             R"(/api/renders/([^/]+)/rounds)",
             guarded([this](const httplib::Request& req, auto& res) {

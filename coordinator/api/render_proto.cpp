@@ -58,6 +58,7 @@ void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
     out.set_finished_ms(i.finished_ms);
     out.set_outcome_json(i.outcome_json);
     out.set_rays(i.rays);
+    out.set_priority(i.priority);
 }
 
 RenderInfo from_proto(const v1::RenderInfo& in) {
@@ -70,6 +71,7 @@ RenderInfo from_proto(const v1::RenderInfo& in) {
     i.method = in.method();
     i.strategy_json = in.strategy_json();
     i.state = from_proto(in.state());
+    i.priority = in.priority();
     i.error = in.error();
     i.samples_done = in.samples_done();
     i.samples_planned = in.samples_planned();

@@ -18,6 +18,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import urllib.error
 import urllib.request
 
 ALIQUOT = os.path.abspath(sys.argv[1] if len(sys.argv) > 1 else "build/bin/aliquot")
@@ -43,7 +44,8 @@ def write_token(name):
 
 CLIENT_TOKEN = write_token("client.token")
 WORKER_TOKEN = write_token("worker.token")
-CLIENT_COMMANDS = {"submit", "status", "watch", "fetch", "cancel", "workers"}
+CLIENT_COMMANDS = {"submit", "status", "watch", "fetch", "cancel", "priority", "delete",
+                   "workers"}
 
 
 def with_token(args):
@@ -365,6 +367,63 @@ def test_storage_warning_reaches_status_and_http():
             time.sleep(0.5)
         assert http_warning() == ""
         assert os.path.exists(os.path.join(render_dir, "image.exr"))
+    finally:
+        farm.stop()
+
+
+def test_priorities_and_deleting_through_the_cli_and_http():
+    # Issue 16: leases go to the highest priority first; a finished render can be
+    # deleted (files, record), a running one cannot.
+    farm = Farm("priority", http=True)
+
+    def http(method, path, body=None):
+        url = f"http://127.0.0.1:{farm.http_port}{path}"
+        data = json.dumps(body).encode() if body is not None else None
+        request = urllib.request.Request(url, data=data, method=method, headers={
+            "Authorization": "Bearer " + client_token(), "Content-Type": "application/json"})
+        try:
+            with urllib.request.urlopen(request, timeout=10) as r:
+                text = r.read()
+                return r.status, (json.loads(text) if text else None)
+        except urllib.error.HTTPError as e:
+            return e.code, json.loads(e.read() or b"null")
+
+    try:
+        farm.start_coordinator()
+        unseeded = SMALL[:SMALL.index("--seed")]
+        low = [farm.submit(*unseeded, "--seed", str(i))["id"] for i in range(10)]
+        high = farm.submit(*SMALL, "--priority", "5")["id"]
+        assert farm.status(high)["priority"] == 5
+        # Raised over HTTP while queued; the CLI lowers one of the low ones.
+        status, info = http("PATCH", f"/api/renders/{low[-1]}", {"priority": 7})
+        assert status == 200 and info["priority"] == 7, (status, info)
+        assert "priority 3" in run("priority", low[-1], "3", "--coordinator", farm.addr).stdout
+        assert farm.status(low[-1])["priority"] == 3
+        assert http("PATCH", f"/api/renders/{high}", {"priority": "x"})[0] == 400
+        assert http("PATCH", "/api/renders/r-999999", {"priority": 1})[0] == 404
+        farm.start_worker("w0")
+        for render_id in low + [high]:
+            farm.wait_until(render_id, lambda s: s["state"] == "done")
+        finished = {r: farm.status(r)["finished_ms"] for r in low + [high]}
+        others = min(finished[r] for r in low[:-1])
+        assert finished[high] <= finished[low[-1]] <= others, finished
+        # Deleting: a finished render goes with its files; a running one stays.
+        long_id = farm.submit(*LONG)["id"]
+        r = run("delete", long_id, "--coordinator", farm.addr, check=False)
+        assert r.returncode != 0 and "cancel it first" in r.stderr, r.stderr
+        assert http("DELETE", f"/api/renders/{long_id}")[0] == 409
+        assert http("PATCH", f"/api/renders/{high}", {"priority": 1})[0] == 409
+        render_dir = os.path.join(farm.dir, "data", "renders", high)
+        assert os.path.exists(os.path.join(render_dir, "image.exr"))
+        run("delete", high, "--coordinator", farm.addr)
+        assert not os.path.exists(render_dir)
+        r = run("status", high, "--coordinator", farm.addr, check=False)
+        assert r.returncode != 0 and "no render" in r.stderr, r.stderr
+        assert http("DELETE", f"/api/renders/{low[0]}")[0] == 204
+        assert http("GET", f"/api/renders/{low[0]}")[0] == 404
+        assert http("DELETE", f"/api/renders/{low[0]}")[0] == 404
+        run("cancel", long_id, "--coordinator", farm.addr)
+        run("delete", long_id, "--coordinator", farm.addr)
     finally:
         farm.stop()
 
