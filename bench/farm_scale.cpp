@@ -6,7 +6,8 @@
 // pixel-samples merged per second, leases per second, and the Lease and Complete
 // latencies (median and 99th percentile) of the calls that got a job; round_end_share is
 // the seconds the coordinator spent ending rounds (Coordinator::round_end_seconds) ÷ the
-// render's. One JSON object per line.
+// render's; round_end_ms and round_end_cpu_ms are one round end's wall and CPU time (the
+// CPU time is what it costs however loaded the machine is). One JSON object per line.
 //
 // Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
 //        (defaults: 1920x1080 10 1,16,64,256
@@ -54,7 +55,7 @@ struct Run {
     double seconds = 0;
     uint64_t samples = 0, leases = 0;
     uint32_t rounds = 0;
-    double round_end_seconds = 0;
+    double round_end_seconds = 0, round_end_cpu_seconds = 0;
     std::string state;
     std::vector<double> lease_ms, complete_ms;
 };
@@ -125,6 +126,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         out.rounds = info.rounds_done;
         out.state = std::string(to_string(info.state));
         out.round_end_seconds = coordinator.round_end_seconds();
+        out.round_end_cpu_seconds = coordinator.round_end_cpu_seconds();
         out.leases = out.lease_ms.size();
     }
     fs::remove_all(dir);
@@ -150,12 +152,15 @@ int main(int argc, char** argv) {
                 "\"pixel_samples_per_second\": %.0f, \"leases_per_second\": %.0f, "
                 "\"lease_ms_p50\": %.3f, \"lease_ms_p99\": %.3f, "
                 "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f, "
-                "\"round_end_share\": %.4f}\n",
+                "\"round_end_share\": %.4f, \"round_end_ms\": %.1f, "
+                "\"round_end_cpu_ms\": %.1f}\n",
                 size.width, size.height, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
                 percentile(r.lease_ms, 0.99), percentile(r.complete_ms, 0.5),
-                percentile(r.complete_ms, 0.99), r.round_end_seconds / r.seconds);
+                percentile(r.complete_ms, 0.99), r.round_end_seconds / r.seconds,
+                r.rounds ? 1e3 * r.round_end_seconds / r.rounds : 0.0,
+                r.rounds ? 1e3 * r.round_end_cpu_seconds / r.rounds : 0.0);
             std::fflush(stdout);
         }
 }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <ctime>
 #include <stdexcept>
 
 #include "checkpoint.h"
@@ -29,6 +30,12 @@ nlohmann::json spec_json(const RenderSpec& spec) {
 
 // The outcome's key, in the store only, for what a render's end records besides it.
 constexpr const char* kFinalKey = "_final";
+
+double thread_cpu_seconds() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
 
 void log_error(const std::string& what) {
     std::fprintf(stderr, "coordinator: %s\n", what.c_str());
@@ -819,22 +826,26 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     // The merge, and when this is the round's last job the round's end, under the
     // render's lock alone.
     CompleteOutcome outcome;
-    double round_end = 0;
+    double round_end = 0, round_end_cpu = 0;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
         RenderSession& s = *slot->session;
         const uint32_t rounds_before = s.rounds_done();
         const auto began = std::chrono::steady_clock::now();
+        const double began_cpu = thread_cpu_seconds();
         outcome = s.complete(lease_id, worker, result, *alive, options_.failure_policy);
-        if (s.rounds_done() != rounds_before)  // this result ended a round
+        if (s.rounds_done() != rounds_before) {  // this result ended a round
             round_end =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
                     .count();
+            round_end_cpu = thread_cpu_seconds() - began_cpu;
+        }
         render_failed = s.state() == RenderState::Failed;
     }
     std::lock_guard lock(mutex_);
     round_end_seconds_ += round_end;
+    round_end_cpu_seconds_ += round_end_cpu;
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
         // The worker may have been forgotten meanwhile (it was silent for long): its
@@ -952,6 +963,11 @@ size_t Coordinator::leases_out() {
 double Coordinator::round_end_seconds() {
     std::lock_guard lock(mutex_);
     return round_end_seconds_;
+}
+
+double Coordinator::round_end_cpu_seconds() {
+    std::lock_guard lock(mutex_);
+    return round_end_cpu_seconds_;
 }
 
 size_t Coordinator::worker_sessions() {

@@ -168,6 +168,9 @@ public:
     // cutting the next round), under the render's lock and with none of the round's jobs
     // out: what the coordinator costs per round (bench/farm_scale).
     double round_end_seconds();
+    // The same calls' CPU time on their threads: what they cost whatever the load (on a
+    // busy machine the wall time also counts waiting for a core).
+    double round_end_cpu_seconds();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -307,7 +310,7 @@ private:
     std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
         std::make_shared<const std::set<std::string>>();  // a copy of alive_
     int ticks_ = 0;
-    double round_end_seconds_ = 0;
+    double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0;
     bool stopping_ = false;
     std::thread ticker_;
 

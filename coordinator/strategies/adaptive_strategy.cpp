@@ -11,11 +11,6 @@ namespace aliquot {
 
 namespace {
 
-// The remainder is decided once, after the initial pass (as in the seed), and delivered
-// in rounds of about this many samples so that progress, per-round error and checkpoints
-// stay frequent; the decision does not depend on how it is delivered.
-constexpr uint64_t kRoundSamples = uint64_t(1) << 22;
-
 double pixel_value(const Accumulator& merged, size_t i) {
     double rgb[3];
     merged.mean(i, rgb);
@@ -112,6 +107,9 @@ void AdaptiveStrategy::plan_remainder() {
         }
     }
     unspent_ = remainder_ - given;
+    // The remainder is decided once, after the initial pass (as in the seed), and
+    // delivered in rounds of about kRoundSamples so that progress, per-round error and
+    // checkpoints stay frequent; the decision does not depend on how it is delivered.
     deliveries_ =
         uint32_t(std::max<uint64_t>(1, (given + kRoundSamples - 1) / kRoundSamples));
 }

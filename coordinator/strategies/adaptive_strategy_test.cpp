@@ -162,11 +162,12 @@ TEST(Adaptive, BucketVarianceIsTheRangeOfPixelLuminance) {
 }
 
 TEST(Adaptive, RestoredStateDeliversTheSameRounds) {
-    // A remainder over 2^22 samples is delivered in two rounds; restoring between them
+    // A remainder over kRoundSamples is delivered in two rounds; restoring between them
     // must rebuild the same allocation. Delivery rounds do not read the buffers, so they
     // are not traced here.
     const SyntheticImage image(64, 64, 3, {0.5, 0.2});
-    StrategyParams p = adaptive(4096 * 1100);
+    const uint64_t budget = 4096 * (kRoundSamples / 4096 + 100);
+    StrategyParams p = adaptive(budget);
     p.initial_spp = 4;
     AdaptiveStrategy a(p, 64, 64);
     Accumulator merged(64, 64);
@@ -178,7 +179,7 @@ TEST(Adaptive, RestoredStateDeliversTheSameRounds) {
     const auto second_a = a.next_round(merged), second_b = b.next_round(merged);
     ASSERT_TRUE(second_a && second_b);
     EXPECT_EQ(second_a->spp, second_b->spp);
-    EXPECT_EQ(first->total() + second_a->total() + 4096u * 4, 4096u * 1100);
+    EXPECT_EQ(first->total() + second_a->total() + 4096u * 4, budget);
     EXPECT_FALSE(a.next_round(merged));
     EXPECT_FALSE(b.next_round(merged));
 }

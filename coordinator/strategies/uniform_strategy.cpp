@@ -8,10 +8,10 @@ UniformStrategy::UniformStrategy(uint32_t width, uint32_t height, uint32_t spp)
     : spp_(spp), pixels_(size_t(width) * height) {}
 
 uint32_t UniformStrategy::round_spp(uint32_t done, uint32_t spp, size_t pixels) {
-    // Doubling keeps the number of rounds logarithmic; the cap keeps each round short
-    // enough that a checkpoint is never far behind.
+    // Doubling keeps the number of rounds logarithmic; the cap (kRoundSamples) keeps each
+    // round short enough that a checkpoint is never far behind.
     const uint64_t cap =
-        std::max<uint64_t>(1, (uint64_t(1) << 22) / std::max<size_t>(pixels, 1));
+        std::max<uint64_t>(1, kRoundSamples / std::max<size_t>(pixels, 1));
     const uint64_t want = std::min<uint64_t>(std::max<uint32_t>(done, 1), cap);
     return uint32_t(std::min<uint64_t>(want, spp - done));
 }

@@ -38,9 +38,11 @@ TEST(Uniform, ProgressiveRoundsAddUpToSpp) {
     EXPECT_LE(rounds, 8u);  // doubling: 1, 1, 2, 4, ..., so logarithmic in spp
 }
 
-TEST(Uniform, RoundsOfALargeImageStayNearFourMillionSamples) {
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 4096 * 4096), 1u);
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1 << 20), 4u);
+TEST(Uniform, RoundsOfALargeImageStayNearKRoundSamples) {
+    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 8192 * 8192), 1u);  // never below 1
+    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 4096 * 4096), 2u);
+    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1920 * 1080), 16u);
+    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1 << 20), 32u);
     EXPECT_EQ(UniformStrategy::round_spp(512, 1000, 1024),
               488u);  // the last, partial round
 }
