@@ -303,49 +303,69 @@ std::string Coordinator::submit(RenderSpec spec) {
     parse_submitted_scene(spec.scene_json,
                           spec.scene_name.empty() ? "scene" : spec.scene_name);
     const std::string hash = scene_hash(spec.scene_json);
-    std::lock_guard lock(mutex_);
-    // Before anything is claimed or written: a refused render leaves no trace.
     const uint64_t needed =
         render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
-    const uint64_t in_use = memory_in_use_locked();
-    if (options_.memory_limit > 0 &&
-        (needed > options_.memory_limit || in_use > options_.memory_limit - needed))
-        throw MemoryBudgetError(needed, in_use, sessions_.size(), options_.memory_limit);
-    const std::string id = claim_render_id();
-    const int64_t created = unix_millis_now();
-    scenes_[hash] = spec.scene_json;
-    auto session = std::make_unique<RenderSession>(id, spec, created);
-    if (store_) {
-        store_->put_scene(hash, spec.scene_name, spec.scene_json, created);
-        RenderRecord rec;
-        rec.id = id;
-        rec.scene_hash = hash;
-        rec.spec_json = spec_json(spec).dump();
-        rec.created_at = created;
-        rec.samples_planned = int64_t(session->samples_planned());
-        rec.priority = spec.priority;
-        if (spec.reference) {
-            // Content-addressed: a study judges hundreds of renders against one
-            // reference, which is then written once, not once per render.
-            const Image& ref = *spec.reference;
-            const std::string key =
-                content_hash(std::string(reinterpret_cast<const char*>(ref.rgb.data()),
-                                         ref.rgb.size() * sizeof(float)));
-            const auto path = options_.data_dir / "references" /
-                              (key + "-" + std::to_string(ref.width) + "x" +
-                               std::to_string(ref.height) + ".exr");
-            if (!std::filesystem::exists(path)) {
-                std::filesystem::create_directories(path.parent_path());
-                Image rgb_only(ref.width, ref.height);
-                rgb_only.rgb = ref.rgb;
-                write_exr(path, rgb_only);
-            }
-            rec.reference_path = path.string();
-        }
-        store_->create_render(rec);
+    std::string id;
+    {
+        std::lock_guard lock(mutex_);
+        // Before anything is claimed or written: a refused render leaves no trace.
+        const uint64_t in_use = memory_in_use_locked();
+        if (options_.memory_limit > 0 &&
+            (needed > options_.memory_limit || in_use > options_.memory_limit - needed))
+            throw MemoryBudgetError(needed, in_use, sessions_.size(),
+                                    options_.memory_limit);
+        id = claim_render_id();
+        // Counted until the session is attached, so that submissions meanwhile see it.
+        reserved_memory_ += needed;
     }
-    attach(std::move(session));
+    // Building the session (its buffers) and writing its record and reference happen
+    // off the lock: a 1920x1080 reference is 24 MB to write.
+    try {
+        const int64_t created = unix_millis_now();
+        auto session = std::make_unique<RenderSession>(id, spec, created);
+        if (store_) {
+            store_->put_scene(hash, spec.scene_name, spec.scene_json, created);
+            RenderRecord rec;
+            rec.id = id;
+            rec.scene_hash = hash;
+            rec.spec_json = spec_json(spec).dump();
+            rec.created_at = created;
+            rec.samples_planned = int64_t(session->samples_planned());
+            rec.priority = spec.priority;
+            if (spec.reference) rec.reference_path = store_reference(*spec.reference);
+            store_->create_render(rec);
+        }
+        std::lock_guard lock(mutex_);
+        reserved_memory_ -= needed;
+        scenes_[hash] = spec.scene_json;
+        attach(std::move(session));
+    } catch (...) {
+        std::lock_guard lock(mutex_);
+        reserved_memory_ -= needed;
+        throw;
+    }
     return id;
+}
+
+std::string Coordinator::store_reference(const Image& ref) const {
+    // Content-addressed: a study judges hundreds of renders against one reference, which
+    // is then written once, not once per render. Written to a temporary name and renamed,
+    // so that two submissions of the same reference at once never read a half-written
+    // file.
+    const std::string key = content_hash(std::string(
+        reinterpret_cast<const char*>(ref.rgb.data()), ref.rgb.size() * sizeof(float)));
+    const auto path = options_.data_dir / "references" /
+                      (key + "-" + std::to_string(ref.width) + "x" +
+                       std::to_string(ref.height) + ".exr");
+    if (!std::filesystem::exists(path)) {
+        std::filesystem::create_directories(path.parent_path());
+        Image rgb_only(ref.width, ref.height);
+        rgb_only.rgb = ref.rgb;
+        const auto partial = path.string() + ".partial-" + random_hex(8);
+        write_exr(partial, rgb_only);
+        std::filesystem::rename(partial, path);
+    }
+    return path.string();
 }
 
 void Coordinator::resume_unfinished() {
@@ -471,15 +491,12 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
 
 std::vector<RenderInfo> Coordinator::list(size_t limit) {
     std::vector<std::string> ids;
-    {
+    if (store_) {
+        for (const RenderRecord& r : store_->list_renders(limit)) ids.push_back(r.id);
+    } else {
         std::lock_guard lock(mutex_);
-        if (store_) {
-            for (const RenderRecord& r : store_->list_renders(limit)) ids.push_back(r.id);
-        } else {
-            for (auto it = order_.rbegin(); it != order_.rend() && ids.size() < limit;
-                 ++it)
-                ids.push_back(*it);
-        }
+        for (auto it = order_.rbegin(); it != order_.rend() && ids.size() < limit; ++it)
+            ids.push_back(*it);
     }
     std::vector<RenderInfo> out;
     for (const std::string& id : ids)
@@ -625,6 +642,21 @@ uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds t
     return version_;
 }
 
+void Coordinator::queue_worker_write(std::string what, std::function<void()> write) {
+    if (!store_) return;
+    // On the backlog's thread, off the coordinator's lock (at 256 workers the samples
+    // written every tick were hundreds of SQLite commits under it). Workers' rows are
+    // statistics: a write that fails is logged and dropped, never retried in a way that
+    // would hold up the renders' records queued behind it.
+    backlog_.submit(std::move(what), [write = std::move(write)] {
+        try {
+            write();
+        } catch (const std::exception& e) {
+            log_error(e.what());
+        }
+    });
+}
+
 Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     const auto [it, is_new] = workers_.try_emplace(name);
     WorkerEntry& w = it->second;
@@ -632,13 +664,11 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     w.last_seen_ms = now;
     // A worker first heard of here gets its row now, so that marking it lost later has
     // a row to mark. (Since worker sessions, only register_worker meets a new name.)
-    if ((is_new || w.lost) && store_) {
-        try {
-            store_->upsert_worker(name, w.threads, now);
-        } catch (const std::exception& e) {
-            log_error(e.what());
-        }
-    }
+    if (is_new || w.lost)
+        queue_worker_write("record worker " + name,
+                           [this, name, threads = w.threads, now] {
+                               store_->upsert_worker(name, threads, now);
+                           });
     w.lost = false;
     if (w.registered) set_alive(name, true);
     return w;
@@ -724,13 +754,10 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     w.registered = true;
     set_alive(name, true);
     // A full disk must not keep workers out: the row is written again when it returns.
-    if (store_) {
-        try {
-            store_->upsert_worker(name, threads, unix_millis_now());
-        } catch (const std::exception& e) {
-            log_error(e.what());
-        }
-    }
+    queue_worker_write("record worker " + name,
+                       [this, name, threads, now = w.last_seen_ms] {
+                           store_->upsert_worker(name, threads, now);
+                       });
     // A new session each time; earlier ones of the same name stay valid (their leases are
     // still theirs), so registering with a worker's name neither takes its leases nor
     // locks it out.
@@ -871,9 +898,11 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
 
 std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
                                                     const std::string& hash) {
-    std::lock_guard lock(mutex_);
-    worker_of_session(session);
-    if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;
+    {
+        std::lock_guard lock(mutex_);
+        worker_of_session(session);
+        if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;
+    }
     if (store_)
         if (auto rec = store_->get_scene(hash)) return rec->json;
     return std::nullopt;
@@ -1042,48 +1071,44 @@ void Coordinator::tick() {
             for (const uint64_t lease : slot->session->expire(now))
                 expired.push_back(lease);
     }
-    bool retention_due = false;
+    bool retention_due = false, wal_due = false;
     {
         std::lock_guard lock(mutex_);
         bool any = !expired.empty();
         forget_ended_leases(expired, finished);
         const int64_t wall = unix_millis_now();
         for (auto& [name, w] : workers_) {
-            if (store_ && w.unrecorded > 0) {
-                try {
-                    store_->record_worker_samples(name, int64_t(w.unrecorded),
-                                                  w.last_seen_ms);
-                } catch (const std::exception& e) {
-                    log_error(e.what());
-                }
+            if (w.unrecorded > 0) {
+                queue_worker_write(
+                    "record the samples of " + name,
+                    [this, name, samples = int64_t(w.unrecorded), seen = w.last_seen_ms] {
+                        store_->record_worker_samples(name, samples, seen);
+                    });
                 w.unrecorded = 0;
             }
             if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
                 w.lost = true;
                 set_alive(name, false);
                 any = true;
-                if (store_) {
-                    try {
-                        store_->mark_worker_state(name, "lost");
-                    } catch (const std::exception& e) {
-                        log_error(e.what());
-                    }
-                }
+                queue_worker_write("record that " + name + " is lost", [this, name] {
+                    store_->mark_worker_state(name, "lost");
+                });
             }
         }
         forget_silent_workers(wall);
         if (any) changed();
-        // Every ~10 s: keep the WAL from growing without bound. A full disk fails it; the
-        // next one tries again.
         ++ticks_;
-        if (store_ && ticks_ % 50 == 0) {
-            try {
-                store_->checkpoint();
-            } catch (const std::exception& e) {
-                log_error(e.what());
-            }
-        }
+        wal_due = ticks_ % 50 == 0;
         retention_due = ticks_ % 300 == 1;  // the first tick, then about once a minute
+    }
+    // Every ~10 s, outside the lock: keep the WAL from growing without bound. A full disk
+    // fails it; the next one tries again.
+    if (store_ && wal_due) {
+        try {
+            store_->checkpoint();
+        } catch (const std::exception& e) {
+            log_error(e.what());
+        }
     }
     // Outside the lock: deleting a render's files can take a while.
     if (retention_due) {
@@ -1228,7 +1253,7 @@ MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t 
       limit(limit_) {}
 
 uint64_t Coordinator::memory_in_use_locked() const {
-    uint64_t total = 0;
+    uint64_t total = reserved_memory_;
     for (const auto& [id, slot] : sessions_) {
         const RenderSpec& spec = slot->session->spec();  // never changes: no render lock
         total +=

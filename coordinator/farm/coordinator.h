@@ -16,6 +16,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -238,6 +239,9 @@ private:
     void record_end(RenderSlot& slot);
     uint64_t first_free_render_number() const;
     std::string claim_render_id();
+    // Writes a submitted reference under data_dir/references (once per content); its
+    // path.
+    std::string store_reference(const Image& reference) const;
     // Wires a new session's callbacks, starts it and makes it visible; under `mutex_`
     // (no one else can reach the session yet).
     void attach(std::unique_ptr<RenderSession> session);
@@ -251,6 +255,8 @@ private:
     RenderInfo info_of(const RenderSlot& slot, int32_t priority) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
+    // Queues a write of workers' rows on the backlog (no-op without a store).
+    void queue_worker_write(std::string what, std::function<void()> write);
     // The name of the worker holding `session`, touched (heard from now); throws
     // WorkerUnknown for a session this coordinator did not issue.
     const std::string& worker_of_session(const std::string& session);
@@ -292,6 +298,8 @@ private:
     uint64_t version_ = 0;
     uint64_t next_render_number_ = 1;
     uint64_t submissions_ = 0;  // renders attached so far: RenderSlot::number
+    // Memory of submissions being set up off the lock (submit), not yet attached.
+    uint64_t reserved_memory_ = 0;
     std::map<std::string, SlotPtr> sessions_;  // by id
     std::vector<std::string> order_;           // submission order
     struct LeaseOwner {
