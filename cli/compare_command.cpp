@@ -22,8 +22,8 @@ void run_compare(const CompareOptions& o) {
     // Checked here rather than with a CLI11 validator so that every user error leaves
     // through main's one-line "aliquot: ..." path with exit status 1.
     if (o.bucket_size <= 0)
-        throw CommandError("--bucket-size must be positive, got " +
-                           std::to_string(o.bucket_size));
+        throw UsageError("--bucket-size must be positive, got " +
+                         std::to_string(o.bucket_size));
     const Image test = read_exr(o.test);
     const Image reference = read_exr(o.reference);
     ErrorMetrics m;

@@ -58,20 +58,20 @@ void check_render_options(RenderOptions& o) {
         o.width = r.width;
         o.height = r.height;
     } catch (const std::invalid_argument& e) {
-        throw CommandError(std::string("--resolution: ") + e.what());
+        throw UsageError(std::string("--resolution: ") + e.what());
     }
     if (o.spp != kSppNotGiven && (o.spp < 1 || o.spp > (int64_t(1) << 31)))
-        throw CommandError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
+        throw UsageError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
     if (o.spp == kSppNotGiven)
         o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;
     o.strategy.spp = uint64_t(o.spp);
-    if (o.threads < 0) throw CommandError("--threads: must be 0 or more");
+    if (o.threads < 0) throw UsageError("--threads: must be 0 or more");
     if (o.threads == 0)
         o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
     try {
         validate(o.strategy, o.width, o.height);
     } catch (const std::invalid_argument& e) {
-        throw CommandError(e.what());
+        throw UsageError(e.what());
     }
 }
 

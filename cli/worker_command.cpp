@@ -23,7 +23,7 @@ struct WorkerCommand {
     std::string name;
 
     void run() {
-        if (threads < 0) throw CommandError("--threads: must be 0 or more");
+        if (threads < 0) throw UsageError("--threads: must be 0 or more");
         if (threads == 0)
             threads = int(std::max(1u, std::thread::hardware_concurrency()));
         if (name.empty()) {
