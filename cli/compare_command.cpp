@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "error_metric.h"
 #include "exr_io.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 namespace {
@@ -67,6 +68,7 @@ void register_compare(CLI::App& app) {
     cmd->add_flag("--json", options->json, "print one JSON object instead of text");
     cmd->add_option("--bucket-size", options->bucket_size,
                     "side in pixels of the buckets for the max and p99 bucket error")
+        ->check(whole_number())
         ->capture_default_str();
     cmd->callback([options] { run_compare(*options); });
 }

@@ -14,6 +14,7 @@
 #include "grpc_server.h"
 #include "http_server.h"
 #include "token_file.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -239,6 +240,7 @@ void register_coordinator(CLI::App& app) {
                     "silence after which a worker is lost")
         ->capture_default_str();
     cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
+        ->check(whole_number())
         ->capture_default_str();
     cmd->add_option("--memory-limit", c->memory_limit,
                     "bytes (K, M, G suffixes) the renders in memory may use together; a "
@@ -246,6 +248,7 @@ void register_coordinator(CLI::App& app) {
                         std::to_string(default_memory_limit() >> 20) + "M here)");
     cmd->add_option("--max-job-failures", c->max_job_failures,
                     "workers a job may fail on before its render fails (docs/FARM.md)")
+        ->check(whole_number())
         ->capture_default_str();
     cmd->callback([c] { c->run(); });
 }

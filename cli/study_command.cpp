@@ -15,6 +15,7 @@
 #include "progress_bar.h"
 #include "study_farm.h"
 #include "study_runner.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -151,7 +152,8 @@ void register_study(CLI::App& app) {
             "run the renders on this coordinator, host:port (default: embedded, in this "
             "process; ALIQUOT_COORDINATOR is not read here)");
     cmd->add_option("--out", c->out, "output directory (default out/study-NAME-SCALE)");
-    cmd->add_option("--threads", c->threads, "embedded tracing threads (0: all cores)");
+    cmd->add_option("--threads", c->threads, "embedded tracing threads (0: all cores)")
+        ->check(whole_number());
     cmd->add_flag("--no-report", c->no_report,
                   "record the renders only, write no report");
     cmd->callback([c] { c->run(); });

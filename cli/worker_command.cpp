@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "endpoint_options.h"
 #include "grpc_link.h"
+#include "whole_number_option.h"
 #include "worker_loop.h"
 
 namespace aliquot::cli {
@@ -70,7 +71,8 @@ void register_worker(CLI::App& app) {
     auto c = std::make_shared<WorkerCommand>();
     CLI::App* cmd = app.add_subcommand("worker", "trace sample jobs for a coordinator");
     c->coordinator.add_to(*cmd, Role::Worker);
-    cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)");
+    cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)")
+        ->check(whole_number());
     cmd->add_option("--name", c->name, "worker name (default: host-pid)");
     cmd->callback([c] { c->run(); });
 }

@@ -61,7 +61,6 @@ expect_error "resolution 0x0" 2 "--resolution" "$aliquot" render --resolution 0x
 expect_error "resolution not WxH" 2 "--resolution" "$aliquot" render --resolution 64 --out "$tmp/x.exr"
 expect_error "spp 0" 2 "--spp" "$aliquot" render --spp 0 --out "$tmp/x.exr"
 expect_error "unknown method" 2 "method" "$aliquot" render --method magic --out "$tmp/x.exr"
-expect_error "negative threads" 2 "--threads" "$aliquot" render --threads -1 --out "$tmp/x.exr"
 expect_error "output directory missing" 1 "does not exist" "$aliquot" render --out "$tmp/no/such/dir/x.exr"
 expect_error "output is a directory" 1 "is a directory" "$aliquot" render --out "$tmp/ro"
 expect_error "compare with different resolutions" 1 "resolution differs" "$aliquot" compare "$tmp/a1.exr" "$tmp/j.exr"
@@ -69,7 +68,6 @@ expect_error "compare with a missing file" 1 "missing.exr" "$aliquot" compare "$
 expect_error "compare with bucket size 0" 2 "--bucket-size" "$aliquot" compare "$tmp/a1.exr" "$tmp/b.exr" --bucket-size 0
 expect_error "coordinator with lease 0 s" 2 "--lease-seconds" "$aliquot" coordinator --lease-seconds 0 --data "$tmp/d"
 expect_error "coordinator with a bad memory limit" 2 "--memory-limit" "$aliquot" coordinator --memory-limit 3X --data "$tmp/d"
-expect_error "worker with negative threads" 2 "--threads" "$aliquot" worker --threads -2
 expect_error "negative connect timeout" 2 "--connect-timeout" "$aliquot" status --connect-timeout -1
 expect_error "unknown study scale" 2 "--scale" "$aliquot" study "$(dirname "$0")/../study/tiny.json" --scale huge --out "$tmp/s"
 # Nothing listens on port 1: the client waits its connect timeout, then says so.
@@ -90,6 +88,18 @@ expect_error "--coordinator wins over ALIQUOT_COORDINATOR" 1 "cannot reach coord
 [[ $? -eq 2 ]] && pass "a missing required option exits 2" || fail "a missing required option exits 2"
 "$aliquot" status --connect-timeout soon >/dev/null 2>&1
 [[ $? -eq 2 ]] && pass "an option that is not a number exits 2" || fail "an option that is not a number exits 2"
+# Integer options are decimal digits: CLI11 alone read -1 as 2^64-1, 010 as 8, 0x10 as 16
+# and clamped an overflow, silently.
+for bad in "--seed -1" "--seed 010" "--seed 0x10" "--seed 18446744073709551616" \
+    "--threads -1" "--spp -4" "--budget -1"; do
+    # shellcheck disable=SC2086 # the option and its value are two words
+    err=$("$aliquot" render $bad --out "$tmp/x.exr" 2>&1 >/dev/null)
+    status=$?
+    [[ $status -eq 2 && $err == *"${bad%% *}: expected a whole number"* ]] &&
+        pass "render $bad exits 2" || fail "render $bad exits 2 (status $status: $err)"
+done
+"$aliquot" worker --threads -2 >/dev/null 2>&1
+[[ $? -eq 2 ]] && pass "worker --threads -2 exits 2" || fail "worker --threads -2 exits 2"
 version=$("$aliquot" --version)
 [[ $? -eq 0 && $version =~ ^aliquot\ [0-9]+\.[0-9]+\.[0-9]+$ ]] && pass "--version prints the version" ||
     fail "--version prints the version (got: $version)"
