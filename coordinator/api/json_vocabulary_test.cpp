@@ -1,5 +1,5 @@
-// One JSON vocabulary: the proto's JSON mapping (protobuf's own printer, with the proto's
-// field names, as grpcurl and gateways print them), the HTTP API and `--json` name every
+// One JSON vocabulary: the proto's JSON mapping (protobuf's own printer, as grpcurl and
+// gateways print the client service's messages), the HTTP API and `--json` name every
 // field alike and spell every state alike. docs/API.md, "One vocabulary", states the
 // rules these tests hold the three to.
 #include <google/protobuf/util/json_util.h>
@@ -19,10 +19,10 @@ namespace {
 
 using nlohmann::json;
 
-// The message as protobuf's JSON mapping prints it, every field present.
+// The message as protobuf's JSON mapping prints it by default (json_name, as grpcurl
+// does), every field present.
 json proto_json(const google::protobuf::Message& message) {
     google::protobuf::util::JsonPrintOptions options;
-    options.preserve_proto_field_names = true;
     options.always_print_primitive_fields = true;
     std::string text;
     EXPECT_TRUE(
@@ -45,6 +45,30 @@ std::string api_name(const std::string& proto_field) {
             0)
         return proto_field.substr(0, proto_field.size() - suffix.size());
     return proto_field;
+}
+
+// The client service's messages name their JSON fields as the proto does (json_name), so
+// a printer that uses JSON names and one that keeps the proto's names agree.
+TEST(JsonVocabulary, EveryClientMessageFieldKeepsItsProtoNameInJson) {
+    const auto* service =
+        v1::RenderInfo::descriptor()->file()->FindServiceByName("ClientService");
+    ASSERT_NE(service, nullptr);
+    std::set<const google::protobuf::Descriptor*> messages;
+    for (int m = 0; m < service->method_count(); ++m) {
+        messages.insert(service->method(m)->input_type());
+        messages.insert(service->method(m)->output_type());
+    }
+    for (size_t seen = 0; seen != messages.size();) {  // and the messages they hold
+        seen = messages.size();
+        for (const auto* message : std::set(messages))
+            for (int f = 0; f < message->field_count(); ++f)
+                if (const auto* inner = message->field(f)->message_type())
+                    messages.insert(inner);
+    }
+    for (const auto* message : messages)
+        for (int f = 0; f < message->field_count(); ++f)
+            EXPECT_EQ(message->field(f)->json_name(), message->field(f)->name())
+                << message->full_name();
 }
 
 RenderInfo a_render() {
