@@ -71,6 +71,12 @@ void register_worker(CLI::App& app) {
     auto c = std::make_shared<WorkerCommand>();
     CLI::App* cmd = app.add_subcommand("worker", "trace sample jobs for a coordinator");
     c->coordinator.add_to(*cmd, Role::Worker);
+    // A worker is long-lived: it retries its coordinator for as long as it runs, so only
+    // the token file is waited for.
+    cmd->get_option("--connect-timeout")
+        ->description(
+            "seconds to wait for the implicit token file aliquot-data/worker.token to "
+            "appear; the coordinator itself is retried for as long as the worker runs");
     cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)")
         ->check(whole_number());
     cmd->add_option("--name", c->name, "worker name (default: host-pid)");
