@@ -11,8 +11,21 @@ namespace aliquot::cli {
 
 ClientConnection::ClientConnection(CoordinatorEndpoint endpoint)
     : endpoint_(std::move(endpoint)) {
-    stub_ = v1::ClientService::NewStub(
-        grpc::CreateChannel(endpoint_.address, channel_credentials(endpoint_)));
+    grpc::ChannelArguments args;
+    // While waiting for a coordinator that is starting, try again every 100 ms at first
+    // and never more than a second apart (gRPC's default backoff grows to minutes).
+    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+    args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
+    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+    auto channel = grpc::CreateCustomChannel(endpoint_.address,
+                                             channel_credentials(endpoint_), args);
+    // Wait-for-ready for the connection only, not for each call: once the timeout is
+    // spent the first call fails at once with gRPC's own reason (refused, TLS handshake),
+    // which check() turns into the one line the user reads; and a coordinator that dies
+    // later fails a call at once rather than after its whole deadline.
+    connected_ = channel->WaitForConnected(std::chrono::system_clock::now() +
+                                           endpoint_.connect_timeout);
+    stub_ = v1::ClientService::NewStub(channel);
 }
 
 std::unique_ptr<grpc::ClientContext> ClientConnection::context(int seconds) const {
@@ -40,13 +53,21 @@ static std::string tls_hint(const grpc::Status& status, bool using_tls) {
     return "; if the coordinator serves TLS (--tls-cert), pass --tls-ca with its CA";
 }
 
+std::string ClientConnection::waited() const {
+    char seconds[32];
+    // Tenths: what the token file took is already gone from the timeout.
+    std::snprintf(seconds, sizeof seconds, "%.1f",
+                  double(endpoint_.connect_timeout.count()) / 1000.0);
+    return std::string(" after waiting ") + seconds + " s (--connect-timeout)";
+}
+
 void ClientConnection::check(const grpc::Status& status, const std::string& what) const {
     if (status.ok()) return;
     switch (status.error_code()) {
         case grpc::StatusCode::UNAVAILABLE:
         case grpc::StatusCode::DEADLINE_EXCEEDED:
             throw CommandError("cannot reach coordinator at " + endpoint_.address + " (" +
-                               what + ")" +
+                               what + ")" + (connected_ ? "" : waited()) +
                                tls_hint(status, !endpoint_.tls_ca_pem.empty()));
         default:
             throw CommandError(what + ": " + status.error_message());
@@ -132,6 +153,13 @@ RenderInfo follow(ClientConnection& c, const std::string& id,
             c.check(status, "watch " + id);
         std::this_thread::sleep_for(std::chrono::milliseconds(500));
     }
+}
+
+void check_done(const RenderInfo& last) {
+    if (last.state == RenderState::Failed)
+        throw CommandError("render " + last.id + " failed: " + last.error);
+    if (last.state == RenderState::Cancelled)
+        throw CommandError("render " + last.id + " was cancelled");
 }
 
 }  // namespace aliquot::cli

@@ -16,6 +16,7 @@ namespace aliquot::cli {
 
 class ClientConnection {
 public:
+    // Waits up to the endpoint's connect_timeout for the coordinator to answer.
     explicit ClientConnection(CoordinatorEndpoint endpoint);
     v1::ClientService::Stub& stub() { return *stub_; }
     // A context whose deadline is `seconds` from now, carrying the client token.
@@ -27,7 +28,10 @@ public:
     const std::string& address() const { return endpoint_.address; }
 
 private:
+    std::string waited() const;  // " after waiting N s", for an unreachable coordinator
+
     CoordinatorEndpoint endpoint_;
+    bool connected_ = false;  // the port answered within the connect timeout
     std::unique_ptr<v1::ClientService::Stub> stub_;
 };
 
@@ -46,5 +50,8 @@ void fetch_image(ClientConnection& connection, const std::string& id,
 // api room's from_proto (render_proto.h), the same conversion the server writes with.
 RenderInfo follow(ClientConnection& connection, const std::string& id,
                   const std::function<void(const RenderInfo&)>& update);
+// Throws CommandError (exit status 1) unless the render followed to its end is done: a
+// script waiting on `watch` or `submit --wait` must see a failed or cancelled render.
+void check_done(const RenderInfo& last);
 
 }  // namespace aliquot::cli

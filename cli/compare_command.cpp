@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "error_metric.h"
 #include "exr_io.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 namespace {
@@ -22,8 +23,8 @@ void run_compare(const CompareOptions& o) {
     // Checked here rather than with a CLI11 validator so that every user error leaves
     // through main's one-line "aliquot: ..." path with exit status 1.
     if (o.bucket_size <= 0)
-        throw CommandError("--bucket-size must be positive, got " +
-                           std::to_string(o.bucket_size));
+        throw UsageError("--bucket-size must be positive, got " +
+                         std::to_string(o.bucket_size));
     const Image test = read_exr(o.test);
     const Image reference = read_exr(o.reference);
     ErrorMetrics m;
@@ -67,6 +68,7 @@ void register_compare(CLI::App& app) {
     cmd->add_flag("--json", options->json, "print one JSON object instead of text");
     cmd->add_option("--bucket-size", options->bucket_size,
                     "side in pixels of the buckets for the max and p99 bucket error")
+        ->check(whole_number())
         ->capture_default_str();
     cmd->callback([options] { run_compare(*options); });
 }

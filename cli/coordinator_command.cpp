@@ -14,6 +14,7 @@
 #include "grpc_server.h"
 #include "http_server.h"
 #include "token_file.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -44,15 +45,15 @@ uint64_t parse_bytes(const std::string& text) {
         "--memory-limit: expected bytes with an optional K, M or G, like 8G, got '" +
         text + "'";
     if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0])))
-        throw CommandError(why);
+        throw UsageError(why);
     char* end = nullptr;
     errno = 0;
     const unsigned long long n = std::strtoull(text.c_str(), &end, 10);
-    if (errno != 0) throw CommandError(why);
+    if (errno != 0) throw UsageError(why);
     std::string unit(end);
     if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
     int shift = 0;
-    if (unit.size() > 1) throw CommandError(why);
+    if (unit.size() > 1) throw UsageError(why);
     if (!unit.empty()) {
         switch (std::toupper(static_cast<unsigned char>(unit[0]))) {
             case 'K':
@@ -65,10 +66,10 @@ uint64_t parse_bytes(const std::string& text) {
                 shift = 30;
                 break;
             default:
-                throw CommandError(why);
+                throw UsageError(why);
         }
     }
-    if (n == 0 || n > (UINT64_MAX >> shift)) throw CommandError(why);
+    if (n == 0 || n > (UINT64_MAX >> shift)) throw UsageError(why);
     return uint64_t(n) << shift;
 }
 
@@ -117,11 +118,14 @@ struct CoordinatorCommand {
     double keep_days = 0;  // 0: finished renders are kept for ever
 
     void run() {
-        if (lease_seconds <= 0) throw CommandError("--lease-seconds: must be positive");
+        // Written `!(x > 0)` so that "nan" is refused too.
+        if (!(lease_seconds > 0)) throw UsageError("--lease-seconds: must be positive");
+        if (!(lost_seconds > 0)) throw UsageError("--lost-seconds: must be positive");
+        if (max_side == 0) throw UsageError("--max-resolution: must be 1 or more");
         if (max_job_failures == 0)
-            throw CommandError("--max-job-failures: must be 1 or more");
+            throw UsageError("--max-job-failures: must be 1 or more");
         if (!(keep_days >= 0 && keep_days <= 36500))
-            throw CommandError("--keep-days: must be 0 (keep for ever) to 36500");
+            throw UsageError("--keep-days: must be 0 (keep for ever) to 36500");
         const uint64_t memory =
             memory_limit.empty() ? default_memory_limit() : parse_bytes(memory_limit);
         // Block the stop signals before any thread starts, then wait for one below.
@@ -132,7 +136,7 @@ struct CoordinatorCommand {
         pthread_sigmask(SIG_BLOCK, &stop, nullptr);
 
         if (tls_cert.empty() != tls_key.empty())
-            throw CommandError("--tls-cert and --tls-key go together");
+            throw UsageError("--tls-cert and --tls-key go together");
         std::error_code ec;
         fs::create_directories(data_dir, ec);
         GrpcSecurity security;
@@ -241,6 +245,7 @@ void register_coordinator(CLI::App& app) {
                     "silence after which a worker is lost")
         ->capture_default_str();
     cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
+        ->check(whole_number())
         ->capture_default_str();
     cmd->add_option("--memory-limit", c->memory_limit,
                     "bytes (K, M, G suffixes) the renders in memory may use together; a "
@@ -248,6 +253,7 @@ void register_coordinator(CLI::App& app) {
                         std::to_string(default_memory_limit() >> 20) + "M here)");
     cmd->add_option("--max-job-failures", c->max_job_failures,
                     "workers a job may fail on before its render fails (docs/FARM.md)")
+        ->check(whole_number())
         ->capture_default_str();
     cmd->add_option(
            "--keep-days", c->keep_days,

@@ -1,6 +1,7 @@
 #include "endpoint_options.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -14,24 +15,30 @@ namespace aliquot::cli {
 
 namespace {
 
-// Whether `path` exists now or within `wait`: `aliquot coordinator & aliquot worker`
-// started together in one directory race to it, and the coordinator writes its tokens a
-// moment after it starts.
-bool appears_within(const std::filesystem::path& path, std::chrono::milliseconds wait) {
-    const auto until = std::chrono::steady_clock::now() + wait;
+using Clock = std::chrono::steady_clock;
+
+// Whether `path` exists now or appears before `until`: `aliquot coordinator & aliquot
+// submit` started together in one directory race to it, and the coordinator writes its
+// tokens a moment after it starts.
+bool appears_by(const std::filesystem::path& path, Clock::time_point until) {
     while (!std::filesystem::exists(path)) {
-        if (std::chrono::steady_clock::now() >= until) return false;
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        if (Clock::now() >= until) return false;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     return true;
 }
+
+// A day: longer is a typo, and the deadline arithmetic stays far from overflow.
+constexpr double kMaxConnectTimeout = 86400;
 
 }  // namespace
 
 void EndpointOptions::add_to(CLI::App& cmd, Role role) {
     const std::string name(to_string(role));
-    cmd.add_option("--coordinator", address, "coordinator address host:port")
-        ->capture_default_str();
+    cmd.add_option("--coordinator", address,
+                   std::string("coordinator address host:port (default: "
+                               "$ALIQUOT_COORDINATOR, else ") +
+                       kDefaultCoordinator + ")");
     cmd.add_option("--token-file", token_file,
                    "file holding the coordinator's " + name +
                        " token (default: $ALIQUOT_TOKEN, else aliquot-data/" + name +
@@ -40,11 +47,28 @@ void EndpointOptions::add_to(CLI::App& cmd, Role role) {
     cmd.add_option("--tls-ca", tls_ca,
                    "PEM file of the CA that signed the coordinator's certificate: "
                    "connect over TLS (docs/SECURITY.md)");
+    cmd.add_option("--connect-timeout", connect_timeout_seconds,
+                   "seconds to wait for a coordinator that is starting: for the "
+                   "implicit token file to appear and for the port to answer (0: try "
+                   "once)")
+        ->capture_default_str();
+}
+
+std::string EndpointOptions::effective_address() const {
+    if (!address.empty()) return address;
+    if (const char* env = std::getenv("ALIQUOT_COORDINATOR"); env && *env) return env;
+    return kDefaultCoordinator;
 }
 
 CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
+    if (!(connect_timeout_seconds >= 0 && connect_timeout_seconds <= kMaxConnectTimeout))
+        throw UsageError("--connect-timeout: must be 0..86400 seconds");
+    const auto timeout =
+        std::chrono::milliseconds(int64_t(std::llround(connect_timeout_seconds * 1000)));
+    const Clock::time_point until = Clock::now() + timeout;
+
     CoordinatorEndpoint endpoint;
-    endpoint.address = address;
+    endpoint.address = effective_address();
     const std::string name(to_string(role));
     // The default token is the one a coordinator with the default --data writes in the
     // current directory: `aliquot coordinator` and `aliquot submit` side by side work
@@ -57,7 +81,7 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
         } else if (const char* env = std::getenv("ALIQUOT_TOKEN"); env && *env) {
             endpoint.token = env;
             check_token(endpoint.token, "ALIQUOT_TOKEN");
-        } else if (appears_within(local, std::chrono::seconds(5))) {
+        } else if (appears_by(local, until)) {
             endpoint.token = read_token_file(local);
         } else {
             throw CommandError("no " + name +
@@ -76,6 +100,10 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
             throw CommandError("--tls-ca: cannot read " + tls_ca);
         endpoint.tls_ca_pem = pem.str();
     }
+    // What the token file took is not waited again for the port: one timeout in all.
+    endpoint.connect_timeout = std::max(
+        std::chrono::milliseconds(0),
+        std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now()));
     return endpoint;
 }
 

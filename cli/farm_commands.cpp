@@ -9,10 +9,12 @@
 #include "client.h"
 #include "commands.h"
 #include "endpoint_options.h"
+#include "http_api.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
 #include "render_proto.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -93,8 +95,7 @@ void register_watch(CLI::App& app) {
             std::fflush(stdout);
         });
         if (tty) std::printf("\n");
-        if (last.state == RenderState::Failed)
-            throw CommandError("render failed: " + last.error);
+        check_done(last);
     });
 }
 
@@ -103,7 +104,7 @@ void register_fetch(CLI::App& app) {
     CLI::App* cmd = add_common(app, "fetch", "download a render's current image", o);
     cmd->add_option("id", o->id, "render id")->required();
     cmd->add_option("--out", o->out, "output .exr")->required();
-    cmd->add_flag("--aovs", o->aovs, "add channels spp and variance");
+    cmd->add_flag("--aovs", o->aovs, "add the layers sampleCount.Y and variance.Y");
     cmd->callback([o] {
         check_writable(o->out, "--out");
         ClientConnection c(o->coordinator.resolve(Role::Client));
@@ -133,6 +134,7 @@ void register_priority(CLI::App& app) {
         add_common(app, "priority", "change a queued or running render's priority", o);
     cmd->add_option("id", o->id, "render id")->required();
     cmd->add_option("priority", *priority, "the new priority (higher goes first)")
+        ->check(signed_whole_number())
         ->required();
     cmd->callback([o, priority] {
         ClientConnection c(o->coordinator.resolve(Role::Client));
@@ -160,16 +162,6 @@ void register_delete(CLI::App& app) {
     });
 }
 
-nlohmann::json worker_json(const v1::WorkerInfo& w) {
-    return {{"name", w.name()},
-            {"threads", w.threads()},
-            {"state", w.state()},
-            {"leases", std::vector<std::string>(w.leases().begin(), w.leases().end())},
-            {"samples_traced", w.samples_traced()},
-            {"samples_per_second", w.samples_per_second()},
-            {"last_seen_ms", w.last_seen_ms()}};
-}
-
 void register_workers(CLI::App& app) {
     auto o = std::make_shared<FarmOptions>();
     CLI::App* cmd = add_common(app, "workers", "workers the coordinator knows", o);
@@ -182,7 +174,8 @@ void register_workers(CLI::App& app) {
         nlohmann::json all = nlohmann::json::array();
         for (const auto& w : reply.workers()) {
             if (o->json) {
-                all.push_back(worker_json(w));
+                // The HTTP API's writer, so a script reads either the same way.
+                all.push_back(http_api::worker_json(from_proto(w)));
             } else {
                 std::printf(
                     "%-24s %-5s %2u threads  %llu samples  %.0f samples/s  %d leases\n",

@@ -7,6 +7,7 @@
 
 int main(int argc, char** argv) {
     CLI::App app{"Aliquot: a Monte Carlo render farm about where the samples go"};
+    app.set_version_flag("--version", "aliquot " ALIQUOT_VERSION);
     app.require_subcommand(1);
     aliquot::cli::register_render(app);
     aliquot::cli::register_compare(app);
@@ -20,11 +21,17 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e);
+        // --help and --version end parsing as "errors" with status 0; every other parse
+        // error is a usage error, whatever number CLI11 gives its kind.
+        app.exit(e);
+        return e.get_exit_code() == 0 ? 0 : aliquot::cli::kExitUsage;
+    } catch (const aliquot::cli::UsageError& e) {
+        std::fprintf(stderr, "aliquot: %s\n", e.what());
+        return aliquot::cli::kExitUsage;
     } catch (const std::exception& e) {
         // Every error the user can cause arrives here as one line; no stack traces.
         std::fprintf(stderr, "aliquot: %s\n", e.what());
-        return 1;
+        return aliquot::cli::kExitFailure;
     }
     return 0;
 }

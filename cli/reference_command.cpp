@@ -12,6 +12,7 @@
 #include "exr_io.h"
 #include "progress_bar.h"
 #include "render_options.h"
+#include "seed_json.h"
 
 namespace aliquot::cli {
 
@@ -65,9 +66,12 @@ struct ReferenceCommand {
         std::filesystem::copy_file(cached, out,
                                    std::filesystem::copy_options::overwrite_existing);
         if (json) {
-            std::cout << nlohmann::json{{"output", out},     {"cached", cached.string()},
-                                        {"cache_hit", hit},  {"spp", options.spp},
-                                        {"seed", spec.seed}, {"seconds", seconds}}
+            std::cout << nlohmann::json{{"output", out},
+                                        {"cached", cached.string()},
+                                        {"cache_hit", hit},
+                                        {"spp", options.spp},
+                                        {"seed", seed_to_json(spec.seed)},
+                                        {"seconds", seconds}}
                              .dump()
                       << std::endl;
         } else {

@@ -69,7 +69,8 @@ void register_render(CLI::App& app) {
     add_render_options(*cmd, command->options);
     cmd->add_option("--out", command->out, "output .exr file")->required();
     cmd->add_flag("--json", command->json, "print one JSON summary object");
-    cmd->add_flag("--aovs", command->aovs, "add channels spp and variance to the EXR");
+    cmd->add_flag("--aovs", command->aovs,
+                  "add the layers sampleCount.Y and variance.Y to the EXR");
     cmd->callback([command] { command->run(); });
 }
 

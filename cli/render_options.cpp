@@ -8,6 +8,7 @@
 #include "exr_io.h"
 #include "resolution.h"
 #include "scene_loader.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -18,38 +19,49 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
     cmd.add_option("--resolution", o.resolution, "image size as WxH")
         ->capture_default_str();
     cmd.add_option("--spp", o.spp,
-                   "samples per pixel (uniform; others: budget = spp x pixels)");
-    cmd.add_option("--seed", o.seed, "render seed")->capture_default_str();
-    cmd.add_option("--threads", o.threads, "tracing threads (0: all cores)");
+                   "samples per pixel (uniform; others: budget = spp x pixels)")
+        ->check(whole_number());
+    cmd.add_option("--seed", o.seed, "render seed")
+        ->check(whole_number())
+        ->capture_default_str();
+    cmd.add_option("--threads", o.threads, "tracing threads (0: all cores)")
+        ->check(whole_number());
     cmd.add_option("--reference", o.reference,
                    "reference EXR: error measured every round");
     cmd.add_option("--method", s.method,
                    "uniform | dammertz | adaptive | optimal | optimal-time")
         ->capture_default_str();
-    cmd.add_option("--budget", s.budget, "total samples to spend");
+    cmd.add_option("--budget", s.budget, "total samples to spend")->check(whole_number());
     cmd.add_option("--max-variance", s.max_variance, "dammertz V; adaptive max variance")
         ->capture_default_str();
     cmd.add_option("--samples-per-iteration", s.samples_per_iteration, "dammertz S")
+        ->check(whole_number())
         ->capture_default_str();
     cmd.add_option("--split-factor", s.split_factor, "dammertz split factor")
         ->capture_default_str();
     cmd.add_option("--min-bucket-size", s.min_bucket_size,
                    "dammertz smallest bucket side")
+        ->check(whole_number())
         ->capture_default_str();
     cmd.add_option("--error-norm", s.error_norm, "dammertz error: seed | paper")
         ->capture_default_str();
     cmd.add_option("--initial-spp", s.initial_spp, "adaptive initial uniform pass")
+        ->check(whole_number())
         ->capture_default_str();
     cmd.add_option("--alpha", s.alpha, "adaptive distribution exponent")
         ->capture_default_str();
     cmd.add_option("--bucket-size", s.bucket_size, "adaptive bucket side")
+        ->check(whole_number())
         ->capture_default_str();
     cmd.add_option("--min-spp", s.min_spp, "optimal: samples every pixel gets first")
+        ->check(whole_number())
         ->capture_default_str();
     cmd.add_option("--max-spp", s.max_spp,
-                   "cap on any pixel's samples (0: method default)");
+                   "cap on any pixel's samples (0: method default)")
+        ->check(whole_number());
     cmd.add_option("--max-samples", s.max_samples,
-                   "cap on total samples (0: method default)");
+                   "cap on total samples (0: method default)")
+        ->check(whole_number());
 }
 
 void check_render_options(RenderOptions& o) {
@@ -58,20 +70,20 @@ void check_render_options(RenderOptions& o) {
         o.width = r.width;
         o.height = r.height;
     } catch (const std::invalid_argument& e) {
-        throw CommandError(std::string("--resolution: ") + e.what());
+        throw UsageError(std::string("--resolution: ") + e.what());
     }
     if (o.spp != kSppNotGiven && (o.spp < 1 || o.spp > (int64_t(1) << 31)))
-        throw CommandError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
+        throw UsageError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
     if (o.spp == kSppNotGiven)
         o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;
     o.strategy.spp = uint64_t(o.spp);
-    if (o.threads < 0) throw CommandError("--threads: must be 0 or more");
+    if (o.threads < 0) throw UsageError("--threads: must be 0 or more");
     if (o.threads == 0)
         o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
     try {
         validate(o.strategy, o.width, o.height);
     } catch (const std::invalid_argument& e) {
-        throw CommandError(e.what());
+        throw UsageError(e.what());
     }
 }
 

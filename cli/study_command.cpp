@@ -15,6 +15,7 @@
 #include "progress_bar.h"
 #include "study_farm.h"
 #include "study_runner.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -62,8 +63,8 @@ struct StudyCommand {
 
     void run() {
         const StudyDefinition def = parse_study(read_file(), file);
-        const StudyScale sc = study_scale(def, scale);
-        if (threads < 0) throw CommandError("--threads: must be 0 or more");
+        const StudyScale sc = scale_named(def);
+        if (threads < 0) throw UsageError("--threads: must be 0 or more");
         StudyRunOptions options;
         options.study_file = file;
         options.out = out.empty()
@@ -96,6 +97,15 @@ struct StudyCommand {
     }
 
 private:
+    // An unknown --scale is the command line's fault, whichever file it names.
+    StudyScale scale_named(const StudyDefinition& def) const {
+        try {
+            return study_scale(def, scale);
+        } catch (const StudyError& e) {
+            throw UsageError(e.what());
+        }
+    }
+
     std::string read_file() const {
         std::ifstream in(file);
         if (!in) throw CommandError(file + ": cannot open the study file");
@@ -134,9 +144,16 @@ void register_study(CLI::App& app) {
     cmd->add_option("--scale", c->scale,
                     "small | medium | full (or a scale the file defines)")
         ->capture_default_str();
-    c->coordinator.add_to(*cmd, Role::Client);  // --coordinator ADDR: on that farm
+    c->coordinator.add_to(*cmd, Role::Client);
+    // A study runs embedded unless told: ALIQUOT_COORDINATOR, set for the farm's clients,
+    // must not move hours of renders onto a farm by surprise.
+    cmd->get_option("--coordinator")
+        ->description(
+            "run the renders on this coordinator, host:port (default: embedded, in this "
+            "process; ALIQUOT_COORDINATOR is not read here)");
     cmd->add_option("--out", c->out, "output directory (default out/study-NAME-SCALE)");
-    cmd->add_option("--threads", c->threads, "embedded tracing threads (0: all cores)");
+    cmd->add_option("--threads", c->threads, "embedded tracing threads (0: all cores)")
+        ->check(whole_number());
     cmd->add_flag("--no-report", c->no_report,
                   "record the renders only, write no report");
     cmd->callback([c] { c->run(); });

@@ -63,7 +63,7 @@ public:
     bool parallel() const override { return true; }
     std::string submit(const RenderSpec& spec, const fs::path& reference_path) override {
         v1::SubmitRequest req;
-        req.set_scene_name(spec.scene_name);
+        req.set_scene(spec.scene_name);
         req.set_scene_json(spec.scene_json);
         req.set_width(spec.width);
         req.set_height(spec.height);

@@ -13,6 +13,7 @@
 #include "render_options.h"
 #include "render_proto.h"
 #include "scene_loader.h"
+#include "whole_number_option.h"
 
 namespace aliquot::cli {
 
@@ -32,7 +33,7 @@ struct SubmitCommand {
             wait = true;  // an output file means waiting for the image
         }
         v1::SubmitRequest req;
-        req.set_scene_name(options.scene);
+        req.set_scene(options.scene);
         req.set_scene_json(self_contained_scene_json(options.scene));
         req.set_width(options.width);
         req.set_height(options.height);
@@ -71,8 +72,7 @@ struct SubmitCommand {
             std::cout << render_detail(info).dump() << std::endl;
         else
             std::cout << describe(info) << std::endl;
-        if (info.state == RenderState::Failed)
-            throw CommandError("render " + info.id + " failed: " + info.error);
+        check_done(info);
     }
 };
 
@@ -86,11 +86,13 @@ void register_submit(CLI::App& app) {
     cmd->add_flag("--wait", c->wait,
                   "follow the render with a progress bar until it ends");
     cmd->add_option("--out", c->out, "write the final EXR here (implies --wait)");
-    cmd->add_flag("--aovs", c->aovs, "add channels spp and variance to the EXR");
+    cmd->add_flag("--aovs", c->aovs,
+                  "add the layers sampleCount.Y and variance.Y to the EXR");
     cmd->add_flag("--json", c->json, "print JSON");
     cmd->add_option("--priority", c->priority,
                     "leases go to the highest priority first, in submission order within "
                     "one; change it later with `aliquot priority`")
+        ->check(signed_whole_number())
         ->capture_default_str();
     cmd->callback([c] { c->run(); });
 }

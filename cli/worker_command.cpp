@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "endpoint_options.h"
 #include "grpc_link.h"
+#include "whole_number_option.h"
 #include "worker_loop.h"
 
 namespace aliquot::cli {
@@ -23,7 +24,7 @@ struct WorkerCommand {
     std::string name;
 
     void run() {
-        if (threads < 0) throw CommandError("--threads: must be 0 or more");
+        if (threads < 0) throw UsageError("--threads: must be 0 or more");
         if (threads == 0)
             threads = int(std::max(1u, std::thread::hardware_concurrency()));
         if (name.empty()) {
@@ -70,7 +71,14 @@ void register_worker(CLI::App& app) {
     auto c = std::make_shared<WorkerCommand>();
     CLI::App* cmd = app.add_subcommand("worker", "trace sample jobs for a coordinator");
     c->coordinator.add_to(*cmd, Role::Worker);
-    cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)");
+    // A worker is long-lived: it retries its coordinator for as long as it runs, so only
+    // the token file is waited for.
+    cmd->get_option("--connect-timeout")
+        ->description(
+            "seconds to wait for the implicit token file aliquot-data/worker.token to "
+            "appear; the coordinator itself is retried for as long as the worker runs");
+    cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)")
+        ->check(whole_number());
     cmd->add_option("--name", c->name, "worker name (default: host-pid)");
     cmd->callback([c] { c->run(); });
 }

@@ -46,8 +46,10 @@ done
 case "$role" in
     coordinator)
         port=${grpc##*:}
+        # A probe answers within its own timeout (5 s in the image and the manifests)
+        # rather than wait the clients' default 10 s for a coordinator that is starting.
         set -- status --coordinator "127.0.0.1:${port:-7070}" \
-            --token-file "${token:-$data/client.token}"
+            --token-file "${token:-$data/client.token}" --connect-timeout 2
         if [ -n "$cert" ]; then set -- "$@" --tls-ca "${ALIQUOT_TLS_CA:-$cert}"; fi
         exec aliquot "$@" >/dev/null
         ;;

@@ -3,6 +3,7 @@
 // (docs/SECURITY.md).
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <string>
 
@@ -17,6 +18,10 @@ struct CoordinatorEndpoint {
     std::string address = "127.0.0.1:7070";
     std::string token;       // sent as `authorization: Bearer TOKEN`
     std::string tls_ca_pem;  // empty: plaintext
+    // How long a client waits for a coordinator that is starting before its first call
+    // (gRPC's wait-for-ready, bounded): `aliquot coordinator & aliquot submit` works.
+    // Workers retry for as long as they run and ignore it.
+    std::chrono::milliseconds connect_timeout{0};
 };
 
 // TLS checked against the endpoint's CA when it has one, plaintext otherwise.

@@ -12,6 +12,8 @@ packages=(
     libcpp-httplib-dev zlib1g-dev clang-format
     # tests/tls/run.sh: a throwaway CA and certificates, and HTTPS requests.
     openssl curl
+    # tests/cli/render_test.sh: an --aovs EXR as a tool reads it (`oiiotool --info -v`).
+    openimageio-tools
     # scripts/fuzz.sh: clang, and the compiler-rt archives that carry libFuzzer
     # (libclang_rt.fuzzer) and the sanitizers for Debian's clang 14.
     clang libclang-rt-14-dev

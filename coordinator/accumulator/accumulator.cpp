@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include "aov_channels.h"
 #include "vec3.h"
 
 namespace aliquot {
@@ -105,8 +106,8 @@ Image Accumulator::image(bool aovs) const {
         for (int c = 0; c < 3; ++c) img.rgb[3 * i + c] = float(rgb[c]);
     }
     if (aovs) {
-        Image::Channel spp{"spp", std::vector<float>(pixels_.size())};
-        Image::Channel variance{"variance", std::vector<float>(pixels_.size())};
+        Image::Channel spp{kSampleCountChannel, std::vector<float>(pixels_.size())};
+        Image::Channel variance{kVarianceChannel, std::vector<float>(pixels_.size())};
         for (size_t i = 0; i < pixels_.size(); ++i) {
             spp.values[i] = float(pixels_[i].samples);
             variance.values[i] =

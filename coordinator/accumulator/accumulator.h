@@ -44,8 +44,9 @@ public:
     uint64_t total_rays() const { return total_rays_; }
     uint64_t total_nonfinite() const { return total_nonfinite_; }
 
-    // The image; with `aovs`, channels "spp" (samples per pixel) and "variance"
-    // (estimated variance of the pixel's mean luminance, sample variance / spp).
+    // The image; with `aovs`, the layers of aov_channels.h: "sampleCount.Y" (samples per
+    // pixel) and "variance.Y" (estimated variance of the pixel's mean luminance, sample
+    // variance / samples).
     Image image(bool aovs = false) const;
 
 private:

@@ -1,5 +1,7 @@
 #include "accumulator.h"
 
+#include "aov_channels.h"
+
 #include <gtest/gtest.h>
 
 namespace aliquot {
@@ -51,9 +53,9 @@ TEST(Accumulator, AovsGiveSppAndVarianceOfTheMean) {
     acc.merge(one_pixel(0, 0, 1.0, 3.0, 2, 10.0));
     const Image img = acc.image(true);
     ASSERT_EQ(img.extra.size(), 2u);
-    EXPECT_EQ(img.extra[0].name, "spp");
+    EXPECT_EQ(img.extra[0].name, kSampleCountChannel);
     EXPECT_FLOAT_EQ(img.extra[0].values[0], 2.0f);
-    EXPECT_EQ(img.extra[1].name, "variance");
+    EXPECT_EQ(img.extra[1].name, kVarianceChannel);
     EXPECT_NEAR(img.extra[1].values[0], 1.0f, 1e-5);  // sample variance 2 over 2 samples
     EXPECT_TRUE(acc.image(false).extra.empty());
 }

@@ -63,7 +63,7 @@ public:
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         try {
             RenderSpec spec;
-            spec.scene_name = req->scene_name();
+            spec.scene_name = req->scene();
             spec.scene_json = req->scene_json();
             spec.width = req->width();
             spec.height = req->height();
@@ -196,16 +196,7 @@ public:
     Status ListWorkers(ServerContext* ctx, const v1::ListWorkersRequest*,
                        v1::ListWorkersReply* reply) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
-        for (const WorkerStatus& w : c_.workers()) {
-            v1::WorkerInfo* out = reply->add_workers();
-            out->set_name(w.name);
-            out->set_threads(w.threads);
-            out->set_state(w.state);
-            for (const std::string& l : w.leases) out->add_leases(l);
-            out->set_samples_traced(w.samples_traced);
-            out->set_samples_per_second(w.samples_per_second);
-            out->set_last_seen_ms(w.last_seen_ms);
-        }
+        for (const WorkerStatus& w : c_.workers()) to_proto(w, *reply->add_workers());
         return Status::OK;
     }
 

@@ -8,9 +8,11 @@
 #include <cstdlib>
 #include <limits>
 
+#include "aov_channels.h"
 #include "png_encoder.h"
 #include "resolution.h"
 #include "scene_loader.h"
+#include "seed_json.h"
 
 namespace aliquot::http_api {
 
@@ -157,7 +159,11 @@ RenderSpec parse_render_request(const std::string& body) {
             spec.height = uint32_t(whole_number(v, key, UINT32_MAX));
             have_height = true;
         } else if (key == "seed") {
-            spec.seed = whole_number(v, key, std::numeric_limits<uint64_t>::max());
+            try {
+                spec.seed = seed_from_json(v);
+            } catch (const std::invalid_argument& e) {
+                throw ApiError(400, std::string("'seed': ") + e.what());
+            }
         } else if (key == "priority") {
             spec.priority = priority_number(v);
         } else if (key == "strategy") {
@@ -212,8 +218,8 @@ std::string preview_png(const Image& image, double exposure, uint32_t max_side) 
 }
 
 json pixel_map(const Image& image, MapKind kind, uint32_t max_side) {
-    const Image::Channel* spp = channel(image, "spp");
-    const Image::Channel* variance = channel(image, "variance");
+    const Image::Channel* spp = channel(image, kSampleCountChannel);
+    const Image::Channel* variance = channel(image, kVarianceChannel);
     if (!spp || !variance)
         throw ApiError(404, "the image has no per-pixel sample counts");
     const uint32_t f = shrink_factor(image.width, image.height, max_side);

@@ -50,8 +50,8 @@ std::string preview_png(const Image& image, double exposure, uint32_t max_side);
 enum class MapKind { Spp, Error };
 // A per-pixel map, box-filtered to at most `max_side` on the longer side and quantised to
 // bytes: value = lo + (hi - lo) * byte / 255, as base64 in "data". `image` must carry the
-// "spp" and "variance" channels (Accumulator::image(true)); the error is the standard
-// error of each pixel's mean luminance, sqrt(variance).
+// sample-count and variance layers (aov_channels.h, Accumulator::image(true)); the error
+// is the standard error of each pixel's mean luminance, sqrt(variance).
 nlohmann::json pixel_map(const Image& image, MapKind kind, uint32_t max_side);
 
 // Query-parameter parsing that answers 400 rather than throwing anything else.

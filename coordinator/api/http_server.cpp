@@ -3,6 +3,7 @@
 #include <httplib.h>
 
 #include <algorithm>
+#include <atomic>
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
@@ -14,6 +15,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "exr_io.h"
 #include "http_api.h"
 #include "http_session.h"
 #include "scene_loader.h"
@@ -339,6 +341,11 @@ struct HttpServer::Impl {
     };
     std::mutex streams_mutex;
     size_t streams = 0;
+
+    // EXR downloads encode the whole float image in memory (an 8192x8192 one with its
+    // layers is over a gigabyte): a few at once, the others are told to come back.
+    static constexpr int kMaxExrDownloads = 2;
+    std::atomic<int> exr_downloads{0};
 
     std::shared_ptr<StreamSlot> take_stream_slot() {
         std::lock_guard lock(streams_mutex);
@@ -710,6 +717,33 @@ struct HttpServer::Impl {
                        res.set_content(http_api::preview_png(*image, exposure, size),
                                        "image/png");
                    }));
+        server.Get(
+            R"(/api/renders/([^/]+)/image\.exr)",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const std::string id = req.matches[1];
+                const std::string aovs = query(req, "aovs", "0");
+                if (aovs != "0" && aovs != "1")
+                    throw ApiError(400, "'aovs' must be 0 or 1, got \"" + aovs + "\"");
+                render_or_404(id);
+                if (++exr_downloads > kMaxExrDownloads) {
+                    --exr_downloads;
+                    res.set_header("Retry-After", "5");
+                    throw ApiError(503, "too many EXR downloads at once (at most " +
+                                            std::to_string(kMaxExrDownloads) +
+                                            "); try again later");
+                }
+                struct Release {
+                    std::atomic<int>& n;
+                    ~Release() { --n; }
+                } release{exr_downloads};
+                const std::optional<Image> image = coordinator.image(id, aovs == "1");
+                if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
+                res.set_header("Cache-Control", "no-store");
+                res.set_header("Content-Disposition",
+                               "attachment; filename=\"" + id + ".exr\"");
+                // OpenEXR's own name for its type; not compressed again (ZIP inside).
+                res.set_content(encode_exr(*image), "image/x-exr");
+            }));
         server.Get(R"(/api/renders/([^/]+)/maps)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];

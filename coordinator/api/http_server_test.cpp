@@ -21,6 +21,7 @@
 #include <sys/stat.h>
 
 #include "aliquot.grpc.pb.h"
+#include "exr_io.h"
 #include "grpc_server.h"
 #include "http_api.h"
 #include "png_encoder.h"
@@ -258,6 +259,47 @@ TEST_F(HttpServerTest, SubmittedRenderIsListedAndReadBack) {
     EXPECT_TRUE(done["error_vs_reference"].is_null());
 }
 
+// Seeds are 64-bit: written as decimal strings, read from strings or numbers.
+TEST_F(HttpServerTest, SeedsAreStringsOutAndStringsOrNumbersIn) {
+    const std::string big =
+        submit({{"resolution", "8x8"}, {"seed", "18446744073709551615"}});
+    EXPECT_EQ(get_json("/api/renders/" + big)["seed"], "18446744073709551615");
+    const std::string exact =
+        submit({{"resolution", "8x8"}, {"seed", 9007199254740993u}});
+    EXPECT_EQ(get_json("/api/renders/" + exact)["seed"], "9007199254740993");
+    const std::string small = submit({{"resolution", "8x8"}, {"seed", 5}});
+    EXPECT_EQ(get_json("/api/renders/" + small)["seed"], "5");
+    for (const json& r : get_json("/api/renders")["renders"])
+        EXPECT_TRUE(r["seed"].is_string()) << r;
+}
+
+TEST_F(HttpServerTest, TheExrDownloadIsTheRendersImageWithItsLayersAndSpec) {
+    const std::string id = submit({{"resolution", "12x8"},
+                                   {"seed", "18446744073709551615"},
+                                   {"strategy", {{"method", "uniform"}, {"spp", 4}}}});
+    fake_jobs(*coordinator_, "w1");
+    auto res = client_->Get(("/api/renders/" + id + "/image.exr?aovs=1").c_str());
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(res->get_header_value("Content-Type"), "image/x-exr");
+    EXPECT_EQ(res->get_header_value("Content-Disposition"),
+              "attachment; filename=\"" + id + ".exr\"");
+    EXPECT_EQ(res->body, encode_exr(*coordinator_->image(id, true)));
+    const Image image = decode_exr(res->body, "download");
+    EXPECT_EQ(image.width, 12u);
+    ASSERT_EQ(image.extra.size(), 2u);
+    EXPECT_EQ(image.extra[0].name, "sampleCount.Y");
+    EXPECT_EQ(image.extra[1].name, "variance.Y");
+    EXPECT_EQ(image.attributes.at("aliquot:seed"), "18446744073709551615");
+    EXPECT_EQ(image.attributes.at("aliquot:method"), "uniform");
+    EXPECT_EQ(image.attributes.at("aliquot:samples"), std::to_string(12 * 8 * 4));
+
+    auto plain = client_->Get(("/api/renders/" + id + "/image.exr").c_str());
+    ASSERT_TRUE(plain);
+    ASSERT_EQ(plain->status, 200);
+    EXPECT_TRUE(decode_exr(plain->body, "download").extra.empty());
+}
+
 TEST_F(HttpServerTest, WidthAndHeightMayReplaceResolution) {
     const std::string id =
         submit({{"width", 20},
@@ -284,6 +326,8 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
         {"POST", "/api/renders/" + id + "/cancel", R"({"now":true})", 400},
         {"GET", "/api/renders/r-999999/rounds", "", 404},
         {"GET", "/api/renders/r-999999/preview.png", "", 404},
+        {"GET", "/api/renders/r-999999/image.exr", "", 404},
+        {"GET", "/api/renders/" + id + "/image.exr?aovs=yes", "", 400},
         {"GET", "/api/renders/r-999999/maps?kind=spp", "", 404},
         {"GET", "/api/renders/r-999999/buckets", "", 404},
         {"GET", "/api/nothing-here", "", 404},
@@ -299,6 +343,11 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
         {"POST", "/api/renders", R"({"width":5})", 400},
         {"POST", "/api/renders", R"({"seed":-1})", 400},
         {"POST", "/api/renders", R"({"seed":"seven"})", 400},
+        {"POST", "/api/renders", R"({"seed":"-1"})", 400},
+        {"POST", "/api/renders", R"({"seed":""})", 400},
+        {"POST", "/api/renders", R"({"seed":"18446744073709551616"})", 400},
+        {"POST", "/api/renders", R"({"seed":1e19})", 400},
+        {"POST", "/api/renders", R"({"seed":2.5})", 400},
         {"POST", "/api/renders", R"({"scene":"../../etc/passwd"})", 400},
         {"POST", "/api/renders", R"({"scene":"no-such-scene"})", 400},
         {"POST", "/api/renders", R"({"colour":"blue"})", 400},
@@ -576,7 +625,7 @@ TEST(SubmittedScenes, AMeshFileIsRefusedOverGrpcAndHttpWithoutReadingIt) {
         scene["shapes"][0] = {{"type", "mesh"}, {"material", "white"}, {"file", file}};
         v1::SubmitRequest req;
         req.set_scene_json(scene.dump());
-        req.set_scene_name("attack");
+        req.set_scene("attack");
         req.set_width(8);
         req.set_height(8);
         req.set_strategy_json(R"({"spp":1})");
@@ -964,6 +1013,7 @@ std::vector<std::string> guarded_paths(const std::string& id) {
     return {"/api/renders",
             "/api/renders/" + id,
             "/api/renders/" + id + "/preview.png",
+            "/api/renders/" + id + "/image.exr",
             "/api/renders/" + id + "/maps?kind=error",
             "/api/renders/" + id + "/rounds",
             "/api/workers",

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "seed_json.h"
+
 namespace aliquot {
 
 using nlohmann::json;
@@ -61,7 +63,7 @@ json render_summary(const RenderInfo& info,
               {"state", to_string(info.state)},
               {"width", info.width},
               {"height", info.height},
-              {"seed", info.seed},
+              {"seed", seed_to_json(info.seed)},
               {"priority", info.priority},
               {"samples_done", info.samples_done},
               {"samples_planned", info.samples_planned},

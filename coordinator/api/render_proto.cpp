@@ -39,7 +39,7 @@ RenderState from_proto(v1::RenderState state) {
 
 void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
     out.set_id(i.id);
-    out.set_scene_name(i.scene_name);
+    out.set_scene(i.scene_name);
     out.set_width(i.width);
     out.set_height(i.height);
     out.set_seed(i.seed);
@@ -49,7 +49,7 @@ void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
     out.set_error(i.error);
     out.set_samples_done(i.samples_done);
     out.set_samples_planned(i.samples_planned);
-    out.set_rounds_done(i.rounds_done);
+    out.set_rounds(i.rounds_done);
     out.set_seconds(i.seconds);
     out.set_samples_per_second(i.samples_per_second);
     out.set_error_estimate(i.error_estimate);
@@ -64,7 +64,7 @@ void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
 RenderInfo from_proto(const v1::RenderInfo& in) {
     RenderInfo i;
     i.id = in.id();
-    i.scene_name = in.scene_name();
+    i.scene_name = in.scene();
     i.width = in.width();
     i.height = in.height();
     i.seed = in.seed();
@@ -75,7 +75,7 @@ RenderInfo from_proto(const v1::RenderInfo& in) {
     i.error = in.error();
     i.samples_done = in.samples_done();
     i.samples_planned = in.samples_planned();
-    i.rounds_done = in.rounds_done();
+    i.rounds_done = in.rounds();
     i.seconds = in.seconds();
     i.samples_per_second = in.samples_per_second();
     i.error_estimate = in.error_estimate();
@@ -85,6 +85,28 @@ RenderInfo from_proto(const v1::RenderInfo& in) {
     i.outcome_json = in.outcome_json();
     i.rays = in.rays();
     return i;
+}
+
+void to_proto(const WorkerStatus& w, v1::WorkerInfo& out) {
+    out.set_name(w.name);
+    out.set_threads(w.threads);
+    out.set_state(w.state);
+    for (const std::string& l : w.leases) out.add_leases(l);
+    out.set_samples_traced(w.samples_traced);
+    out.set_samples_per_second(w.samples_per_second);
+    out.set_last_seen_ms(w.last_seen_ms);
+}
+
+WorkerStatus from_proto(const v1::WorkerInfo& in) {
+    WorkerStatus w;
+    w.name = in.name();
+    w.threads = in.threads();
+    w.state = in.state();
+    w.leases.assign(in.leases().begin(), in.leases().end());
+    w.samples_traced = in.samples_traced();
+    w.samples_per_second = in.samples_per_second();
+    w.last_seen_ms = in.last_seen_ms();
+    return w;
 }
 
 }  // namespace aliquot

@@ -22,4 +22,9 @@ void to_proto(const RenderInfo& info, v1::RenderInfo& out);
 // Throws WireError when the message carries no valid state.
 RenderInfo from_proto(const v1::RenderInfo& in);
 
+// A worker as ListWorkers sends it: `aliquot workers --json` prints it back through
+// http_api::worker_json, the HTTP API's writer.
+void to_proto(const WorkerStatus& worker, v1::WorkerInfo& out);
+WorkerStatus from_proto(const v1::WorkerInfo& in);
+
 }  // namespace aliquot

@@ -37,7 +37,7 @@ inline std::shared_ptr<grpc::Channel> loopback_channel(int port) {
 // scene's self-contained JSON (scene_loader.h).
 inline v1::SubmitRequest small_submission(const std::string& scene_json, uint32_t side) {
     v1::SubmitRequest req;
-    req.set_scene_name("cornell-box");
+    req.set_scene("cornell-box");
     req.set_scene_json(scene_json);
     req.set_width(side);
     req.set_height(side);

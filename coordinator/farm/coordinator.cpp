@@ -267,7 +267,7 @@ void Coordinator::record_end(RenderSlot& slot) {
     // buffers; then this write drops it. A finished session changes no more, so the
     // backlog's thread reads it without the lock; only this write removes it.
     backlog_.submit("record the end of " + r.id(), [this, id = r.id(), done = &r] {
-        write_exr(render_dir(id) / "image.exr", done->merged().image(true));
+        write_exr(render_dir(id) / "image.exr", done->image(true));
         // What info() reads back once the session is gone: the final samples, and
         // in the outcome the rays and seconds the store has no column for.
         store_->update_render_progress(id, int64_t(done->merged().total_samples()),
@@ -626,7 +626,7 @@ std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
     }
     if (slot) {
         std::lock_guard lock(slot->mutex);
-        return slot->session->merged().image(aovs);
+        return slot->session->image(aovs);
     }
     if (!store_ || !store_->get_render(id)) return std::nullopt;
     const auto path = render_dir(id) / "image.exr";

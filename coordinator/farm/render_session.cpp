@@ -5,6 +5,7 @@
 
 #include "error_estimate.h"
 #include "error_metric.h"
+#include "render_attributes.h"
 #include "round_cutter.h"
 
 namespace aliquot {
@@ -41,6 +42,13 @@ void RenderSession::start() {
     started_ = Clock::now();
     state_ = RenderState::Running;
     plan_next_round();
+}
+
+Image RenderSession::image(bool aovs) const {
+    Image image = merged_.image(aovs);
+    image.attributes =
+        render_attributes(spec_, scene_hash_, samples_planned(), merged_.total_samples());
+    return image;
 }
 
 double RenderSession::seconds() const {

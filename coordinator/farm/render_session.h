@@ -100,6 +100,9 @@ public:
     RenderState state() const { return state_; }
     const std::string& error() const { return error_; }
     const Accumulator& merged() const { return merged_; }
+    // The merged image as written and fetched: with `aovs` its layers, and always the
+    // spec's attributes (render_attributes.h).
+    Image image(bool aovs) const;
     const Strategy& strategy() const { return *strategy_; }
     uint32_t rounds_done() const { return rounds_done_; }
     uint64_t samples_planned() const { return strategy_->planned_samples(); }

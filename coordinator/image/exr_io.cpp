@@ -7,6 +7,7 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfVersion.h>
 
 #include <cerrno>
@@ -16,6 +17,8 @@
 #include <string>
 #include <system_error>
 
+#include "aov_channels.h"
+
 namespace aliquot {
 namespace {
 
@@ -24,6 +27,10 @@ constexpr const char* kRgb[3] = {"R", "G", "B"};
 constexpr int64_t kMaxSide = 16384;
 // R, G, B and every AOV the farm writes, with room to spare.
 constexpr size_t kMaxChannels = 16;
+// String attributes kept when reading, and the longest kept: what the farm writes, with
+// room to spare; a file's header cannot make a reader hold more.
+constexpr size_t kMaxAttributes = 64;
+constexpr size_t kMaxAttributeBytes = 64 * 1024;
 
 [[noreturn]] void fail(const char* verb, const std::filesystem::path& path,
                        const std::string& why) {
@@ -47,6 +54,17 @@ void check_writable(const std::filesystem::path& path, const Image& image) {
                  "channel '" + c.name + "' holds " + std::to_string(c.values.size()) +
                      " values, expected " + std::to_string(image.pixel_count()));
     }
+    for (const auto& [name, value] : image.attributes) {
+        const size_t colon = name.find(':');
+        if (colon == std::string::npos || colon == 0 || colon + 1 == name.size())
+            fail("write", path,
+                 "attribute name '" + name + "' is not of the form namespace:name");
+        if (value.size() > kMaxAttributeBytes)
+            fail("write", path, "attribute '" + name + "' is longer than 64 KiB");
+    }
+    if (image.attributes.size() > kMaxAttributes)
+        fail("write", path,
+             "more than " + std::to_string(kMaxAttributes) + " attributes");
 }
 
 // Writes `image` to an OpenEXR stream (a file or memory): the one writer of both.
@@ -56,6 +74,10 @@ void write_to(Imf::OStream& stream, const Image& image) {
     Imf::Header header(int(image.width), int(image.height));
     header.compression() = Imf::ZIP_COMPRESSION;
     header.lineOrder() = Imf::INCREASING_Y;
+    // The image's own attributes (a render's spec): deterministic by construction, and
+    // written in name order whatever order they were set in.
+    for (const auto& [name, value] : image.attributes)
+        header.insert(name, Imf::StringAttribute(value));
 
     const size_t w = image.width;
     Imf::FrameBuffer frame;
@@ -121,14 +143,35 @@ Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
                                                3 * sizeof(float), 3 * sizeof(float) * w));
     // ChannelList iterates by name, so extras come back sorted, whatever order was
     // written.
+    std::vector<std::string> file_names;  // as in the file, for the frame buffer
     for (auto it = channels.begin(); it != channels.end(); ++it) {
         const std::string name = it.name();
         if (name == "R" || name == "G" || name == "B") continue;
-        image.extra.push_back({name, std::vector<float>(image.pixel_count())});
+        file_names.push_back(name);
+        image.extra.push_back(
+            {current_channel_name(name), std::vector<float>(image.pixel_count())});
     }
-    for (Image::Channel& ch : image.extra)
-        frame.insert(ch.name, Imf::Slice::Make(Imf::FLOAT, ch.values.data(), dw,
-                                               sizeof(float), sizeof(float) * w));
+    for (size_t i = 0; i < image.extra.size(); ++i)
+        frame.insert(file_names[i],
+                     Imf::Slice::Make(Imf::FLOAT, image.extra[i].values.data(), dw,
+                                      sizeof(float), sizeof(float) * w));
+    // A file with both an old and a new name of one channel would now hold it twice.
+    std::set<std::string> seen;
+    for (const Image::Channel& ch : image.extra)
+        if (!seen.insert(ch.name).second)
+            fail("read", path, "channel " + ch.name + " appears twice");
+    const Imf::Header& header = file.header();
+    for (auto it = header.begin(); it != header.end(); ++it) {
+        // By type name, not dynamic_cast: RTTI across the shared library is not to be
+        // relied on for templates.
+        if (std::strcmp(it.attribute().typeName(), "string") != 0 ||
+            std::string(it.name()).find(':') == std::string::npos)
+            continue;
+        const auto* text = static_cast<const Imf::StringAttribute*>(&it.attribute());
+        if (image.attributes.size() == kMaxAttributes) break;
+        if (text->value().size() <= kMaxAttributeBytes)
+            image.attributes[it.name()] = text->value();
+    }
     file.setFrameBuffer(frame);
     file.readPixels(dw.min.y, dw.max.y);
     return image;

@@ -1,6 +1,8 @@
 // OpenEXR I/O: round trips, deterministic bytes, and errors that name the file.
 #include "exr_io.h"
 
+#include "aov_channels.h"
+
 #include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
@@ -37,8 +39,9 @@ Image patterned(uint32_t w, uint32_t h) {
     Image image(w, h);
     for (size_t i = 0; i < image.rgb.size(); ++i)
         image.rgb[i] = 0.25f * float(i % 97) - 3.0f;
-    image.extra.push_back({"spp", {}});
-    image.extra.push_back({"variance", {}});
+    image.extra.push_back({kSampleCountChannel, {}});
+    image.extra.push_back({kVarianceChannel, {}});
+    image.attributes = {{"aliquot:seed", "7"}, {"aliquot:method", "uniform"}};
     for (size_t i = 0; i < image.pixel_count(); ++i) {
         image.extra[0].values.push_back(float(i % 4096));
         image.extra[1].values.push_back(1e-6f * float(i));
@@ -60,6 +63,7 @@ void expect_same(const Image& a, const Image& b) {
         EXPECT_EQ(a.extra[i].name, b.extra[i].name);
         EXPECT_EQ(a.extra[i].values, b.extra[i].values);
     }
+    EXPECT_EQ(a.attributes, b.attributes);
 }
 
 TEST_F(ExrIo, RoundTripKeepsRgbAndExtraChannelsAtOddSize) {
@@ -76,13 +80,52 @@ TEST_F(ExrIo, RoundTripKeepsOnePixelImage) {
 
 TEST_F(ExrIo, ExtraChannelsComeBackSortedByName) {
     Image image(2, 2);
-    image.extra = {{"variance", {1, 2, 3, 4}}, {"spp", {5, 6, 7, 8}}};
+    image.extra = {{kVarianceChannel, {1, 2, 3, 4}}, {kSampleCountChannel, {5, 6, 7, 8}}};
     write_exr(dir / "a.exr", image);
     const Image back = read_exr(dir / "a.exr");
     ASSERT_EQ(back.extra.size(), 2u);
-    EXPECT_EQ(back.extra[0].name, "spp");
+    EXPECT_EQ(back.extra[0].name, kSampleCountChannel);
     EXPECT_EQ(back.extra[0].values, (std::vector<float>{5, 6, 7, 8}));
-    EXPECT_EQ(back.extra[1].name, "variance");
+    EXPECT_EQ(back.extra[1].name, kVarianceChannel);
+}
+
+TEST_F(ExrIo, ChannelsOfOlderFilesAreReadUnderTheirLayerNames) {
+    Image image(2, 1);
+    image.extra = {{"spp", {3, 4}}, {"variance", {0.5f, 0.25f}}};
+    write_exr(dir / "old.exr", image);
+    const Image back = read_exr(dir / "old.exr");
+    ASSERT_EQ(back.extra.size(), 2u);
+    EXPECT_EQ(back.extra[0].name, kSampleCountChannel);
+    EXPECT_EQ(back.extra[0].values, (std::vector<float>{3, 4}));
+    EXPECT_EQ(back.extra[1].name, kVarianceChannel);
+}
+
+TEST_F(ExrIo, AFileWithAChannelUnderBothNamesIsRefused) {
+    Image image(1, 1);
+    image.extra = {{"spp", {1}}, {kSampleCountChannel, {1}}};
+    write_exr(dir / "both.exr", image);
+    EXPECT_THROW(read_exr(dir / "both.exr"), ImageFileError);
+}
+
+TEST_F(ExrIo, AttributesRoundTripAndTheirOrderDoesNotChangeTheBytes) {
+    Image a(3, 2), b(3, 2);
+    a.attributes["aliquot:seed"] = "18446744073709551615";
+    a.attributes["aliquot:strategy"] = R"({"method":"uniform","spp":4})";
+    b.attributes["aliquot:strategy"] = R"({"method":"uniform","spp":4})";
+    b.attributes["aliquot:seed"] = "18446744073709551615";
+    EXPECT_EQ(encode_exr(a), encode_exr(b));
+    EXPECT_EQ(decode_exr(encode_exr(a), "a").attributes, a.attributes);
+}
+
+TEST_F(ExrIo, AttributesOutsideANamespaceOrTooLongAreRefused) {
+    for (const std::string name : {"seed", ":seed", "aliquot:", "channels"}) {
+        Image image(1, 1);
+        image.attributes[name] = "x";
+        EXPECT_THROW(encode_exr(image), ImageFileError) << name;
+    }
+    Image image(1, 1);
+    image.attributes["aliquot:long"] = std::string(64 * 1024 + 1, 'x');
+    EXPECT_THROW(encode_exr(image), ImageFileError);
 }
 
 TEST_F(ExrIo, SameImageGivesIdenticalBytes) {
@@ -107,7 +150,7 @@ TEST_F(ExrIo, WritingIntoMissingDirectoryNamesThePath) {
 
 TEST_F(ExrIo, WritingChannelWithWrongValueCountFails) {
     Image image(4, 4);
-    image.extra.push_back({"spp", {1, 2, 3}});
+    image.extra.push_back({kSampleCountChannel, {1, 2, 3}});
     EXPECT_THROW(write_exr(dir / "a.exr", image), ImageFileError);
 }
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -15,7 +16,10 @@ struct Image {
         std::string name;
         std::vector<float> values;  // one float per pixel
     };
-    std::vector<Channel> extra;  // e.g. "spp", "variance"
+    std::vector<Channel> extra;  // e.g. "sampleCount.Y", "variance.Y" (aov_channels.h)
+    // Written as EXR string attributes, e.g. "aliquot:seed" -> "7": what made the image.
+    // Names carry a "namespace:" prefix, which keeps them apart from OpenEXR's own.
+    std::map<std::string, std::string> attributes;
 
     Image() = default;
     Image(uint32_t w, uint32_t h) : width(w), height(h), rgb(size_t(w) * h * 3, 0.0f) {}

@@ -6,6 +6,7 @@
 
 #include "json_field.h"
 #include "resolution.h"
+#include "seed_json.h"
 #include "strategy_params.h"
 
 namespace aliquot {
@@ -43,7 +44,11 @@ std::vector<uint64_t> seeds_at(const JsonField& f) {
         f.fail("must be a non-empty list of seeds");
     std::vector<uint64_t> out;
     for (size_t i = 0; i < f.size(); ++i) {
-        out.push_back(f.at(i).whole());
+        try {
+            out.push_back(seed_from_json(f.at(i).value()));
+        } catch (const std::invalid_argument& e) {
+            f.at(i).fail(e.what());
+        }
         if (std::count(out.begin(), out.end(), out.back()) > 1)
             f.at(i).fail("seed listed twice");
     }

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <string>
 
+#include "aov_channels.h"
 #include "study_definition.h"
 
 namespace aliquot {
@@ -36,7 +37,7 @@ void write_study_maps(const std::filesystem::path& path, const Image& image,
                       const Image& reference) {
     const Image::Channel* spp = nullptr;
     for (const Image::Channel& c : image.extra)
-        if (c.name == "spp") spp = &c;
+        if (c.name == kSampleCountChannel) spp = &c;
     std::vector<float> data;
     data.reserve(image.pixel_count() * 5);
     for (size_t i = 0; i < image.pixel_count(); ++i) {

@@ -37,31 +37,95 @@ s = json.loads(sys.argv[1])
 assert s["mean_abs"] > 0 and s["rmse"] >= s["mean_abs"] and s["relative_mse"] > 0, s
 PY
 
-# Each bad input: non-zero exit and exactly one line on stderr that names the problem.
+# Each bad input: exactly one line on stderr that names the problem, and the exit status
+# that says whose fault it is: 2 for a command line that cannot be right (usage), 1 for one
+# that failed while running (a missing file, a coordinator that does not answer).
 expect_error() {
-    local name=$1 pattern=$2
-    shift 2
+    local name=$1 code=$2 pattern=$3
+    shift 3
     local err status
     err=$("$@" 2>&1 >/dev/null)
     status=$?
-    if [[ $status -ne 0 && $(printf '%s\n' "$err" | wc -l) -eq 1 && $err == *$pattern* ]]; then
+    if [[ $status -eq $code && $(printf '%s\n' "$err" | wc -l) -eq 1 && $err == *$pattern* ]]; then
         pass "$name"
     else
-        fail "$name (status $status, stderr: $err)"
+        fail "$name (status $status, expected $code, stderr: $err)"
     fi
 }
 mkdir -p "$tmp/ro"
 echo '{"camera": ' > "$tmp/broken.json"
-expect_error "missing scene file" "cannot open" "$aliquot" render --scene "$tmp/nope.json" --out "$tmp/x.exr"
-expect_error "unknown built-in scene" "unknown scene" "$aliquot" render --scene cornel-box --out "$tmp/x.exr"
-expect_error "malformed scene file" "broken.json" "$aliquot" render --scene "$tmp/broken.json" --out "$tmp/x.exr"
-expect_error "resolution 0x0" "--resolution" "$aliquot" render --resolution 0x0 --out "$tmp/x.exr"
-expect_error "resolution not WxH" "--resolution" "$aliquot" render --resolution 64 --out "$tmp/x.exr"
-expect_error "spp 0" "--spp" "$aliquot" render --spp 0 --out "$tmp/x.exr"
-expect_error "output directory missing" "does not exist" "$aliquot" render --out "$tmp/no/such/dir/x.exr"
-expect_error "output is a directory" "is a directory" "$aliquot" render --out "$tmp/ro"
-expect_error "compare with different resolutions" "resolution differs" "$aliquot" compare "$tmp/a1.exr" "$tmp/j.exr"
-expect_error "compare with a missing file" "missing.exr" "$aliquot" compare "$tmp/a1.exr" "$tmp/missing.exr"
+expect_error "missing scene file" 1 "cannot open" "$aliquot" render --scene "$tmp/nope.json" --out "$tmp/x.exr"
+expect_error "unknown built-in scene" 1 "unknown scene" "$aliquot" render --scene cornel-box --out "$tmp/x.exr"
+expect_error "malformed scene file" 1 "broken.json" "$aliquot" render --scene "$tmp/broken.json" --out "$tmp/x.exr"
+expect_error "resolution 0x0" 2 "--resolution" "$aliquot" render --resolution 0x0 --out "$tmp/x.exr"
+expect_error "resolution not WxH" 2 "--resolution" "$aliquot" render --resolution 64 --out "$tmp/x.exr"
+expect_error "spp 0" 2 "--spp" "$aliquot" render --spp 0 --out "$tmp/x.exr"
+expect_error "unknown method" 2 "method" "$aliquot" render --method magic --out "$tmp/x.exr"
+expect_error "output directory missing" 1 "does not exist" "$aliquot" render --out "$tmp/no/such/dir/x.exr"
+expect_error "output is a directory" 1 "is a directory" "$aliquot" render --out "$tmp/ro"
+expect_error "compare with different resolutions" 1 "resolution differs" "$aliquot" compare "$tmp/a1.exr" "$tmp/j.exr"
+expect_error "compare with a missing file" 1 "missing.exr" "$aliquot" compare "$tmp/a1.exr" "$tmp/missing.exr"
+expect_error "compare with bucket size 0" 2 "--bucket-size" "$aliquot" compare "$tmp/a1.exr" "$tmp/b.exr" --bucket-size 0
+expect_error "coordinator with lease 0 s" 2 "--lease-seconds" "$aliquot" coordinator --lease-seconds 0 --data "$tmp/d"
+expect_error "coordinator with a bad memory limit" 2 "--memory-limit" "$aliquot" coordinator --memory-limit 3X --data "$tmp/d"
+expect_error "negative connect timeout" 2 "--connect-timeout" "$aliquot" status --connect-timeout -1
+expect_error "unknown study scale" 2 "--scale" "$aliquot" study "$(dirname "$0")/../study/tiny.json" --scale huge --out "$tmp/s"
+# Nothing listens on port 1: the client waits its connect timeout, then says so.
+echo "0123456789abcdef0123456789abcdef" >"$tmp/token"
+chmod 600 "$tmp/token"
+expect_error "coordinator not answering" 1 "cannot reach coordinator at 127.0.0.1:1" \
+    "$aliquot" status --coordinator 127.0.0.1:1 --token-file "$tmp/token" --connect-timeout 0.2
+expect_error "ALIQUOT_COORDINATOR names the coordinator" 1 "cannot reach coordinator at 127.0.0.1:2" \
+    env ALIQUOT_COORDINATOR=127.0.0.1:2 "$aliquot" status --token-file "$tmp/token" --connect-timeout 0
+expect_error "--coordinator wins over ALIQUOT_COORDINATOR" 1 "cannot reach coordinator at 127.0.0.1:3" \
+    env ALIQUOT_COORDINATOR=127.0.0.1:2 "$aliquot" status --coordinator 127.0.0.1:3 --token-file "$tmp/token" --connect-timeout 0
+
+# CLI11's own parse errors are usage errors too (it numbers them 100 and up); they print
+# the error and a hint, so only the status is checked.
+"$aliquot" render --no-such-option >/dev/null 2>&1
+[[ $? -eq 2 ]] && pass "an unknown option exits 2" || fail "an unknown option exits 2"
+"$aliquot" render >/dev/null 2>&1
+[[ $? -eq 2 ]] && pass "a missing required option exits 2" || fail "a missing required option exits 2"
+"$aliquot" status --connect-timeout soon >/dev/null 2>&1
+[[ $? -eq 2 ]] && pass "an option that is not a number exits 2" || fail "an option that is not a number exits 2"
+# Integer options are decimal digits: CLI11 alone read -1 as 2^64-1, 010 as 8, 0x10 as 16
+# and clamped an overflow, silently.
+for bad in "--seed -1" "--seed 010" "--seed 0x10" "--seed 18446744073709551616" \
+    "--threads -1" "--spp -4" "--budget -1"; do
+    # shellcheck disable=SC2086 # the option and its value are two words
+    err=$("$aliquot" render $bad --out "$tmp/x.exr" 2>&1 >/dev/null)
+    status=$?
+    [[ $status -eq 2 && $err == *"${bad%% *}: expected a whole number"* ]] &&
+        pass "render $bad exits 2" || fail "render $bad exits 2 (status $status: $err)"
+done
+"$aliquot" worker --threads -2 >/dev/null 2>&1
+[[ $? -eq 2 ]] && pass "worker --threads -2 exits 2" || fail "worker --threads -2 exits 2"
+version=$("$aliquot" --version)
+[[ $? -eq 0 && $version =~ ^aliquot\ [0-9]+\.[0-9]+\.[0-9]+$ ]] && pass "--version prints the version" ||
+    fail "--version prints the version (got: $version)"
+
+# An --aovs EXR as a tool reads it: OpenImageIO (Debian's openimageio-tools, installed by
+# scripts/install-deps.sh) lists the two layers and the render's spec, and the file is
+# still the same bytes for the same seed.
+render --seed 18446744073709551615 --aovs --out "$tmp/aov1.exr"
+render --seed 18446744073709551615 --aovs --threads 1 --out "$tmp/aov2.exr"
+cmp -s "$tmp/aov1.exr" "$tmp/aov2.exr" && pass "an --aovs EXR is the same bytes for the same seed" ||
+    fail "an --aovs EXR is the same bytes for the same seed"
+if info=$(oiiotool --info -v "$tmp/aov1.exr" 2>&1); then
+    python3 - "$info" <<'PY' && pass "oiiotool lists the layers and the spec" || fail "oiiotool lists the layers and the spec: $info"
+import re, sys
+info = sys.argv[1]
+channels = re.search(r"channel list: (.*)", info).group(1).split(", ")
+assert channels == ["R", "G", "B", "sampleCount.Y", "variance.Y"], channels
+attrs = dict(re.findall(r'^\s*(aliquot:\w+): "(.*)"$', info, re.M))
+assert attrs["aliquot:seed"] == "18446744073709551615", attrs
+assert attrs["aliquot:method"] == "uniform" and attrs["aliquot:samples"] == str(40 * 30 * 8), attrs
+assert attrs["aliquot:budget"] == str(40 * 30 * 8) and len(attrs["aliquot:sceneHash"]) == 32, attrs
+assert '"spp":8' in attrs["aliquot:strategy"], attrs
+PY
+else
+    fail "oiiotool --info -v runs (install openimageio-tools: scripts/install-deps.sh): $info"
+fi
 
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]

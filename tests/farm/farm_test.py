@@ -309,19 +309,22 @@ def test_client_errors_are_one_line():
         with open(bad_scene, "w") as f:
             f.write('{"camera": {"position": [0,0,1], "target": [0,0,0], "up": [0,1,0], '
                     '"fov": 500}, "materials": {}, "shapes": []}')
+        # 2: the command line cannot be right; 1: running it failed (here the scene file).
         cases = [
-            (["--scene", bad_scene], "/camera/fov"),
-            (["--method", "magic"], "method"),
-            (["--resolution", "0x10"], "--resolution"),
-            (["--resolution", "9000x10"], "--resolution"),
-            (["--method", "uniform", "--budget", "18446744073709551615"], "budget"),
+            (["--scene", bad_scene], "/camera/fov", 1),
+            (["--method", "magic"], "method", 2),
+            (["--resolution", "0x10"], "--resolution", 2),
+            (["--resolution", "9000x10"], "--resolution", 2),
+            (["--method", "uniform", "--budget", "18446744073709551615"], "budget", 2),
         ]
-        for args, expected in cases:
+        for args, expected, code in cases:
             r = run("submit", "--coordinator", farm.addr, *args, check=False)
             lines = r.stderr.strip().splitlines()
-            assert r.returncode != 0 and len(lines) == 1 and expected in lines[0], (args, r.stderr)
-        r = run("status", "--coordinator", f"127.0.0.1:{free_port()}", check=False)
-        assert r.returncode != 0 and "cannot reach coordinator" in r.stderr, r.stderr
+            assert r.returncode == code and len(lines) == 1 and expected in lines[0], (args, r)
+        r = run("status", "--coordinator", f"127.0.0.1:{free_port()}", "--connect-timeout",
+                "0.3", check=False)
+        assert r.returncode == 1 and "cannot reach coordinator" in r.stderr, r.stderr
+        assert "after waiting" in r.stderr, r.stderr
         assert len(r.stderr.strip().splitlines()) == 1, r.stderr
     finally:
         farm.stop()
@@ -510,6 +513,8 @@ def test_a_job_no_worker_can_trace_fails_the_render():
         assert all(p.poll() is None for p in farm.workers.values()), "a worker died"
         text = run("status", render_id, "--coordinator", farm.addr).stdout
         assert "failed" in text and "resolved by the client" in text, text
+        r = run("watch", render_id, "--coordinator", farm.addr, check=False)
+        assert r.returncode == 1 and "failed" in r.stderr.splitlines()[-1], r
         db = sqlite3.connect(os.path.join(farm.dir, "data", "aliquot.db"))
         state, error = db.execute("SELECT state, error FROM renders WHERE id = ?",
                                   (render_id,)).fetchone()
@@ -691,7 +696,8 @@ def test_tokens_made_by_the_coordinator_admit_each_role_only():
         assert secret not in r.stderr
         empty = os.path.join(farm.dir, "empty")
         os.makedirs(empty)
-        r = subprocess.run([ALIQUOT, "status", "--coordinator", farm.addr],
+        r = subprocess.run([ALIQUOT, "status", "--coordinator", farm.addr,
+                            "--connect-timeout", "0"],
                            capture_output=True, text=True, timeout=60, cwd=empty,
                            env={k: v for k, v in os.environ.items() if k != "ALIQUOT_TOKEN"})
         assert r.returncode == 1 and "--token-file" in r.stderr, r.stderr
@@ -706,6 +712,109 @@ def test_tokens_made_by_the_coordinator_admit_each_role_only():
         assert w.returncode == 1 and "worker token" in w.stderr, w.stderr
         r = run("workers", "--json", "--coordinator", farm.addr, "--token-file", client)
         assert json.loads(r.stdout) == [], r.stdout
+    finally:
+        farm.stop()
+
+
+def clean_env(**extra):
+    """The environment without the variables a client reads, plus `extra`."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("ALIQUOT_TOKEN", "ALIQUOT_COORDINATOR")}
+    return {**env, **extra}
+
+
+def test_clients_started_with_the_coordinator_wait_for_it():
+    """Issue 16: `aliquot coordinator & aliquot worker & aliquot submit`, no sleep between
+    them, in one directory: the worker and the client wait for the token files the
+    coordinator writes and for its port, within --connect-timeout. The client goes first,
+    so it starts before there is anything to reach. The address comes from
+    ALIQUOT_COORDINATOR."""
+    farm = Farm("no-sleep")
+    env = clean_env(ALIQUOT_COORDINATOR=farm.addr)
+    out = os.path.join(farm.dir, "farm.exr")
+    log = os.path.join(farm.dir, "coordinator.log")
+    try:
+        client = subprocess.Popen([ALIQUOT, "submit", *SMALL, "--json", "--out", out],
+                                  cwd=farm.dir, env=env, stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True)
+        PROCS.append(client)
+        farm.coordinator = subprocess.Popen([ALIQUOT, "coordinator", "--grpc", farm.addr],
+                                            cwd=farm.dir, env=env, stdout=open(log, "w"),
+                                            stderr=subprocess.STDOUT)
+        PROCS.append(farm.coordinator)
+        farm.workers["w0"] = subprocess.Popen(
+            [ALIQUOT, "worker", "--threads", "2", "--name", "w0"], cwd=farm.dir, env=env,
+            stdout=open(os.path.join(farm.dir, "worker-w0.log"), "w"),
+            stderr=subprocess.STDOUT)
+        PROCS.append(farm.workers["w0"])
+        stdout, stderr = client.communicate(timeout=300)
+        assert client.returncode == 0, stderr
+        info = json.loads(stdout)
+        assert info["state"] == "done" and info["seed"] == "7", info
+        assert same(out, embedded(SMALL)), "the render differs from embedded"
+    finally:
+        farm.stop()
+
+
+def test_watch_says_how_a_render_ended():
+    """watch exits 0 for a done render and 1 for a cancelled one, as submit --wait does."""
+    farm = Farm("watch")
+    try:
+        farm.start_coordinator()
+        render_id = farm.submit(*LONG)["id"]  # no worker: it stays running
+        run("cancel", render_id, "--coordinator", farm.addr)
+        r = run("watch", render_id, "--coordinator", farm.addr, check=False)
+        assert r.returncode == 1 and "cancelled" in r.stderr.splitlines()[-1], r
+        farm.start_worker("w0")
+        done = farm.submit(*SMALL)["id"]
+        r = run("watch", done, "--coordinator", farm.addr, check=False)
+        assert r.returncode == 0, r
+    finally:
+        farm.stop()
+
+
+def test_cli_and_http_speak_the_same_json():
+    """Issue 16: one vocabulary. A render and the workers as `--json` prints them and as the
+    HTTP API serves them; the EXR from HTTP is the bytes `fetch --aovs` writes."""
+    farm = Farm("vocabulary", http=True)
+
+    def http(path):
+        request = urllib.request.Request(
+            f"http://127.0.0.1:{farm.http_port}{path}",
+            headers={"Authorization": "Bearer " + client_token()})
+        with urllib.request.urlopen(request, timeout=60) as r:
+            return r.read(), r.headers
+
+    try:
+        farm.start_coordinator()
+        farm.start_worker("w0")
+        big_seed = str(2**64 - 1)
+        args = [*SMALL[:-1], big_seed]
+        cli = farm.submit(*args, out=os.path.join(farm.dir, "cli.exr"))
+        assert cli["seed"] == big_seed, cli
+        api = json.loads(http(f"/api/renders/{cli['id']}")[0])
+        status = farm.status(cli["id"])
+        # The HTTP API adds the farm's storage warning; everything else is the same.
+        api.pop("storage_warning")
+        assert set(api) == set(status), (set(api) ^ set(status))
+        for key in ("id", "scene", "method", "state", "seed", "samples_done", "rounds",
+                    "strategy"):
+            assert api[key] == status[key], (key, api[key], status[key])
+        workers_cli = json.loads(run("workers", "--json", "--coordinator", farm.addr).stdout)
+        workers_api = json.loads(http("/api/workers")[0])["workers"]
+        assert [set(w) for w in workers_cli] == [set(w) for w in workers_api], workers_cli
+
+        fetched = os.path.join(farm.dir, "fetched.exr")
+        run("fetch", cli["id"], "--aovs", "--out", fetched, "--coordinator", farm.addr)
+        body, headers = http(f"/api/renders/{cli['id']}/image.exr?aovs=1")
+        assert headers["Content-Type"] == "image/x-exr", headers
+        with open(fetched, "rb") as f:
+            assert f.read() == body, "the HTTP download differs from aliquot fetch"
+        try:
+            http("/api/renders/r-999999/image.exr")
+            raise AssertionError("an unknown render's EXR was served")
+        except urllib.error.HTTPError as e:
+            assert e.code == 404, e
     finally:
         farm.stop()
 

@@ -132,11 +132,13 @@ check "aliquot fetch over TLS gives the same bytes" \
 
 # ---------------------------------------------------------------- refusals
 
-# refused NAME PATTERN ARGS...: `aliquot status ARGS` exits non-zero and says PATTERN.
+# refused NAME PATTERN ARGS...: `aliquot status ARGS` exits non-zero and says PATTERN. A
+# handshake that fails looks to gRPC like a coordinator still starting: the client waits
+# its --connect-timeout before it reports, so the timeout is short here.
 refused() {
     local name=$1 pattern=$2 err status
     shift 2
-    err=$("$ALIQUOT" status --coordinator "$ADDR" "$@" 2>&1 >/dev/null)
+    err=$("$ALIQUOT" status --coordinator "$ADDR" --connect-timeout 1 "$@" 2>&1 >/dev/null)
     status=$?
     if ((status != 0)) && grep -q -- "$pattern" <<<"$err"; then
         ok "$name: $(grep -- "$pattern" <<<"$err")"

@@ -343,7 +343,7 @@ await check("submit a render from the page", async () => {
   assert(renderId, `message was "${text}"`);
   await page.waitForSelector(`tr[data-id="${renderId}"]`);
   const r = await api(`/api/renders/${renderId}`);
-  assert(r.method === "dammertz" && r.width === 128 && r.seed === 5 && r.strategy.max_spp === 1024, `render is ${JSON.stringify(r)}`);
+  assert(r.method === "dammertz" && r.width === 128 && r.seed === "5" && r.strategy.max_spp === 1024, `render is ${JSON.stringify(r)}`);
 });
 
 let early = null;

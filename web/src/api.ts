@@ -9,7 +9,8 @@ export interface RenderSummary {
   state: "queued" | "running" | "done" | "cancelled" | "failed";
   width: number;
   height: number;
-  seed: number;
+  // A decimal string: seeds are 64-bit, beyond what a JavaScript number holds exactly.
+  seed: string;
   samples_done: number;
   samples_planned: number;
   rounds: number;
@@ -101,7 +102,7 @@ export interface Study {
 export interface SubmitRequest {
   scene: string;
   resolution: string;
-  seed: number;
+  seed: string;
   strategy: Record<string, number | string>;
 }
 

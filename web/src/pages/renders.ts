@@ -96,7 +96,7 @@ export class RendersPage implements Page {
         { class: "form-row" },
         h("label", {}, "scene", scene),
         h("label", {}, "resolution", h("input", { name: "resolution", id: "submit-resolution", value: "128x128", pattern: "\\d+x\\d+", required: true, size: 9 })),
-        h("label", {}, "seed", h("input", { name: "seed", id: "submit-seed", type: "number", min: 0, value: 0 })),
+        h("label", {}, "seed", h("input", { name: "seed", id: "submit-seed", inputmode: "numeric", pattern: "[0-9]+", value: "0" })),
         h("label", {}, "method", method),
       ),
       this.fields,
@@ -148,7 +148,8 @@ export class RendersPage implements Page {
       const r = await api.submit({
         scene: String(data.get("scene")),
         resolution: String(data.get("resolution")).trim(),
-        seed: Number(data.get("seed") || 0),
+        // As typed: a seed past 2^53 would lose digits as a number.
+        seed: String(data.get("seed") || "0").trim(),
         strategy,
       });
       this.upsert(r, true);
