@@ -107,10 +107,11 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       min_spp_(p.min_spp),
       cap_(spp_cap(p)),
       sigma_radius_(p.sigma_radius),
+      sigma_prior_(p.sigma_prior),
       cost_aware_(cost_aware) {}
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
-                                                     uint32_t radius) {
+                                                     uint32_t radius, uint32_t prior) {
     const size_t n = merged.pixel_count();
     std::vector<double> var(n);
     double largest = 0;
@@ -125,6 +126,21 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
     std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
     const double median = n ? sorted[n / 2] : 0.0;
     std::vector<double> sigma(n);
+    if (prior > 0) {
+        // Shrinkage: the pool is a prior worth `prior` samples, the pixel's own s^2 is
+        // worth its (n - 1) degrees of freedom. A pixel whose four samples held one
+        // firefly leans on its neighbourhood; one with thousands of samples on itself, so
+        // a truly isolated noisy pixel still gets its share once it has been sampled.
+        const std::vector<double> pooled =
+            box_mean(var, merged.width(), merged.height(), std::max(radius, 1u));
+        for (size_t i = 0; i < n; ++i) {
+            const double own =
+                merged.samples(i) > 1 ? double(merged.samples(i) - 1) : 0.0;
+            const double v = (own * var[i] + prior * pooled[i]) / (own + prior);
+            sigma[i] = std::sqrt(std::max(v, kImageFactor * median));
+        }
+        return sigma;
+    }
     if (radius > 0) {
         // Pooled: each pixel's variance is the plain mean of its window's sample
         // variances (an unbiased estimate of the window's mean variance). A firefly one
@@ -241,7 +257,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     // that steer a round rest on at least half of the render so far.
     const double share = std::min(remaining, std::max(spent, 1.0));
 
-    const std::vector<double> sigma = sigma_estimates(merged, sigma_radius_);
+    const std::vector<double> sigma =
+        sigma_estimates(merged, sigma_radius_, sigma_prior_);
     const std::vector<double> cost =
         cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
     std::vector<double> weight(pixels);

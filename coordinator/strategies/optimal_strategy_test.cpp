@@ -193,6 +193,32 @@ TEST(Optimal, PooledSigmaSpreadsAFireflyOverItsNeighbourhood) {
     EXPECT_NEAR(pooled[2], std::sqrt(0.0), 1e-9);
 }
 
+TEST(Optimal, APriorShrinksFewSamplesTowardsThePoolAndLetsManySpeakForThemselves) {
+    // The firefly pixel (variance 50, 2 samples: 1 degree of freedom) with a prior of 8
+    // samples: (1 * 50 + 8 * 50/9) / 9. A neighbour with variance 0: (0 + 8 * 50/9) / 9.
+    Accumulator merged(5, 5);
+    SampleJobResult r;
+    r.rect = {0, 0, 5, 5};
+    r.pixels.resize(25);
+    for (PixelSums& p : r.pixels) p.samples = 2;
+    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
+    r.pixels[12].sum_sq_luminance = 100;
+    merged.merge(r);
+    const auto shrunk = OptimalStrategy::sigma_estimates(merged, 1, 8);
+    EXPECT_NEAR(shrunk[12], std::sqrt((50.0 + 8 * 50.0 / 9) / 9), 1e-9);
+    EXPECT_NEAR(shrunk[11], std::sqrt((8 * 50.0 / 9) / 9), 1e-9);
+    // With many samples the pixel's own variance dominates the same prior.
+    SampleJobResult more = r;
+    for (PixelSums& p : more.pixels) p = PixelSums{};
+    for (PixelSums& p : more.pixels) p.samples = 998;
+    for (int c = 0; c < 3; ++c) more.pixels[12].odd[c] = 4990;  // 499 odd samples of 10
+    more.pixels[12].sum_sq_luminance = 49900;
+    merged.merge(more);
+    const auto many = OptimalStrategy::sigma_estimates(merged, 1, 8);
+    const auto own = OptimalStrategy::sigma_estimates(merged);
+    EXPECT_NEAR(many[12] / own[12], 1.0, 0.01);
+}
+
 TEST(Optimal, PooledSigmaStillFindsTheOptimumOnSmoothNoise) {
     // On the banded image (noise constant over 16-column bands) pooling over 3x3 moves
     // only the band edges: the bands' totals stay within 5 % of the analytic optimum.

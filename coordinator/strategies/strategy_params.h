@@ -42,6 +42,10 @@ struct StrategyParams {
     // protections of optimal_strategy.cpp); r >= 1 pools it, as a plain mean, over the
     // (2r+1)^2 pixels around, so a firefly one pixel drew speaks for its neighbourhood.
     uint32_t sigma_radius = 0;
+    // optimal / optimal-time: n0 > 0 shrinks each pixel's variance towards its window's
+    // pool (radius max(sigma_radius, 1)) as a prior worth n0 samples: (n s^2 + n0 pool) /
+    // (n + n0). Few samples lean on the neighbourhood, many on the pixel itself.
+    uint32_t sigma_prior = 0;
 
     // cycles (Blender Cycles' adaptive sampling, with its defaults)
     double noise_threshold = 0.01;

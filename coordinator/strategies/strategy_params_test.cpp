@@ -205,17 +205,22 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
     p = with_budget("optimal");
     p.sigma_radius = 65;
     EXPECT_NE(message(p).find("sigma_radius"), std::string::npos);
+    p.sigma_radius = 1;
+    p.sigma_prior = (1u << 24) + 1;
+    EXPECT_NE(message(p).find("sigma_prior"), std::string::npos);
     StrategyParams read;
     from_json(nlohmann::json{{"method", "cycles"},
                              {"noise_threshold", 0.05},
                              {"adaptive_min_samples", 8},
                              {"adaptive_step", 4},
-                             {"sigma_radius", 2}},
+                             {"sigma_radius", 2},
+                             {"sigma_prior", 16}},
               read);
     EXPECT_EQ(read.noise_threshold, 0.05);
     EXPECT_EQ(read.adaptive_min_samples, 8u);
     EXPECT_EQ(read.adaptive_step, 4u);
     EXPECT_EQ(read.sigma_radius, 2u);
+    EXPECT_EQ(read.sigma_prior, 16u);
 }
 
 }  // namespace
