@@ -34,9 +34,10 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
     cmd.add_option("--sigma-radius", s.sigma_radius,
                    "optimal: pool each pixel's variance over (2r+1)^2 pixels (0: own)")
         ->capture_default_str();
-    cmd.add_option("--sigma-prior", s.sigma_prior,
-                   "optimal: shrink each pixel's variance towards its pool, a prior worth "
-                   "this many samples (0: off)")
+    cmd.add_option(
+           "--sigma-prior", s.sigma_prior,
+           "optimal: shrink each pixel's variance towards its pool, a prior worth "
+           "this many samples (0: off)")
         ->capture_default_str();
     cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
         ->capture_default_str();
