@@ -8,6 +8,7 @@
 #include "exr_io.h"
 #include "resolution.h"
 #include "scene_loader.h"
+#include "sigma_map.h"
 #include "whole_number_option.h"
 
 namespace aliquot::cli {
@@ -29,7 +30,27 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
     cmd.add_option("--reference", o.reference,
                    "reference EXR: error measured every round");
     cmd.add_option("--method", s.method,
-                   "uniform | dammertz | adaptive | optimal | optimal-time")
+                   "uniform | dammertz | adaptive | optimal | optimal-time | oracle | "
+                   "cycles")
+        ->capture_default_str();
+    cmd.add_option("--sigma", o.sigma,
+                   "oracle: EXR of a separate high-spp render with its AOVs (render "
+                   "--aovs, another seed); its per-sample sigma steers the oracle");
+    cmd.add_option("--sigma-radius", s.sigma_radius,
+                   "optimal: pool each pixel's variance over (2r+1)^2 pixels (0: own)")
+        ->capture_default_str();
+    cmd.add_option(
+           "--sigma-prior", s.sigma_prior,
+           "optimal: shrink each pixel's variance towards its pool, a prior worth "
+           "this many samples (0: off)")
+        ->capture_default_str();
+    cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
+        ->capture_default_str();
+    cmd.add_option("--adaptive-min-samples", s.adaptive_min_samples,
+                   "cycles: samples before the first check (0: automatic)")
+        ->capture_default_str();
+    cmd.add_option("--adaptive-step", s.adaptive_step,
+                   "cycles: samples between convergence checks")
         ->capture_default_str();
     cmd.add_option("--budget", s.budget, "total samples to spend")->check(whole_number());
     cmd.add_option("--max-variance", s.max_variance, "dammertz V; adaptive max variance")
@@ -80,6 +101,21 @@ void check_render_options(RenderOptions& o) {
     if (o.threads < 0) throw UsageError("--threads: must be 0 or more");
     if (o.threads == 0)
         o.threads = int(std::max(1u, std::thread::hardware_concurrency()));
+    if (!o.sigma.empty()) {
+        if (o.strategy.method != "oracle")
+            throw CommandError("--sigma: only --method oracle reads it");
+        try {
+            const Image image = read_exr(o.sigma);
+            if (image.width != o.width || image.height != o.height)
+                throw std::invalid_argument("is " + std::to_string(image.width) + "x" +
+                                            std::to_string(image.height) +
+                                            ", the render " + o.resolution);
+            o.strategy.true_sigma =
+                std::make_shared<const std::vector<float>>(per_sample_sigma(image));
+        } catch (const std::exception& e) {
+            throw CommandError("--sigma: " + o.sigma + ": " + e.what());
+        }
+    }
     try {
         validate(o.strategy, o.width, o.height);
     } catch (const std::invalid_argument& e) {

@@ -21,6 +21,7 @@ struct RenderOptions {
     uint64_t seed = 0;
     int threads = 0;        // 0: all hardware threads
     std::string reference;  // optional reference EXR
+    std::string sigma;      // oracle: EXR of a separate render with spp and variance
     StrategyParams strategy;
 };
 

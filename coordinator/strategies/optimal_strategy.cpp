@@ -55,6 +55,30 @@ std::vector<double> median3x3(const std::vector<double>& v, uint32_t w, uint32_t
     return out;
 }
 
+// The mean of v over the (2r+1)^2 window around each pixel (clipped at the image's
+// edges), from a summed-area table: O(pixels) whatever r.
+std::vector<double> box_mean(const std::vector<double>& v, uint32_t w, uint32_t h,
+                             uint32_t r) {
+    std::vector<double> sat(size_t(w + 1) * (h + 1), 0.0);
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x)
+            sat[size_t(y + 1) * (w + 1) + x + 1] =
+                v[size_t(y) * w + x] + sat[size_t(y) * (w + 1) + x + 1] +
+                sat[size_t(y + 1) * (w + 1) + x] - sat[size_t(y) * (w + 1) + x];
+    std::vector<double> out(v.size());
+    for (uint32_t y = 0; y < h; ++y) {
+        const uint32_t y0 = y > r ? y - r : 0, y1 = std::min(h, y + r + 1);
+        for (uint32_t x = 0; x < w; ++x) {
+            const uint32_t x0 = x > r ? x - r : 0, x1 = std::min(w, x + r + 1);
+            const double sum =
+                sat[size_t(y1) * (w + 1) + x1] - sat[size_t(y0) * (w + 1) + x1] -
+                sat[size_t(y1) * (w + 1) + x0] + sat[size_t(y0) * (w + 1) + x0];
+            out[size_t(y) * w + x] = sum / double(size_t(y1 - y0) * (x1 - x0));
+        }
+    }
+    return out;
+}
+
 // Mean rays a sample costs so far; 1 before anything is traced.
 double rays_per_sample(const Accumulator& merged) {
     return merged.total_samples() && merged.total_rays()
@@ -82,9 +106,12 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       budget_(sample_budget(p, size_t(width) * height)),
       min_spp_(p.min_spp),
       cap_(spp_cap(p)),
+      sigma_radius_(p.sigma_radius),
+      sigma_prior_(p.sigma_prior),
       cost_aware_(cost_aware) {}
 
-std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged) {
+std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
+                                                     uint32_t radius, uint32_t prior) {
     const size_t n = merged.pixel_count();
     std::vector<double> var(n);
     double largest = 0;
@@ -95,11 +122,38 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged) 
     // Sums that overflowed say "very noisy", not NaN.
     for (double& v : var)
         if (!std::isfinite(v)) v = largest;
-    const std::vector<double> near = median3x3(var, merged.width(), merged.height());
     std::vector<double> sorted = var;
     std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
     const double median = n ? sorted[n / 2] : 0.0;
     std::vector<double> sigma(n);
+    if (prior > 0) {
+        // Shrinkage: the pool is a prior worth `prior` samples, the pixel's own s^2 is
+        // worth its (n - 1) degrees of freedom. A pixel whose four samples held one
+        // firefly leans on its neighbourhood; one with thousands of samples on itself, so
+        // a truly isolated noisy pixel still gets its share once it has been sampled.
+        const std::vector<double> pooled =
+            box_mean(var, merged.width(), merged.height(), std::max(radius, 1u));
+        for (size_t i = 0; i < n; ++i) {
+            const double own =
+                merged.samples(i) > 1 ? double(merged.samples(i) - 1) : 0.0;
+            const double v = (own * var[i] + prior * pooled[i]) / (own + prior);
+            sigma[i] = std::sqrt(std::max(v, kImageFactor * median));
+        }
+        return sigma;
+    }
+    if (radius > 0) {
+        // Pooled: each pixel's variance is the plain mean of its window's sample
+        // variances (an unbiased estimate of the window's mean variance). A firefly one
+        // pixel drew is spread over the window, so the budget no longer chases that pixel
+        // alone and its neighbours, which drew none yet, are not starved. The price: a
+        // sharp edge between a noisy and a quiet region is blurred by r pixels.
+        const std::vector<double> pooled =
+            box_mean(var, merged.width(), merged.height(), radius);
+        for (size_t i = 0; i < n; ++i)
+            sigma[i] = std::sqrt(std::max(pooled[i], kImageFactor * median));
+        return sigma;
+    }
+    const std::vector<double> near = median3x3(var, merged.width(), merged.height());
     for (size_t i = 0; i < n; ++i)
         sigma[i] = std::sqrt(
             std::max({var[i], kNeighbourhoodFactor * near[i], kImageFactor * median}));
@@ -232,7 +286,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     // that steer a round rest on at least half of the render so far.
     const double share = std::min(remaining, std::max(spent, 1.0));
 
-    const std::vector<double> sigma = sigma_estimates(merged);
+    const std::vector<double> sigma =
+        sigma_estimates(merged, sigma_radius_, sigma_prior_);
     const std::vector<double> cost =
         cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
     std::vector<double> weight(pixels);

@@ -27,8 +27,11 @@ public:
     double ray_budget() const { return ray_budget_; }
 
     // Per-pixel standard deviation of one sample's luminance, protected against estimates
-    // that are too low at low sample counts (see the .cpp).
-    static std::vector<double> sigma_estimates(const Accumulator& merged);
+    // that are too low at low sample counts (see the .cpp); with `radius` > 0, pooled
+    // over the (2 radius + 1)^2 pixels around each (sigma_radius); with `prior` > 0,
+    // shrunk towards that pool as a prior worth `prior` samples (sigma_prior).
+    static std::vector<double> sigma_estimates(const Accumulator& merged,
+                                               uint32_t radius = 0, uint32_t prior = 0);
 
     // The real-valued optimum n_i = clamp(lambda * w_i, lo, hi) with sum_i c_i n_i =
     // total (c_i = costs[i], or 1 when costs is empty). Below the floor's cost the floors
@@ -45,7 +48,7 @@ private:
 
     uint32_t width_, height_;
     uint64_t budget_;
-    uint32_t min_spp_, cap_;
+    uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_;
     bool cost_aware_;
 
     double ray_budget_ = 0;

@@ -202,6 +202,80 @@ TEST(Optimal, AnIsolatedNoisyPixelDoesNotRaiseItsNeighbours) {
     EXPECT_EQ(sigma[11], 0.0);  // the image median is 0 too
 }
 
+TEST(Optimal, PooledSigmaSpreadsAFireflyOverItsNeighbourhood) {
+    // The firefly pixel of the test above (sample variance 50): with sigma_radius 1 it
+    // and its eight neighbours share 50 / 9; pixels beyond its window keep 0.
+    Accumulator merged(5, 5);
+    SampleJobResult r;
+    r.rect = {0, 0, 5, 5};
+    r.pixels.resize(25);
+    for (PixelSums& p : r.pixels) p.samples = 2;
+    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
+    r.pixels[12].sum_sq_luminance = 100;
+    merged.merge(r);
+    const auto own = OptimalStrategy::sigma_estimates(merged);
+    const auto pooled = OptimalStrategy::sigma_estimates(merged, 1);
+    EXPECT_NEAR(own[12], std::sqrt(50.0), 1e-9);
+    EXPECT_NEAR(pooled[12], std::sqrt(50.0 / 9), 1e-9);
+    EXPECT_NEAR(pooled[6], std::sqrt(50.0 / 9), 1e-9);
+    EXPECT_EQ(pooled[0], 0.0);  // its 2x2 window misses the firefly
+    // At the edge the window is clipped, not padded: pixel 7's 3x3 holds the firefly.
+    EXPECT_NEAR(pooled[7], std::sqrt(50.0 / 9), 1e-9);
+    EXPECT_NEAR(pooled[2], std::sqrt(0.0), 1e-9);
+}
+
+TEST(Optimal, APriorShrinksFewSamplesTowardsThePoolAndLetsManySpeakForThemselves) {
+    // The firefly pixel (variance 50, 2 samples: 1 degree of freedom) with a prior of 8
+    // samples: (1 * 50 + 8 * 50/9) / 9. A neighbour with variance 0: (0 + 8 * 50/9) / 9.
+    Accumulator merged(5, 5);
+    SampleJobResult r;
+    r.rect = {0, 0, 5, 5};
+    r.pixels.resize(25);
+    for (PixelSums& p : r.pixels) p.samples = 2;
+    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
+    r.pixels[12].sum_sq_luminance = 100;
+    merged.merge(r);
+    const auto shrunk = OptimalStrategy::sigma_estimates(merged, 1, 8);
+    EXPECT_NEAR(shrunk[12], std::sqrt((50.0 + 8 * 50.0 / 9) / 9), 1e-9);
+    EXPECT_NEAR(shrunk[11], std::sqrt((8 * 50.0 / 9) / 9), 1e-9);
+    // With many samples the pixel's own variance dominates the same prior.
+    SampleJobResult more = r;
+    for (PixelSums& p : more.pixels) p = PixelSums{};
+    for (PixelSums& p : more.pixels) p.samples = 998;
+    for (int c = 0; c < 3; ++c) more.pixels[12].odd[c] = 4990;  // 499 odd samples of 10
+    more.pixels[12].sum_sq_luminance = 49900;
+    merged.merge(more);
+    const auto many = OptimalStrategy::sigma_estimates(merged, 1, 8);
+    const auto own = OptimalStrategy::sigma_estimates(merged);
+    EXPECT_NEAR(many[12] / own[12], 1.0, 0.01);
+}
+
+TEST(Optimal, PooledSigmaStillFindsTheOptimumOnSmoothNoise) {
+    // On the banded image (noise constant over 16-column bands) pooling over 3x3 moves
+    // only the band edges: the bands' totals stay within 5 % of the analytic optimum.
+    const SyntheticImage image = banded_image();
+    const uint64_t budget = 4096 * 64;
+    StrategyParams p = optimal(budget);
+    p.sigma_radius = 1;
+    OptimalStrategy strategy(p, 64, 64, false);
+    Accumulator merged(64, 64);
+    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
+    ASSERT_EQ(merged.total_samples(), budget);
+    std::vector<double> weight(4096);
+    for (size_t i = 0; i < 4096; ++i)
+        weight[i] = std::cbrt(image.sigma(i) * image.sigma(i));
+    const auto best = OptimalStrategy::optimal_counts(weight, {}, double(budget), 4, 1e9);
+    for (uint32_t band = 0; band < 4; ++band) {
+        double got = 0, want = 0;
+        for (uint32_t y = 0; y < 64; ++y)
+            for (uint32_t x = band * 16; x < band * 16 + 16; ++x) {
+                got += double(merged.samples(y * 64 + x));
+                want += best[y * 64 + x];
+            }
+        EXPECT_NEAR(got / want, 1.0, 0.05) << "band " << band;
+    }
+}
+
 TEST(OptimalTime, GivesCheapPixelsMoreSamplesAsSigmaOverCostToTheTwoThirds) {
     // Equal noise; the right half costs 8 rays per sample: n_left / n_right = 8^(2/3)
     // = 4.

@@ -31,7 +31,12 @@ struct Outcome {
 };
 
 // Runs `p` to completion and checks what must hold whatever the input.
-Outcome run_checked(const StrategyParams& p, const SyntheticImage& image) {
+Outcome run_checked(StrategyParams p, const SyntheticImage& image) {
+    if (p.method == "oracle") {  // the oracle knows the image's true sigma
+        auto sigma = std::make_shared<std::vector<float>>(image.pixel_count());
+        for (size_t i = 0; i < sigma->size(); ++i) (*sigma)[i] = float(image.sigma(i));
+        p.true_sigma = sigma;
+    }
     Outcome out{make_strategy(p, image.width(), image.height()),
                 Accumulator(image.width(), image.height()),
                 {}};

@@ -7,9 +7,11 @@
 
 #include "adaptive_strategy.h"
 #include "allocation.h"
+#include "cycles_strategy.h"
 #include "dammertz_strategy.h"
 #include "json_field.h"
 #include "optimal_strategy.h"
+#include "oracle_strategy.h"
 #include "uniform_strategy.h"
 
 namespace aliquot {
@@ -29,6 +31,11 @@ void to_json(json& j, const StrategyParams& p) {
              {"alpha", p.alpha},
              {"bucket_size", p.bucket_size},
              {"min_spp", p.min_spp},
+             {"sigma_radius", p.sigma_radius},
+             {"sigma_prior", p.sigma_prior},
+             {"noise_threshold", p.noise_threshold},
+             {"adaptive_min_samples", p.adaptive_min_samples},
+             {"adaptive_step", p.adaptive_step},
              {"max_spp", p.max_spp},
              {"max_samples", p.max_samples}};
 }
@@ -65,6 +72,16 @@ void read_member(const std::string& key, const JsonField& v, StrategyParams& p) 
         p.bucket_size = whole<uint32_t>(v);
     else if (key == "min_spp")
         p.min_spp = whole<uint32_t>(v);
+    else if (key == "sigma_radius")
+        p.sigma_radius = whole<uint32_t>(v);
+    else if (key == "sigma_prior")
+        p.sigma_prior = whole<uint32_t>(v);
+    else if (key == "noise_threshold")
+        p.noise_threshold = v.number();
+    else if (key == "adaptive_min_samples")
+        p.adaptive_min_samples = whole<uint32_t>(v);
+    else if (key == "adaptive_step")
+        p.adaptive_step = whole<uint32_t>(v);
     else if (key == "max_spp")
         p.max_spp = whole<uint32_t>(v);
     else if (key == "max_samples")
@@ -77,10 +94,15 @@ void from_json(const json& j, StrategyParams& p) {
     try {
         const JsonField root(j);
         root.expect_object("strategy parameters must be a JSON object");
-        root.allow_keys({"method", "spp", "budget", "max_variance",
-                         "samples_per_iteration", "split_factor", "min_bucket_size",
-                         "error_norm", "initial_spp", "alpha", "bucket_size", "min_spp",
-                         "max_spp", "max_samples"});
+        if (auto sigma = root.find("sigma"))
+            sigma->fail(
+                "the oracle's sigma is not a parameter: it is given in-process (aliquot "
+                "render --sigma FILE.exr, or a study), never to a coordinator");
+        root.allow_keys(
+            {"method", "spp", "budget", "max_variance", "samples_per_iteration",
+             "split_factor", "min_bucket_size", "error_norm", "initial_spp", "alpha",
+             "bucket_size", "min_spp", "sigma_radius", "sigma_prior", "noise_threshold",
+             "adaptive_min_samples", "adaptive_step", "max_spp", "max_samples"});
         for (const auto& [key, v] : root.members()) read_member(key, v, p);
     } catch (const JsonError& e) {
         // Parameters arrive inside other documents (a request, a study): name the
@@ -93,8 +115,8 @@ void from_json(const json& j, StrategyParams& p) {
 }
 
 const std::vector<std::string>& strategy_methods() {
-    static const std::vector<std::string> methods = {"uniform", "dammertz", "adaptive",
-                                                     "optimal", "optimal-time"};
+    static const std::vector<std::string> methods = {
+        "uniform", "dammertz", "adaptive", "optimal", "optimal-time", "oracle", "cycles"};
     return methods;
 }
 
@@ -115,7 +137,7 @@ constexpr uint64_t kMaxBudget = uint64_t(1) << 53;
 
 }  // namespace
 
-void validate(const StrategyParams& p, uint32_t width, uint32_t height) {
+void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t height) {
     const auto& methods = strategy_methods();
     if (std::find(methods.begin(), methods.end(), p.method) == methods.end())
         fail("unknown method '" + p.method + "'; valid methods: " + join(methods));
@@ -134,7 +156,7 @@ void validate(const StrategyParams& p, uint32_t width, uint32_t height) {
     if (p.budget / pixels > UINT32_MAX)
         fail("budget " + std::to_string(p.budget) +
              " gives more than 4294967295 samples per pixel");
-    if (p.method != "dammertz" && p.spp == 0 && p.budget == 0)
+    if (p.method != "dammertz" && p.method != "cycles" && p.spp == 0 && p.budget == 0)
         fail("spp and budget are both 0: method '" + p.method +
              "' needs a sample budget");
 
@@ -154,10 +176,38 @@ void validate(const StrategyParams& p, uint32_t width, uint32_t height) {
     if (p.max_spp && p.method == "adaptive" && p.initial_spp > p.max_spp)
         fail("initial_spp (" + std::to_string(p.initial_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
-    if (p.max_spp && p.method.starts_with("optimal") && p.min_spp > p.max_spp)
+    if (p.max_spp && (p.method.starts_with("optimal") || p.method == "oracle") &&
+        p.min_spp > p.max_spp)
         fail("min_spp (" + std::to_string(p.min_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
     if (p.max_samples > kMaxBudget) fail("max_samples exceeds 2^53 samples");
+    // A radius beyond 64 pools over more than 16641 pixels: not a neighbourhood.
+    if (p.sigma_radius > 64) fail("sigma_radius must be at most 64");
+    if (p.sigma_prior > (1u << 24)) fail("sigma_prior must be at most 16777216 samples");
+    if (!(p.noise_threshold > 0) || std::isinf(p.noise_threshold))
+        fail("noise_threshold must be greater than 0 and finite");
+    if (p.adaptive_step == 0) fail("adaptive_step must be at least 1");
+    if (p.max_spp && p.method == "cycles" && p.adaptive_min_samples > p.max_spp)
+        fail("adaptive_min_samples (" + std::to_string(p.adaptive_min_samples) +
+             ") exceeds max_spp (" + std::to_string(p.max_spp) + ")");
+}
+
+void validate(const StrategyParams& p, uint32_t width, uint32_t height) {
+    validate_parameters(p, width, height);
+    if (p.method != "oracle") return;
+    if (!p.true_sigma)
+        fail(
+            "method 'oracle' needs the true per-pixel sigma of a separate high-spp "
+            "render "
+            "(aliquot render --sigma FILE.exr, or a study); it is given in-process only, "
+            "so a coordinator refuses oracle renders");
+    const uint64_t pixels = uint64_t(width) * height;
+    if (p.true_sigma->size() != pixels)
+        fail("oracle sigma has " + std::to_string(p.true_sigma->size()) +
+             " values for an image of " + std::to_string(pixels) + " pixels");
+    for (float s : *p.true_sigma)
+        if (!(s >= 0) || std::isinf(s))
+            fail("oracle sigma must be finite and not negative at every pixel");
 }
 
 std::unique_ptr<Strategy> make_strategy(const StrategyParams& p, uint32_t width,
@@ -173,6 +223,8 @@ std::unique_ptr<Strategy> make_strategy(const StrategyParams& p, uint32_t width,
         return std::make_unique<DammertzStrategy>(p, width, height);
     if (p.method == "adaptive")
         return std::make_unique<AdaptiveStrategy>(p, width, height);
+    if (p.method == "oracle") return std::make_unique<OracleStrategy>(p, width, height);
+    if (p.method == "cycles") return std::make_unique<CyclesStrategy>(p, width, height);
     return std::make_unique<OptimalStrategy>(p, width, height,
                                              p.method == "optimal-time");
 }

@@ -15,8 +15,7 @@ namespace aliquot {
 class Strategy;
 
 struct StrategyParams {
-    std::string method =
-        "uniform";  // uniform | dammertz | adaptive | optimal | optimal-time
+    std::string method = "uniform";  // one of strategy_methods()
 
     // uniform: spp, or budget (total samples; spp = floor(budget / pixels)). Adaptive,
     // optimal and optimal-time spend `budget` (or spp * pixels when only spp is given).
@@ -36,9 +35,29 @@ struct StrategyParams {
     double alpha = 1.0;
     uint32_t bucket_size = 16;
 
-    // optimal / optimal-time
+    // optimal / optimal-time / oracle
     uint32_t min_spp =
         4;  // floor every pixel gets before the allocation trusts its sigma
+    // optimal / optimal-time: 0 trusts each pixel's own sample variance (with the
+    // protections of optimal_strategy.cpp); r >= 1 pools it, as a plain mean, over the
+    // (2r+1)^2 pixels around, so a firefly one pixel drew speaks for its neighbourhood.
+    uint32_t sigma_radius = 0;
+    // optimal / optimal-time: n0 > 0 shrinks each pixel's variance towards its window's
+    // pool (radius max(sigma_radius, 1)) as a prior worth n0 samples: (n s^2 + n0 pool) /
+    // (n + n0). Few samples lean on the neighbourhood, many on the pixel itself.
+    uint32_t sigma_prior = 0;
+
+    // cycles (Blender Cycles' adaptive sampling, with its defaults)
+    double noise_threshold = 0.01;
+    uint32_t adaptive_min_samples = 0;  // 0: automatic, from the threshold
+    uint32_t adaptive_step = 16;        // samples between two convergence checks
+
+    // oracle: the true per-sample standard deviation of each pixel's luminance,
+    // row-major, from a separate high-spp render. In-process only: it is not part of the
+    // JSON (a coordinator opens no file a client names and takes no image inside
+    // parameters), so an oracle render can run only where its caller holds sigma (aliquot
+    // render, study).
+    std::shared_ptr<const std::vector<float>> true_sigma;
 
     // Caps that guarantee termination for every method (0: the method's default).
     uint32_t max_spp = 0;
@@ -49,8 +68,12 @@ void to_json(nlohmann::json& j, const StrategyParams& p);
 void from_json(const nlohmann::json& j, StrategyParams& p);
 
 // Throws std::invalid_argument with a message naming the parameter that is wrong
-// (unknown method, spp and budget both zero, alpha < 0, ...).
+// (unknown method, spp and budget both zero, alpha < 0, ...), including an oracle
+// without its sigma.
 void validate(const StrategyParams& params, uint32_t width, uint32_t height);
+// validate() but for the oracle's sigma: for plans (a study's) that attach sigma only
+// when the render is submitted.
+void validate_parameters(const StrategyParams& params, uint32_t width, uint32_t height);
 
 std::unique_ptr<Strategy> make_strategy(const StrategyParams& params, uint32_t width,
                                         uint32_t height);

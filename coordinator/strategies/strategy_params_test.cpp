@@ -141,11 +141,86 @@ TEST(StrategyParams, MakeStrategyBuildsEveryMethod) {
     for (const std::string& method : strategy_methods()) {
         StrategyParams p = with_budget("uniform");
         p.method = method;
+        if (method == "oracle")
+            p.true_sigma = std::make_shared<const std::vector<float>>(100, 0.5f);
         const auto strategy = make_strategy(p, 10, 10);
         ASSERT_TRUE(strategy);
         EXPECT_EQ(strategy->name(), method);
     }
     EXPECT_THROW(make_strategy(with_budget("nope"), 10, 10), std::invalid_argument);
+}
+
+TEST(StrategyParams, OracleWithoutItsSigmaIsRefusedSayingWhereSigmaComesFrom) {
+    StrategyParams p = with_budget("oracle");
+    try {
+        validate(p, 10, 10);
+        FAIL() << "an oracle without sigma was accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("--sigma"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("coordinator"), std::string::npos);
+    }
+    EXPECT_NO_THROW(validate_parameters(p, 10, 10));  // a plan attaches sigma later
+    p.true_sigma = std::make_shared<const std::vector<float>>(99, 0.5f);
+    EXPECT_THROW(validate(p, 10, 10), std::invalid_argument);  // wrong size
+    p.true_sigma = std::make_shared<const std::vector<float>>(100, -1.0f);
+    EXPECT_THROW(validate(p, 10, 10), std::invalid_argument);  // negative
+    p.true_sigma = std::make_shared<const std::vector<float>>(100, 0.5f);
+    EXPECT_NO_THROW(validate(p, 10, 10));
+}
+
+TEST(StrategyParams, SigmaCannotArriveInJson) {
+    StrategyParams p;
+    try {
+        from_json(nlohmann::json{{"method", "oracle"}, {"sigma", {1, 2}}}, p);
+        FAIL() << "sigma was read from JSON";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("'sigma'"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(nlohmann::json(p).contains("sigma"));
+}
+
+TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
+    auto message = [](StrategyParams p) {
+        try {
+            validate(p, 10, 10);
+        } catch (const std::invalid_argument& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    StrategyParams p;
+    p.method = "cycles";
+    EXPECT_EQ(message(p), "");  // like Dammertz, Cycles needs no budget
+    p.noise_threshold = 0;
+    EXPECT_NE(message(p).find("noise_threshold"), std::string::npos);
+    p.noise_threshold = std::nan("");
+    EXPECT_NE(message(p).find("noise_threshold"), std::string::npos);
+    p.noise_threshold = 0.01;
+    p.adaptive_step = 0;
+    EXPECT_NE(message(p).find("adaptive_step"), std::string::npos);
+    p.adaptive_step = 16;
+    p.max_spp = 8;
+    p.adaptive_min_samples = 9;
+    EXPECT_NE(message(p).find("adaptive_min_samples"), std::string::npos);
+    p = with_budget("optimal");
+    p.sigma_radius = 65;
+    EXPECT_NE(message(p).find("sigma_radius"), std::string::npos);
+    p.sigma_radius = 1;
+    p.sigma_prior = (1u << 24) + 1;
+    EXPECT_NE(message(p).find("sigma_prior"), std::string::npos);
+    StrategyParams read;
+    from_json(nlohmann::json{{"method", "cycles"},
+                             {"noise_threshold", 0.05},
+                             {"adaptive_min_samples", 8},
+                             {"adaptive_step", 4},
+                             {"sigma_radius", 2},
+                             {"sigma_prior", 16}},
+              read);
+    EXPECT_EQ(read.noise_threshold, 0.05);
+    EXPECT_EQ(read.adaptive_min_samples, 8u);
+    EXPECT_EQ(read.adaptive_step, 4u);
+    EXPECT_EQ(read.sigma_radius, 2u);
+    EXPECT_EQ(read.sigma_prior, 16u);
 }
 
 }  // namespace

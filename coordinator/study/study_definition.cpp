@@ -19,9 +19,9 @@ const std::vector<std::string> kTableKeys = {"title", "group", "compare", "colum
                                              "note"};
 const std::set<std::string> kChartKinds = {"error_vs_budget", "error_vs_time", "maps",
                                            "seed_spread", "sweep"};
-const std::set<std::string> kConclusionKinds = {"uniform_slope", "beats_everywhere",
-                                                "loses_but_bounds_worst", "sweep_effect",
-                                                "ranking"};
+const std::set<std::string> kConclusionKinds = {
+    "uniform_slope", "beats_everywhere", "loses_but_bounds_worst",
+    "sweep_effect",  "ranking",          "near_bound"};
 
 std::string in_quotes(const std::string& s) { return "\"" + s + "\""; }
 
@@ -85,7 +85,7 @@ void check_strategy(const JsonField& at, const json& params, uint32_t width,
     }
     check_method(at.find("method").value_or(at), p.method);
     try {
-        validate(p, width, height);
+        validate_parameters(p, width, height);  // an oracle's sigma comes at submission
     } catch (const std::invalid_argument& e) {
         at.fail(e.what());
     }
@@ -384,7 +384,7 @@ void StudyParser::parse_conclusions(const JsonField& list) {
         if (!kConclusionKinds.count(kind))
             kind_at.fail("unknown conclusion kind " + in_quotes(kind));
         name_at(c.require("claim"));
-        for (const char* key : {"group", "winner", "loser"})
+        for (const char* key : {"group", "winner", "loser", "bound"})
             if (auto g = c.find(key)) check_group_name(*g, name_at(*g));
         if (auto g = c.find("groups")) check_group_names(*g);
     }

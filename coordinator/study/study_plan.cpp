@@ -153,7 +153,7 @@ private:
         if (g.budget_from) p["budget"] = size.pixels;  // placeholder until resolve_budget
         try {
             r.strategy = p.get<StrategyParams>();
-            validate(r.strategy, r.width, r.height);
+            validate_parameters(r.strategy, r.width, r.height);
         } catch (const std::invalid_argument& e) {
             throw StudyError("render " + r.key + " at scale " + in_quotes(scale_.name) +
                              ": " + e.what());

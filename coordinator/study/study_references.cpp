@@ -7,6 +7,7 @@
 #include "exr_io.h"
 #include "render_spec.h"
 #include "scene_loader.h"
+#include "sigma_map.h"
 
 namespace aliquot {
 
@@ -72,6 +73,31 @@ StudyReferences prepare_references(const std::vector<StudyRender>& renders,
         }
         ref.image = read_exr(ref.path);
         references[key] = std::move(ref);
+    }
+    for (const StudyRender& r : renders) {
+        StudyReference& ref = references.at(reference_key(r));
+        if (r.strategy.method != "oracle" || ref.sigma) continue;
+        const std::string scene = resolve_scene(r.scene, study_file);
+        const std::string res = std::to_string(r.width) + "x" + std::to_string(r.height);
+        fs::path path = ref.path;
+        path.replace_extension(".sigma-seed" + std::to_string(kSigmaSeed) + ".exr");
+        if (!fs::exists(path)) {
+            std::fprintf(stderr, "study: oracle sigma %s %s at %llu spp\n",
+                         r.scene.c_str(), res.c_str(), (unsigned long long)spp);
+            const fs::path part = path.string() + ".part.exr";
+            run_self(
+                {"render", "--scene", scene, "--resolution", res, "--spp",
+                 std::to_string(spp), "--seed", std::to_string(kSigmaSeed), "--threads",
+                 std::to_string(threads), "--aovs", "--out", part.string()},
+                "oracle sigma render for " + r.scene + " " + res);
+            fs::rename(part, path);
+        }
+        try {
+            ref.sigma = std::make_shared<const std::vector<float>>(
+                per_sample_sigma(read_exr(path)));
+        } catch (const std::exception& e) {
+            throw StudyError("oracle sigma " + path.string() + ": " + e.what());
+        }
     }
     return references;
 }

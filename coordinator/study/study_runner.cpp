@@ -139,6 +139,8 @@ private:
         spec.height = r.height;
         spec.seed = r.seed;
         spec.strategy = r.strategy;
+        if (r.strategy.method == "oracle")
+            spec.strategy.true_sigma = references_.at(reference_key(r)).sigma;
         return spec;
     }
 

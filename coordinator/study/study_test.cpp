@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "store.h"
 
@@ -287,6 +288,24 @@ TEST(StudyStore, ResultsAreUpsertedByKeyAndReadInFirstRecordedOrder) {
         EXPECT_THROW(store.put_study_result(a), StoreError);
     }
     std::filesystem::remove_all(dir);
+}
+
+TEST(Study, EveryStudyOfTheRepositoryParsesAndExpandsAtEveryScale) {
+    // The study files are run by hand (minutes to hours); a typo must fail here first.
+    namespace fs = std::filesystem;
+    size_t files = 0;
+    for (const auto& entry :
+         fs::directory_iterator(fs::path(ALIQUOT_SOURCE_DIR) / "studies")) {
+        if (entry.path().extension() != ".json") continue;
+        ++files;
+        std::ifstream in(entry.path());
+        const std::string text((std::istreambuf_iterator<char>(in)),
+                               std::istreambuf_iterator<char>());
+        const StudyDefinition def = parse_study(text, entry.path().string());
+        for (const auto& [name, scale] : def.scales)
+            EXPECT_FALSE(expand_study(def, scale).empty()) << entry.path() << " " << name;
+    }
+    EXPECT_GE(files, 3u);
 }
 
 }  // namespace

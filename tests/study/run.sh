@@ -39,20 +39,22 @@ echo "     (tiny study: $(($(date +%s) - start)) s)"
 check "report.md with tables and the conclusions section" \
     "grep -q '^## Equal budget' '$tmp/tiny/report.md' && grep -q \"^## The seed's conclusions against ours\" '$tmp/tiny/report.md'"
 check "results.csv has a row per render" \
-    "[[ \$(wc -l < '$tmp/tiny/results.csv') -eq 20 ]]"
+    "[[ \$(wc -l < '$tmp/tiny/results.csv') -eq 28 ]]"
 for chart in error-vs-budget error-vs-time maps seeds uniform-spp; do
     check "chart $chart as SVG and PNG" \
         "grep -q '<svg' '$tmp/tiny/charts/$chart.svg' && [[ \$(head -c 4 '$tmp/tiny/charts/$chart.png' | tail -c 3) == PNG ]]"
 done
 db="$tmp/tiny/data/aliquot.db"
 check "every render and its rounds are in SQLite" \
-    "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq 19 && \$(sql '$db' 'SELECT COUNT(DISTINCT render_id) FROM rounds') -eq 19 ]]"
+    "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq 27 && \$(sql '$db' 'SELECT COUNT(DISTINCT render_id) FROM rounds') -eq 27 ]]"
 check "metrics recorded for every render" \
-    "[[ \$(sql '$db' \"SELECT COUNT(*) FROM study_results WHERE state = 'done' AND mean_abs > 0 AND p99_bucket > 0 AND samples > 0\") -eq 19 ]]"
+    "[[ \$(sql '$db' \"SELECT COUNT(*) FROM study_results WHERE state = 'done' AND mean_abs > 0 AND p99_bucket > 0 AND samples > 0\") -eq 27 ]]"
+check "the oracle's sigma render has its own seed" "ls '$tmp/tiny/data/references/' | grep -q 'sigma-seed1099511627777.exr'"
+check "the report gives E over the oracle's E" "grep -q 'E ÷ oracle E' '$tmp/tiny/report.md'"
 
 "$aliquot" study "$tiny" --scale small --out "$tmp/tiny" >"$tmp/again.log" 2>&1
 check "a second run renders nothing" "grep -q '(0 rendered now' '$tmp/again.log'"
-check "... and adds no render" "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq 19 ]]"
+check "... and adds no render" "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq 27 ]]"
 
 # --- an interrupted study resumes without re-rendering
 python3 - "$tmp/slow.json" <<'PY'
@@ -97,12 +99,31 @@ client_token=(--token-file "$tmp/farm-data/client.token")
 for _ in $(seq 1 100); do "$aliquot" status --coordinator "127.0.0.1:$port" "${client_token[@]}" >/dev/null 2>&1 && break; sleep 0.1; done
 "$aliquot" worker --coordinator "127.0.0.1:$port" --threads 2 --token-file "$tmp/farm-data/worker.token" >"$tmp/worker.log" 2>&1 &
 pids+=($!)
-"$aliquot" study "$tiny" --scale small --out "$tmp/farm" --coordinator "127.0.0.1:$port" "${client_token[@]}" >"$tmp/farm.log" 2>&1
+# The oracle's sigma never travels to a coordinator: the farm runs the tiny study without
+# it, and refuses a study that has one with a message that says why.
+python3 - "$tiny" "$tmp" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+d["renders"] = [r for r in d["renders"] if r["method"] != "oracle"]
+for t in d["tables"]:
+    if "compare" in t: t["compare"] = [g for g in t["compare"] if g != "oracle"]
+d["conclusions"] = [c for c in d["conclusions"] if "oracle" not in (c.get("bound"), c.get("winner"))]
+json.dump(d, open(sys.argv[2] + "/tiny-farm.json", "w"))
+json.dump({"name": "oracle-on-farm", "reference_spp": 16,
+           "defaults": {"scene": "cornell-box", "resolution": "8x8", "seeds": [1]},
+           "renders": [{"name": "o", "method": "oracle", "params": {"budget": 256}}]},
+          open(sys.argv[2] + "/oracle-farm.json", "w"))
+PY
+"$aliquot" study "$tmp/oracle-farm.json" --out "$tmp/oracle-farm" --coordinator "127.0.0.1:$port" "${client_token[@]}" >"$tmp/oracle-farm.log" 2>&1
+status=$?
+check "a farm refuses an oracle render, saying why" \
+    "[[ $status -ne 0 ]] && grep -q 'coordinator refuses oracle renders' '$tmp/oracle-farm.log'"
+"$aliquot" study "$tmp/tiny-farm.json" --scale small --out "$tmp/farm" --coordinator "127.0.0.1:$port" "${client_token[@]}" >"$tmp/farm.log" 2>&1
 status=$?
 check "the tiny study runs on a farm" "[[ $status -eq 0 ]] || { cat '$tmp/farm.log'; false; }"
 fdb="$tmp/farm/data/aliquot.db"
 check "farm renders and their rounds (GetRounds) are mirrored into the study's SQLite" \
-    "[[ \$(sql '$fdb' \"SELECT COUNT(*) FROM renders WHERE id LIKE 'farm-%'\") -eq 19 && \$(sql '$fdb' 'SELECT COUNT(*) FROM rounds') -gt 19 ]]"
+    "[[ \$(sql '$fdb' \"SELECT COUNT(*) FROM renders WHERE id LIKE 'farm-%'\") -eq 23 && \$(sql '$fdb' 'SELECT COUNT(*) FROM rounds') -gt 23 ]]"
 # Deterministic renders: the farm's samples equal the embedded run's for each key (the
 # equal-time group depends on measured speed, so it is left out).
 same=$(python3 - "$db" "$fdb" <<'PY'
@@ -110,6 +131,7 @@ import sqlite3, sys
 q = "SELECT render_key, samples, mean_abs FROM study_results WHERE render_key NOT LIKE 'optimal-time/%'"
 a = dict((k, (s, e)) for k, s, e in sqlite3.connect(sys.argv[1]).execute(q))
 b = dict((k, (s, e)) for k, s, e in sqlite3.connect(sys.argv[2]).execute(q))
+a = {k: v for k, v in a.items() if not k.startswith("oracle/")}  # in-process only
 print(int(a.keys() == b.keys() and all(a[k][0] == b[k][0] and abs(a[k][1] - b[k][1]) < 1e-12 for k in a)))
 PY
 )

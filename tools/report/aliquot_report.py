@@ -32,6 +32,8 @@ COLORS = {
     "adaptive": "#55a868",
     "optimal": "#c44e52",
     "optimal-time": "#8172b3",
+    "oracle": "#222222",
+    "cycles": "#937860",
 }
 
 
@@ -218,7 +220,31 @@ def compare_table(study, t):
                 ]
             )
     dh = ["budget", "method", "E", "RMSE", "p99 bucket E", "max bucket E", "time (s)", "samples", "samples/s"]
-    return md_table(header, rows) + "\n\nAll metrics:\n\n" + md_table(dh, detail)
+    out = md_table(header, rows)
+    oracle = [g for g in groups if study.method(g) == "oracle"]
+    if oracle and n:
+        out += "\n\nE ÷ oracle E at the same budget and seed (mean over seeds; worst seed):\n\n"
+        ratio_rows = []
+        for i in range(n):
+            budget = np.mean([series[g][i].mean("samples") for g in groups])
+            ratio_rows.append(
+                [fmt(int(round(budget)))]
+                + [fmt_ratio(oracle_ratios(series[g][i], series[oracle[0]][i])) for g in groups]
+            )
+        out += md_table(header, ratio_rows)
+    return out + "\n\nAll metrics:\n\n" + md_table(dh, detail)
+
+
+def oracle_ratios(point, bound):
+    """E of each seed's render over the bound's (oracle's) E for the same seed."""
+    by_seed = {r.seed: r.mean_abs for r in bound.renders}
+    return [r.mean_abs / by_seed[r.seed] for r in point.renders if by_seed.get(r.seed, 0) > 0]
+
+
+def fmt_ratio(ratios):
+    if not ratios:
+        return "–"
+    return f"{np.mean(ratios):.3f} ({max(ratios):.3f})" if len(ratios) > 1 else f"{ratios[0]:.3f}"
 
 
 # ---------------------------------------------------------------------------- charts
@@ -472,6 +498,38 @@ def conclude_beats(study, c):
     return text, holds
 
 
+def conclude_near_bound(study, c):
+    """`group` within `within` (a fraction) of the `bound` group's E at every budget, seed by seed."""
+    g, b = study.points(c["group"]), study.points(c["bound"])
+    within = float(c.get("within", 0.05))
+    n = min(len(g), len(b))
+    ok, parts = 0, []
+    for i in range(n):
+        ratios = oracle_ratios(g[i], b[i])
+        worst = max(ratios) if ratios else float("inf")
+        ok += worst <= 1 + within
+        parts.append(f"{fmt(int(round(b[i].mean('samples'))))}: {fmt_ratio(ratios)}")
+    text = (
+        f"E ÷ {c['bound']} E within {within * 100:.0f} % for every seed at **{ok} of {n}** budgets "
+        "(mean over seeds, worst seed in brackets): " + "; ".join(parts) + ". "
+    )
+    return text, ok == n and n > 0
+
+
+def conclude_beats_every_seed(study, c):
+    w, l = study.points(c["winner"]), study.points(c["loser"])
+    n = min(len(w), len(l))
+    wins = total = 0
+    for i in range(n):
+        ratios = oracle_ratios(w[i], l[i])
+        wins += sum(1 for r in ratios if r < 1)
+        total += len(ratios)
+    return (
+        f"{c['winner']} has the lower E in **{wins} of {total}** (budget, seed) pairs. ",
+        wins == total and total > 0,
+    )
+
+
 def conclude_loses_bounds(study, c):
     d = study.points(c["group"])
     others = c["groups"]
@@ -589,8 +647,12 @@ def conclusions(study):
         kind = c["kind"]
         if kind == "uniform_slope":
             text, holds = conclude_uniform_slope(study, c)
+        elif kind == "beats_everywhere" and c.get("per_seed"):
+            text, holds = conclude_beats_every_seed(study, c)
         elif kind == "beats_everywhere":
             text, holds = conclude_beats(study, c)
+        elif kind == "near_bound":
+            text, holds = conclude_near_bound(study, c)
         elif kind == "loses_but_bounds_worst":
             text, holds = conclude_loses_bounds(study, c)
         elif kind == "sweep_effect":
