@@ -790,7 +790,7 @@ struct HttpServer::Impl {
                    }));
         server.Get("/api/scenes", guarded([](const httplib::Request&, auto& res) {
                        send_json(res, {{"scenes", builtin_scene_names()},
-                                       {"methods", strategy_methods()},
+                                       {"methods", submittable_methods()},
                                        {"defaults", StrategyParams{}}});
                    }));
         server.Get("/api/events", [this](const httplib::Request& req,

@@ -120,6 +120,17 @@ const std::vector<std::string>& strategy_methods() {
     return methods;
 }
 
+const std::vector<std::string>& submittable_methods() {
+    // All but oracle, whose sigma is given in-process and never over the network.
+    static const std::vector<std::string> methods = [] {
+        std::vector<std::string> out;
+        for (const std::string& m : strategy_methods())
+            if (m != "oracle") out.push_back(m);
+        return out;
+    }();
+    return methods;
+}
+
 namespace {
 
 [[noreturn]] void fail(const std::string& message) {

@@ -79,5 +79,7 @@ std::unique_ptr<Strategy> make_strategy(const StrategyParams& params, uint32_t w
                                         uint32_t height);
 
 const std::vector<std::string>& strategy_methods();
+// The methods a coordinator accepts from a client: what the dashboard offers.
+const std::vector<std::string>& submittable_methods();
 
 }  // namespace aliquot

@@ -26,10 +26,18 @@ const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string 
     { key: "spp", label: "budget (spp x pixels)" },
     { key: "min_spp", label: "min spp" },
     { key: "max_spp", label: "max spp (0: default)" },
+    { key: "sigma_prior", label: "sigma prior, samples (0: off)" },
+    { key: "sigma_radius", label: "sigma pool radius (0: own pixel)" },
   ],
   "optimal-time": [
     { key: "spp", label: "budget (spp x pixels)" },
     { key: "min_spp", label: "min spp" },
+    { key: "max_spp", label: "max spp (0: default)" },
+  ],
+  cycles: [
+    { key: "noise_threshold", label: "noise threshold", step: "any" },
+    { key: "adaptive_min_samples", label: "min samples (0: automatic)" },
+    { key: "adaptive_step", label: "check every N samples" },
     { key: "max_spp", label: "max spp (0: default)" },
   ],
 };
