@@ -1099,7 +1099,17 @@ void Coordinator::tick() {
         if (any) changed();
         ++ticks_;
         wal_due = ticks_ % 50 == 0;
-        retention_due = ticks_ % 300 == 1;  // the first tick, then about once a minute
+        // At the first tick, then once a minute, or a quarter of keep_finished when that
+        // is shorter (at least a second), so that a render is kept about as long as
+        // asked.
+        const auto now_steady = std::chrono::steady_clock::now();
+        const auto every = std::clamp<std::chrono::milliseconds>(
+            options_.keep_finished / 4, std::chrono::seconds(1), std::chrono::minutes(1));
+        if (options_.keep_finished.count() > 0 &&
+            (ticks_ == 1 || now_steady - last_retention_ >= every)) {
+            retention_due = true;
+            last_retention_ = now_steady;
+        }
     }
     // Every ~10 s, outside the lock: keep the WAL from growing without bound. A full disk
     // fails it; the next one tries again.

@@ -74,7 +74,8 @@ struct CoordinatorOptions {
     std::chrono::milliseconds forget_workers_after{std::chrono::minutes(10)};
     size_t max_worker_sessions = 4096;
     // Finished renders are deleted (files, rows, memory) this long after they finished;
-    // zero keeps them for ever. Checked about once a minute (tick).
+    // zero keeps them for ever. Checked once a minute (tick), or every quarter of it when
+    // that is shorter.
     std::chrono::milliseconds keep_finished{0};
 };
 
@@ -318,6 +319,7 @@ private:
     std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
         std::make_shared<const std::set<std::string>>();  // a copy of alive_
     int ticks_ = 0;
+    std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
     double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0;
     bool stopping_ = false;
     std::thread ticker_;

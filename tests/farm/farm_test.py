@@ -431,6 +431,29 @@ def test_priorities_and_deleting_through_the_cli_and_http():
         farm.stop()
 
 
+def test_retention_deletes_finished_renders_through_the_coordinator_flag():
+    # --keep-days as a fraction: 0.00002 days is 1.7 s.
+    farm = Farm("retention")
+    try:
+        farm.start_coordinator("--keep-days", "0.00002")
+        render_id = farm.submit(*SMALL)["id"]
+        # Far longer than the test: it is still running when it ends.
+        running = farm.submit("--scene", "cornell-box", "--resolution", "96x96", "--spp",
+                              "8192", "--seed", "3")["id"]
+        farm.start_worker("w0")
+        farm.wait_until(render_id, lambda s: s["state"] == "done")
+        render_dir = os.path.join(farm.dir, "data", "renders", render_id)
+        deadline = time.time() + 60
+        while run("status", render_id, "--coordinator", farm.addr, check=False).returncode == 0:
+            assert time.time() < deadline, "the finished render was kept"
+            time.sleep(0.2)
+        assert not os.path.exists(render_dir)
+        assert farm.status(running)["state"] in ("queued", "running"), "a live render went"
+        run("cancel", running, "--coordinator", farm.addr)
+    finally:
+        farm.stop()
+
+
 def content_hash(text):
     """coordinator/farm/render_spec.cpp's content_hash: the scene's content address."""
     mask = (1 << 64) - 1
