@@ -916,14 +916,15 @@ Coordinator::SlotPtr Coordinator::held_render(const std::string& session,
     return slot_of(it->second.render);
 }
 
+std::pair<std::string, Coordinator::SlotPtr> Coordinator::holder_and_render(
+    const std::string& session, uint64_t lease_id) {
+    std::lock_guard lock(mutex_);
+    std::string worker = worker_of_session(session);
+    return {std::move(worker), held_render(session, lease_id)};
+}
+
 bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
-    std::string worker;
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        worker = worker_of_session(session);
-        slot = held_render(session, lease_id);
-    }
+    const auto [worker, slot] = holder_and_render(session, lease_id);
     if (!slot) return false;
     std::lock_guard render(slot->mutex);
     return slot->session->renew(lease_id, worker,
@@ -931,13 +932,7 @@ bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
 }
 
 bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
-    std::string worker;
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        worker = worker_of_session(session);
-        slot = held_render(session, lease_id);
-    }
+    const auto [worker, slot] = holder_and_render(session, lease_id);
     if (!slot) return false;
     {
         std::lock_guard render(slot->mutex);

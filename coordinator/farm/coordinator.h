@@ -263,6 +263,10 @@ private:
     const std::string& worker_of_session(const std::string& session);
     // The render whose lease `lease_id` `session` holds; null when it holds none.
     SlotPtr held_render(const std::string& session, uint64_t lease_id);
+    // The worker holding `session` (touched, or WorkerUnknown) and held_render, under
+    // `mutex_`, which it takes.
+    std::pair<std::string, SlotPtr> holder_and_render(const std::string& session,
+                                                      uint64_t lease_id);
     // A random lease id, not 0 and not one out now.
     uint64_t new_lease_id() const;
     // Workers registered here and not lost: those a job may go to (RenderSession::issue).

@@ -36,6 +36,30 @@ double expected_error(const Accumulator& merged, const SyntheticImage& image) {
     return f;
 }
 
+// Renders the banded image (four bands of known sigma) with `p` and checks that each
+// band's samples are within 5 % of the analytic optimum's.
+void expect_bands_near_the_optimum(const StrategyParams& p) {
+    const SyntheticImage image = banded_image();
+    const uint64_t budget = p.budget;
+    OptimalStrategy strategy(p, 64, 64, false);
+    Accumulator merged(64, 64);
+    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
+    ASSERT_EQ(merged.total_samples(), budget);
+    std::vector<double> weight(4096);
+    for (size_t i = 0; i < 4096; ++i)
+        weight[i] = std::cbrt(image.sigma(i) * image.sigma(i));
+    const auto best = OptimalStrategy::optimal_counts(weight, {}, double(budget), 4, 1e9);
+    for (uint32_t band = 0; band < 4; ++band) {
+        double got = 0, want = 0;
+        for (uint32_t y = 0; y < 64; ++y)
+            for (uint32_t x = band * 16; x < band * 16 + 16; ++x) {
+                got += double(merged.samples(y * 64 + x));
+                want += best[y * 64 + x];
+            }
+        EXPECT_NEAR(got / want, 1.0, 0.05) << "band " << band;
+    }
+}
+
 TEST(Optimal, OptimalCountsMeetTheLagrangeConditions) {
     const std::vector<double> w = {0.01, 0.5, 1, 2, 4, 100};
     const auto n = OptimalStrategy::optimal_counts(w, {}, 200, 4, 60);
@@ -87,26 +111,7 @@ TEST(Optimal, OptimalCountsOverManyPixelsMeetTheLagrangeConditions) {
 }
 
 TEST(Optimal, AllocationMatchesTheAnalyticOptimumForKnownVariances) {
-    const SyntheticImage image = banded_image();
-    const uint64_t budget = 4096 * 64;
-    OptimalStrategy strategy(optimal(budget), 64, 64, false);
-    Accumulator merged(64, 64);
-    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
-    ASSERT_EQ(merged.total_samples(), budget);
-
-    std::vector<double> weight(4096);
-    for (size_t i = 0; i < 4096; ++i)
-        weight[i] = std::cbrt(image.sigma(i) * image.sigma(i));
-    const auto best = OptimalStrategy::optimal_counts(weight, {}, double(budget), 4, 1e9);
-    for (uint32_t band = 0; band < 4; ++band) {
-        double got = 0, want = 0;
-        for (uint32_t y = 0; y < 64; ++y)
-            for (uint32_t x = band * 16; x < band * 16 + 16; ++x) {
-                got += double(merged.samples(y * 64 + x));
-                want += best[y * 64 + x];
-            }
-        EXPECT_NEAR(got / want, 1.0, 0.05) << "band " << band;
-    }
+    expect_bands_near_the_optimum(optimal(4096 * 64));
 }
 
 TEST(Optimal, ExpectedErrorBeatsUniformByThePredictedRatio) {
@@ -253,27 +258,9 @@ TEST(Optimal, APriorShrinksFewSamplesTowardsThePoolAndLetsManySpeakForThemselves
 TEST(Optimal, PooledSigmaStillFindsTheOptimumOnSmoothNoise) {
     // On the banded image (noise constant over 16-column bands) pooling over 3x3 moves
     // only the band edges: the bands' totals stay within 5 % of the analytic optimum.
-    const SyntheticImage image = banded_image();
-    const uint64_t budget = 4096 * 64;
-    StrategyParams p = optimal(budget);
+    StrategyParams p = optimal(4096 * 64);
     p.sigma_radius = 1;
-    OptimalStrategy strategy(p, 64, 64, false);
-    Accumulator merged(64, 64);
-    ASSERT_TRUE(run_synthetic(strategy, image, merged).finished);
-    ASSERT_EQ(merged.total_samples(), budget);
-    std::vector<double> weight(4096);
-    for (size_t i = 0; i < 4096; ++i)
-        weight[i] = std::cbrt(image.sigma(i) * image.sigma(i));
-    const auto best = OptimalStrategy::optimal_counts(weight, {}, double(budget), 4, 1e9);
-    for (uint32_t band = 0; band < 4; ++band) {
-        double got = 0, want = 0;
-        for (uint32_t y = 0; y < 64; ++y)
-            for (uint32_t x = band * 16; x < band * 16 + 16; ++x) {
-                got += double(merged.samples(y * 64 + x));
-                want += best[y * 64 + x];
-            }
-        EXPECT_NEAR(got / want, 1.0, 0.05) << "band " << band;
-    }
+    expect_bands_near_the_optimum(p);
 }
 
 TEST(OptimalTime, GivesCheapPixelsMoreSamplesAsSigmaOverCostToTheTwoThirds) {
