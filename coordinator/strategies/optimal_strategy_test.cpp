@@ -60,6 +60,20 @@ void expect_bands_near_the_optimum(const StrategyParams& p) {
     }
 }
 
+// 5x5 pixels of 2 samples each, all zero but the centre's, whose odd sample is 10: a
+// firefly (sample variance 50) among pixels that have drawn none.
+Accumulator one_firefly() {
+    Accumulator merged(5, 5);
+    SampleJobResult r;
+    r.rect = {0, 0, 5, 5};
+    r.pixels.resize(25);
+    for (PixelSums& p : r.pixels) p.samples = 2;
+    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
+    r.pixels[12].sum_sq_luminance = 100;
+    merged.merge(r);
+    return merged;
+}
+
 TEST(Optimal, OptimalCountsMeetTheLagrangeConditions) {
     const std::vector<double> w = {0.01, 0.5, 1, 2, 4, 100};
     const auto n = OptimalStrategy::optimal_counts(w, {}, 200, 4, 60);
@@ -194,14 +208,7 @@ TEST(Optimal, AZeroVarianceEstimateIsRaisedToItsNeighbourhood) {
 }
 
 TEST(Optimal, AnIsolatedNoisyPixelDoesNotRaiseItsNeighbours) {
-    Accumulator merged(5, 5);
-    SampleJobResult r;
-    r.rect = {0, 0, 5, 5};
-    r.pixels.resize(25);
-    for (PixelSums& p : r.pixels) p.samples = 2;
-    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
-    r.pixels[12].sum_sq_luminance = 100;
-    merged.merge(r);
+    const Accumulator merged = one_firefly();
     const auto sigma = OptimalStrategy::sigma_estimates(merged);
     EXPECT_GT(sigma[12], 5.0);
     EXPECT_EQ(sigma[11], 0.0);  // the image median is 0 too
@@ -210,14 +217,7 @@ TEST(Optimal, AnIsolatedNoisyPixelDoesNotRaiseItsNeighbours) {
 TEST(Optimal, PooledSigmaSpreadsAFireflyOverItsNeighbourhood) {
     // The firefly pixel of the test above (sample variance 50): with sigma_radius 1 it
     // and its eight neighbours share 50 / 9; pixels beyond its window keep 0.
-    Accumulator merged(5, 5);
-    SampleJobResult r;
-    r.rect = {0, 0, 5, 5};
-    r.pixels.resize(25);
-    for (PixelSums& p : r.pixels) p.samples = 2;
-    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
-    r.pixels[12].sum_sq_luminance = 100;
-    merged.merge(r);
+    const Accumulator merged = one_firefly();
     const auto own = OptimalStrategy::sigma_estimates(merged);
     const auto pooled = OptimalStrategy::sigma_estimates(merged, 1);
     EXPECT_NEAR(own[12], std::sqrt(50.0), 1e-9);
@@ -232,20 +232,14 @@ TEST(Optimal, PooledSigmaSpreadsAFireflyOverItsNeighbourhood) {
 TEST(Optimal, APriorShrinksFewSamplesTowardsThePoolAndLetsManySpeakForThemselves) {
     // The firefly pixel (variance 50, 2 samples: 1 degree of freedom) with a prior of 8
     // samples: (1 * 50 + 8 * 50/9) / 9. A neighbour with variance 0: (0 + 8 * 50/9) / 9.
-    Accumulator merged(5, 5);
-    SampleJobResult r;
-    r.rect = {0, 0, 5, 5};
-    r.pixels.resize(25);
-    for (PixelSums& p : r.pixels) p.samples = 2;
-    for (int c = 0; c < 3; ++c) r.pixels[12].odd[c] = 10;
-    r.pixels[12].sum_sq_luminance = 100;
-    merged.merge(r);
+    Accumulator merged = one_firefly();
     const auto shrunk = OptimalStrategy::sigma_estimates(merged, 1, 8);
     EXPECT_NEAR(shrunk[12], std::sqrt((50.0 + 8 * 50.0 / 9) / 9), 1e-9);
     EXPECT_NEAR(shrunk[11], std::sqrt((8 * 50.0 / 9) / 9), 1e-9);
     // With many samples the pixel's own variance dominates the same prior.
-    SampleJobResult more = r;
-    for (PixelSums& p : more.pixels) p = PixelSums{};
+    SampleJobResult more;
+    more.rect = {0, 0, 5, 5};
+    more.pixels.resize(25);
     for (PixelSums& p : more.pixels) p.samples = 998;
     for (int c = 0; c < 3; ++c) more.pixels[12].odd[c] = 4990;  // 499 odd samples of 10
     more.pixels[12].sum_sq_luminance = 49900;
