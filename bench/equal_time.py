@@ -2,19 +2,21 @@
 """Speed x accuracy in one number: Aliquot against Mitsuba 3 llvm_ad_rgb at equal wall time.
 
   python3 bench/equal_time.py [--aliquot build/bin/aliquot] [--times 1 2 4 8 16]
-        [--seeds 1 2] [--methods optimal uniform] [--reference REF.exr]
-        [--reference-spp 16384] [--reference-seconds 600] [--report-dir DIR] [--no-install]
+        [--seeds 1 2] [--methods optimal uniform] [--reference-spp 16384]
+        [--reference-seconds 1800] [--out-dir build/equal-time] [--report-dir DIR] [--no-install]
 
 Cornell box (Mitsuba's cornell_box(), our cornell-box) at 256x256, box filter, paths of at
 most 8 segments, 2 threads. Set-up as bench/peers_speed.py (Debian's libllvm19, the .venv
 with mitsuba and numpy; matplotlib too, for the chart).
 
-1. Reference: a high-spp Mitsuba llvm_ad_rgb render, made once and cached under
-   build/equal-time/ (its seeds never overlap a measured render's). Both renderers are
-   judged against it: our image matches Mitsuba's within noise (docs/VALIDATION.md).
+1. Reference: a high-spp Mitsuba llvm_ad_rgb render, made once and cached under --out-dir
+   (its seeds never overlap a measured render's); --reference-seconds stops it early, after
+   whole passes, on a loaded machine (the spp it reached is recorded and reported). Both
+   renderers are judged against it: our image matches Mitsuba's within noise
+   (docs/VALIDATION.md).
 2. Throughput first: one calibration render each at 32 spp (Mitsuba's JIT warm-up
-   excluded, as in peers_speed.py); its image is not scored. Then, per seed and per time budget t,
-   interleaved: Mitsuba uniform at the spp that fits t, then each of our --methods with
+   excluded, as in peers_speed.py); its image is not scored. Then, per seed and per time
+   budget t, interleaved: Mitsuba uniform at the spp that fits t, then each of our --methods with
    the budget (samples) that fits t. Each renderer's next budget uses the samples/s of
    its last run, so a change of machine load is followed. Times are each renderer's own
    render time (not process start, scene building or JIT compilation).
@@ -22,7 +24,8 @@ with mitsuba and numpy; matplotlib too, for the chart).
    error). Per seed and budget: E_ours / E_mitsuba (raw, at the times actually taken) and
    the relative efficiency (E_peer^2 t_peer) / (E_ours^2 t_ours): how many times less
    time we need for the same error (Monte Carlo error ~ 1/sqrt(time)); > 1: we lead.
-   E at exactly equal time, from that: E_ours / E_mitsuba = efficiency^-1/2.
+   E at exactly equal time, from that: E_ours / E_mitsuba = efficiency^-1/2. Over all
+   pairs: the geometric mean of the efficiencies (a ratio's mean).
 
 Written: REPORT_DIR/results.json, results.csv and charts/error-vs-time.svg|png (E against
 seconds, log-log, both renderers). Both E include the reference's own noise, which pulls
@@ -212,6 +215,22 @@ def summarize(rows, methods):
     return out
 
 
+def overall(rows, methods):
+    """Per method: the geometric mean of every (seed, budget) pair's efficiency."""
+    by = {}
+    for r in rows:
+        by.setdefault((r["seed"], r["target_seconds"]), {})[r["renderer"]] = r
+    out = {}
+    for m in methods:
+        eff = [efficiency(v[m]["E"], v[m]["seconds"], v["mitsuba"]["E"], v["mitsuba"]["seconds"])
+               for v in by.values() if m in v and "mitsuba" in v]
+        if eff:
+            g = math.exp(statistics.mean(math.log(e) for e in eff))
+            out[m] = {"pairs": len(eff), "efficiency_geomean": g, "E_ratio_equal_time": g ** -0.5,
+                      "efficiency_min": min(eff), "efficiency_max": max(eff)}
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description="Aliquot vs Mitsuba llvm_ad_rgb at equal time.")
     ap.add_argument("--aliquot", default=os.path.join("build", "bin", "aliquot"))
@@ -276,7 +295,7 @@ def main():
               "load_before_runs": {"min": min(loads), "median": statistics.median(loads),
                                    "max": max(loads)},
               "measured_at": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-              "summary": summary, "runs": rows}
+              "overall": overall(rows, args.methods), "summary": summary, "runs": rows}
     with open(os.path.join(args.report_dir, "results.json"), "w") as f:
         json.dump(result, f, indent=2)
         f.write("\n")
@@ -291,6 +310,10 @@ def main():
               f"{s['t_mitsuba']:.2f} | {s['E_ours']:.5f} | {s['E_mitsuba']:.5f} | "
               f"{s['E_ratio_raw']:.3f} | {s['efficiency']:.2f} ({s['efficiency_min']:.2f}-"
               f"{s['efficiency_max']:.2f}) | {s['E_ratio_equal_time']:.3f} |")
+    for m, o in result["overall"].items():
+        print(f"\n{m}, all {o['pairs']} pairs: efficiency {o['efficiency_geomean']:.3f} "
+              f"(geometric mean; {o['efficiency_min']:.2f}-{o['efficiency_max']:.2f}), "
+              f"E ratio at equal time {o['E_ratio_equal_time']:.3f}")
     print(f"\nreference: {ref_spp} spp, estimated E {ref_error:.6f}; load before runs "
           f"{result['load_before_runs']}")
     return 0
