@@ -784,7 +784,7 @@ struct HttpServer::Impl {
         server.Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
             send_json(res, {{"ok", true}});
         });
-        // Prometheus scrapes with the client token as a bearer (docs/API.md, "Metrics").
+        // Prometheus scrapes with the client token as a bearer (docs/API.md).
         if (options.metrics)
             server.Get("/metrics", guarded([this](const httplib::Request&, auto& res) {
                            res.set_header("Cache-Control", "no-store");

@@ -1,5 +1,5 @@
-// The coordinator's Prometheus metrics (docs/API.md, "Metrics"), served as /metrics by
-// the HTTP server. The call latencies are observed by the gRPC services at the call
+// The coordinator's Prometheus metrics (docs/API.md, `GET /metrics`), served as /metrics
+// by the HTTP server. The call latencies are observed by the gRPC services at the call
 // boundary; everything else is read from the Coordinator when scraped, so it cannot drift
 // from the farm. Labels take values from fixed sets only (render and worker states, a
 // lease's outcome), never a render id or a worker name: a scrape stays the same size
