@@ -187,7 +187,8 @@ import glob, re, sys
 # Tools for tests and development (the format check, the fuzzers), not for building the image.
 NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "python3-pip", "nodejs", "npm",
                      "golang-go", "clang", "clang-format", "libclang-rt-14-dev", "openssl", "curl",
-                     "python3-prometheus-client", "python3-grpcio", "python3-protobuf"}
+                     "python3-prometheus-client", "python3-grpcio", "python3-protobuf",
+                     "openimageio-tools"}
 # Built only with -DALIQUOT_FUZZ=ON, by scripts/fuzz.sh.
 DIRS_NOT_FOR_THE_IMAGE = {"fuzz"}
 dockerfile = open("deploy/Dockerfile").read()
