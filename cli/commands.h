@@ -35,5 +35,6 @@ void register_farm_clients(CLI::App& app);  // status, watch, fetch, cancel, pri
                                             // delete, workers
 void register_reference(CLI::App& app);
 void register_study(CLI::App& app);
+void register_health(CLI::App& app);  // a probe of gRPC health
 
 }  // namespace aliquot::cli

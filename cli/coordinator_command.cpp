@@ -13,6 +13,7 @@
 #include "commands.h"
 #include "grpc_server.h"
 #include "http_server.h"
+#include "metrics.h"
 #include "token_file.h"
 #include "whole_number_option.h"
 
@@ -116,6 +117,7 @@ struct CoordinatorCommand {
     std::string memory_limit;  // empty: default_memory_limit()
     uint32_t max_job_failures = FailurePolicy{}.max_job_failures;
     double keep_days = 0;  // 0: finished renders are kept for ever
+    bool grpc_reflection = false;
 
     void run() {
         // Written `!(x > 0)` so that "nan" is refused too.
@@ -158,7 +160,11 @@ struct CoordinatorCommand {
         options.keep_finished =
             std::chrono::milliseconds(int64_t(keep_days * 24 * 3600 * 1000.0));
         Coordinator coordinator(options);
-        GrpcServer server(coordinator, grpc_address, security);
+        // One registry for the process: the gRPC services observe into it, /metrics
+        // serves it.
+        FarmMetrics metrics(coordinator);
+        GrpcServer server(coordinator, grpc_address, security,
+                          {.metrics = &metrics, .reflection = grpc_reflection});
         std::fprintf(stderr,
                      "coordinator: gRPC%s on %s (port %d), data in %s, memory limit %llu "
                      "MiB\n",
@@ -180,6 +186,7 @@ struct CoordinatorCommand {
             // TLS they are served over HTTPS with the same certificate.
             http_options.tls_cert = tls_cert;
             http_options.tls_key = tls_key;
+            http_options.metrics = &metrics;
             http_options.study_dirs = {{"data", fs::path(data_dir) / "studies"}};
             const fs::path repo = executable_dir() / ".." / "..";
             if (!study_dirs.empty()) {
@@ -202,6 +209,8 @@ struct CoordinatorCommand {
         int sig = 0;
         sigwait(&stop, &sig);
         std::fprintf(stderr, "coordinator: stopping (signal %d)\n", sig);
+        // Probes see NOT_SERVING while the farm winds down, before the port closes.
+        server.stop_serving();
         coordinator.stop();
         if (http) http->shutdown();
         server.shutdown();
@@ -251,6 +260,9 @@ void register_coordinator(CLI::App& app) {
                     "bytes (K, M, G suffixes) the renders in memory may use together; a "
                     "submission past it is refused (default: half the physical memory, " +
                         std::to_string(default_memory_limit() >> 20) + "M here)");
+    cmd->add_flag("--grpc-reflection", c->grpc_reflection,
+                  "serve gRPC server reflection (grpcurl, grpc_cli), without a token: it "
+                  "tells the services' schema only (docs/SECURITY.md)");
     cmd->add_option("--max-job-failures", c->max_job_failures,
                     "workers a job may fail on before its render fails (docs/FARM.md)")
         ->check(whole_number())

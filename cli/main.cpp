@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
     aliquot::cli::register_farm_clients(app);
     aliquot::cli::register_reference(app);
     aliquot::cli::register_study(app);
+    aliquot::cli::register_health(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

@@ -11,6 +11,7 @@
 #include "commands.h"
 #include "endpoint_options.h"
 #include "grpc_link.h"
+#include "health_file.h"
 #include "whole_number_option.h"
 #include "worker_loop.h"
 
@@ -22,6 +23,7 @@ struct WorkerCommand {
     EndpointOptions coordinator;
     int threads = 0;
     std::string name;
+    std::string health_file;  // empty: none
 
     void run() {
         if (threads < 0) throw UsageError("--threads: must be 0 or more");
@@ -40,6 +42,14 @@ struct WorkerCommand {
 
         GrpcLink link(coordinator.resolve(Role::Worker));
         WorkerLoop loop(link, {name, threads, std::chrono::milliseconds(2000), false});
+        std::unique_ptr<HealthFile> health;
+        try {
+            if (!health_file.empty())
+                health = std::make_unique<HealthFile>(
+                    health_file, [&loop] { return loop.stalest_beat(); });
+        } catch (const std::runtime_error& e) {
+            throw CommandError(e.what());
+        }
         std::atomic<bool> refused{false};
         std::thread waiter([&] {
             int sig = 0;
@@ -80,6 +90,10 @@ void register_worker(CLI::App& app) {
     cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)")
         ->check(whole_number());
     cmd->add_option("--name", c->name, "worker name (default: host-pid)");
+    cmd->add_option("--health-file", c->health_file,
+                    "a file whose modification time the worker keeps at the moment all "
+                    "its threads were last known not stuck, for liveness probes "
+                    "(deploy/healthcheck.sh; docs/DEPLOY.md)");
     cmd->callback([c] { c->run(); });
 }
 

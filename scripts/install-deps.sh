@@ -10,6 +10,12 @@ packages=(
     libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
     python3 python3-venv python3-pip
     libcpp-httplib-dev zlib1g-dev clang-format
+    # The coordinator's /metrics (the registry and text format of prometheus-cpp), and
+    # gRPC's standard health.proto, whose client the tests and probes build.
+    prometheus-cpp-dev grpc-proto
+    # tests/ops: /metrics parsed as Prometheus does, gRPC health and reflection asked
+    # from Python as probes and grpcurl do.
+    python3-prometheus-client python3-grpcio python3-protobuf
     # tests/tls/run.sh: a throwaway CA and certificates, and HTTPS requests.
     openssl curl
     # tests/cli/render_test.sh: an --aovs EXR as a tool reads it (`oiiotool --info -v`).

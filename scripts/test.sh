@@ -18,6 +18,10 @@ run "format" bash scripts/format.sh --check
 run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
 run "cli" bash tests/cli/render_test.sh build/bin/aliquot
 run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
+# gRPC health and reflection, /metrics through Prometheus' parser, a worker's liveness file.
+# Debian's own Python: its python3-grpcio and python3-prometheus-client are installed for
+# it, whatever python3 comes first on PATH.
+run "ops" /usr/bin/python3 tests/ops/ops_test.py build/bin/aliquot
 # A CA made with openssl, the farm and the HTTP API over TLS: a few seconds.
 run "tls" bash tests/tls/run.sh build/bin/aliquot
 # Workers killed and stopped, the coordinator killed, while every method renders: about 1-2 min.

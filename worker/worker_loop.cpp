@@ -39,6 +39,15 @@ private:
     std::minstd_rand rng_;
 };
 
+int64_t steady_nanos() {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>(
+               std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+}
+
+// The slot of beats_ the calling thread marks, set when a loop's thread starts.
+thread_local std::atomic<int64_t>* beat_slot = nullptr;
+
 std::string seconds_text(Millis d) {
     char text[32];
     std::snprintf(text, sizeof text, "%.1f s", double(d.count()) / 1000.0);
@@ -48,7 +57,24 @@ std::string seconds_text(Millis d) {
 }  // namespace
 
 WorkerLoop::WorkerLoop(WorkerLink& link, WorkerOptions options)
-    : link_(link), options_(std::move(options)) {}
+    : link_(link), options_(std::move(options)) {
+    beat_slots_ = size_t(std::max(options_.threads, 1)) + 1;
+    beats_ = std::make_unique<std::atomic<int64_t>[]>(beat_slots_);
+    const int64_t now = steady_nanos();
+    for (size_t i = 0; i < beat_slots_; ++i) beats_[i] = now;
+}
+
+void WorkerLoop::beat() const {
+    if (beat_slot) *beat_slot = steady_nanos();
+}
+
+std::chrono::steady_clock::time_point WorkerLoop::stalest_beat() const {
+    // Before the threads start, the registering thread is the only one.
+    const size_t slots = threads_started_ ? beat_slots_ : 1;
+    int64_t stalest = beats_[0];
+    for (size_t i = 1; i < slots; ++i) stalest = std::min<int64_t>(stalest, beats_[i]);
+    return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(stalest));
+}
 
 void WorkerLoop::log(const std::string& line) const {
     if (!options_.quiet)
@@ -57,10 +83,13 @@ void WorkerLoop::log(const std::string& line) const {
 
 void WorkerLoop::sleep_unless_stopping(std::chrono::milliseconds duration) {
     // Short steps, so that stop() is honoured promptly.
+    // A deliberate wait is not a stuck thread: each step is a beat.
     const auto until = std::chrono::steady_clock::now() + duration;
-    while (!stopping_ && std::chrono::steady_clock::now() < until)
+    while (!stopping_ && std::chrono::steady_clock::now() < until) {
+        beat();
         std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(
             Millis(50), until - std::chrono::steady_clock::now()));
+    }
 }
 
 bool WorkerLoop::release(uint64_t lease_id) {
@@ -113,7 +142,9 @@ bool WorkerLoop::reregister(uint64_t seen, bool& announced) {
 void WorkerLoop::run() {
     Backoff wait(options_.backoff_initial, options_.reconnect_max);
     bool announced = false;
+    beat_slot = &beats_[0];  // registering: until the tracing threads start
     while (!stopping_) {
+        beat();
         try {
             register_again(registrations_);
             log("registered with " + std::to_string(options_.threads) + " threads");
@@ -128,11 +159,21 @@ void WorkerLoop::run() {
             sleep_unless_stopping(wait.next());
         }
     }
+    beat_slot = nullptr;
+    const int64_t now = steady_nanos();
+    for (size_t i = 0; i < beat_slots_; ++i) beats_[i] = now;
+    threads_started_ = true;
     {
         std::vector<std::jthread> threads;
         for (int t = 0; t < std::max(options_.threads, 1) && !stopping_; ++t)
-            threads.emplace_back([this] { thread_main(); });
-        std::jthread keeper([this] { keeper_main(); });
+            threads.emplace_back([this, t] {
+                beat_slot = &beats_[size_t(t)];
+                thread_main();
+            });
+        std::jthread keeper([this] {
+            beat_slot = &beats_[beat_slots_ - 1];
+            keeper_main();
+        });
     }  // every thread has ended
     std::lock_guard lock(session_mutex_);
     if (!refused_.empty()) throw LinkRefused(refused_);
@@ -162,6 +203,7 @@ void WorkerLoop::thread_main() {
                     Backoff(options_.backoff_initial, options_.failure_max)};
     std::optional<LeaseGrant> next;  // the lease that came back with the last result
     while (!stopping_) {
+        beat();
         std::optional<LeaseGrant> grant =
             next ? std::exchange(next, std::nullopt) : next_lease(retries);
         if (!grant) continue;
@@ -311,6 +353,7 @@ void WorkerLoop::hand_back(const LeaseGrant& grant, const Traced& traced,
 
 void WorkerLoop::keeper_main() {
     while (!stopping_) {
+        beat();
         sleep_unless_stopping(
             std::chrono::milliseconds(std::max<uint32_t>(lease_ms_ / 3, 100)));
         std::set<uint64_t> held;

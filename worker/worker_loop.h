@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -40,6 +41,12 @@ public:
     void run();
     void stop() { stopping_ = true; }
 
+    // When every one of this worker's threads (the tracing threads and the lease keeper)
+    // last showed it is not stuck: each marks each turn of its loop and each step of a
+    // deliberate wait; its calls to the coordinator are bounded by deadlines, and a job's
+    // trace by its size. `aliquot worker --health-file` turns it into a liveness signal.
+    std::chrono::steady_clock::time_point stalest_beat() const;
+
     uint64_t samples_traced() const { return samples_traced_; }
     uint64_t jobs_done() const { return jobs_done_; }
     // Jobs this worker reported it could not trace.
@@ -60,6 +67,9 @@ private:
     // A lease not traced to the end: reported as failed (with why) or abandoned.
     void hand_back(const LeaseGrant& grant, const Traced& traced, Retries& retries);
     void keeper_main();
+    // Marks the calling thread alive now (its slot in beats_; nothing for a thread
+    // without one).
+    void beat() const;
     void log(const std::string& line) const;
     void sleep_unless_stopping(std::chrono::milliseconds duration);
     // Registers (again) unless another thread did since it saw `seen` registrations;
@@ -88,6 +98,12 @@ private:
     std::string refused_;  // under session_mutex_: why run() ends with LinkRefused
     std::mutex held_mutex_;
     std::set<uint64_t> held_;
+    // Per thread, steady-clock nanoseconds of its last beat: the tracing threads', then
+    // the keeper's; the first is the registering thread's until the tracing threads
+    // start.
+    std::unique_ptr<std::atomic<int64_t>[]> beats_;
+    size_t beat_slots_ = 0;
+    std::atomic<bool> threads_started_{false};
 };
 
 }  // namespace aliquot

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <condition_variable>
 #include <future>
 #include <mutex>
 #include <set>
@@ -176,6 +177,59 @@ TEST(WorkerLoopTest, ARefusedTokenEndsTheLoopWithTheReason) {
     EXPECT_NE(ended.get().find("worker token"), std::string::npos);
     std::lock_guard lock(link.mutex_);
     EXPECT_EQ(link.registered_threads.size(), 1u);
+}
+
+// A coordinator whose Lease never answers until told to: what a stuck call looks like
+// from the worker (a deadlock inside the worker looks the same to the beats).
+class HangingLink : public FakeLink {
+public:
+    HangingLink() : FakeLink(Mode::NothingAtOnce) {}
+    std::optional<LeaseGrant> lease(const std::string&, Millis) override {
+        std::unique_lock lock(hang_mutex_);
+        ++hanging_;
+        changed_.notify_all();
+        changed_.wait(lock, [&] { return released_; });
+        return std::nullopt;
+    }
+    void wait_until_hanging() {
+        std::unique_lock lock(hang_mutex_);
+        changed_.wait(lock, [&] { return hanging_ > 0; });
+    }
+    void release() {
+        std::lock_guard lock(hang_mutex_);
+        released_ = true;
+        changed_.notify_all();
+    }
+
+private:
+    std::mutex hang_mutex_;
+    std::condition_variable changed_;
+    int hanging_ = 0;
+    bool released_ = false;
+};
+
+// The liveness signal (aliquot worker --health-file): a thread stuck in a call stops the
+// worker's stalest beat, although its other threads (the lease keeper) go on; once the
+// call returns it moves again.
+TEST(WorkerLoopTest, AStuckThreadStopsTheStalestBeat) {
+    HangingLink link;
+    WorkerLoop loop(link, options(1));
+    std::thread runner([&] { loop.run(); });
+    link.wait_until_hanging();
+    // Until the keeper has beaten since the stuck thread last did, the keeper's is the
+    // stalest; from then on the stuck thread's is, and stays.
+    auto stuck_at = loop.stalest_beat();
+    do {
+        stuck_at = loop.stalest_beat();
+        std::this_thread::sleep_for(Millis(100));
+    } while (loop.stalest_beat() != stuck_at);
+    std::this_thread::sleep_for(Millis(300));  // the keeper beats meanwhile
+    EXPECT_EQ(loop.stalest_beat(), stuck_at);
+    link.release();
+    while (loop.stalest_beat() == stuck_at) std::this_thread::sleep_for(Millis(10));
+    EXPECT_GT(loop.stalest_beat(), stuck_at);
+    loop.stop();
+    runner.join();
 }
 
 }  // namespace

@@ -1,6 +1,9 @@
 #include "grpc_server.h"
 
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/impl/server_builder_option.h>
 
 #include <algorithm>
 #include <atomic>
@@ -229,7 +232,8 @@ private:
 // the Coordinator's to check: the same code answers the embedded render's threads.
 class WorkerServiceImpl final : public v1::WorkerService::Service {
 public:
-    WorkerServiceImpl(Coordinator& c, const Tokens& tokens) : c_(c), tokens_(tokens) {}
+    WorkerServiceImpl(Coordinator& c, const Tokens& tokens, FarmMetrics* metrics)
+        : c_(c), tokens_(tokens), metrics_(metrics) {}
 
     Status Register(ServerContext* ctx, const v1::RegisterRequest* req,
                     v1::RegisterReply* reply) override {
@@ -276,8 +280,10 @@ public:
                 reply->set_message(e.what());
                 return;
             }
+            const auto began = std::chrono::steady_clock::now();
             const CompleteOutcome outcome =
                 c_.complete(req->session(), req->lease_id(), result);
+            if (metrics_) metrics_->observe_merge(seconds_since(began));
             reply->set_status(to_proto(outcome.status));
             reply->set_message(outcome.message);
             // One round trip a job: the next lease rides on the reply.
@@ -325,9 +331,12 @@ private:
     void answer_lease(const std::string& session, uint32_t wait_ms,
                       v1::LeaseReply& reply) {
         const auto wait = std::chrono::milliseconds(std::min<uint32_t>(wait_ms, 30000));
+        const auto began = std::chrono::steady_clock::now();
         std::optional<LeaseGrant> grant;
         try {
             grant = c_.lease(session, wait);
+            if (metrics_)
+                metrics_->observe_lease(seconds_since(began), grant.has_value());
         } catch (const WorkerUnknown&) {
             // Registered with a coordinator before a restart: it must register again,
             // with its threads, before it gets work.
@@ -349,6 +358,11 @@ private:
         l->set_lease_ms(grant->lease_ms);
     }
 
+    static double seconds_since(std::chrono::steady_clock::time_point t) {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t)
+            .count();
+    }
+
     // Runs `call`; a session the coordinator does not know becomes UNAUTHENTICATED.
     template <typename Call>
     static Status known(Call&& call) {
@@ -362,6 +376,7 @@ private:
 
     Coordinator& c_;
     const Tokens& tokens_;
+    FarmMetrics* metrics_;
 };
 
 }  // namespace
@@ -370,8 +385,8 @@ struct GrpcServer::Services {
     Tokens tokens;
     ClientServiceImpl client;
     WorkerServiceImpl worker;
-    Services(Coordinator& c, Tokens t)
-        : tokens(std::move(t)), client(c, tokens), worker(c, tokens) {}
+    Services(Coordinator& c, Tokens t, FarmMetrics* metrics)
+        : tokens(std::move(t)), client(c, tokens), worker(c, tokens, metrics) {}
 };
 
 namespace {
@@ -383,15 +398,39 @@ std::shared_ptr<grpc::ServerCredentials> server_credentials(const GrpcSecurity& 
     return grpc::SslServerCredentials(options);
 }
 
+// Whether this builder's server has reflection. Loading libgrpc++_reflection adds its
+// plugin to every ServerBuilder of the process (a static initializer), so the option
+// removes it, and adds one back only when asked to.
+class ReflectionOption final : public grpc::ServerBuilderOption {
+public:
+    explicit ReflectionOption(bool on) : on_(on) {}
+    void UpdateArguments(grpc::ChannelArguments*) override {}
+    void UpdatePlugins(
+        std::vector<std::unique_ptr<grpc::ServerBuilderPlugin>>* plugins) override {
+        auto reflection =
+            std::make_unique<grpc::reflection::ProtoServerReflectionPlugin>();
+        const std::string name = reflection->name();
+        std::erase_if(*plugins, [&](const auto& p) { return p && p->name() == name; });
+        if (on_) plugins->push_back(std::move(reflection));
+    }
+
+private:
+    bool on_;
+};
+
 }  // namespace
 
 GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
-                       GrpcSecurity security) {
+                       GrpcSecurity security, GrpcOptions options) {
     check_tokens(security.tokens);
     if (security.tls_cert_pem.empty() != security.tls_key_pem.empty())
         throw std::invalid_argument("gRPC: TLS needs both a certificate and its key");
-    services_ = std::make_unique<Services>(coordinator, security.tokens);
+    services_ = std::make_unique<Services>(coordinator, security.tokens, options.metrics);
+    // gRPC's own health service, read by every server built from here on; its Check and
+    // Watch need no token (Kubernetes' probes send none) and say only SERVING or not.
+    grpc::EnableDefaultHealthCheckService(true);
     grpc::ServerBuilder builder;
+    builder.SetOption(std::make_unique<ReflectionOption>(options.reflection));
     builder.AddListeningPort(address, server_credentials(security), &port_);
     builder.RegisterService(&services_->client);
     builder.RegisterService(&services_->worker);
@@ -404,11 +443,25 @@ GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
     builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
     server_ = builder.BuildAndStart();
     if (!server_ || port_ == 0) throw std::runtime_error("cannot listen on " + address);
+    grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
+    if (!health) throw std::runtime_error("gRPC: the health service did not start");
+    // "" is the server as a whole, what a probe that names no service asks about.
+    for (const char* service : {"", v1::ClientService::service_full_name(),
+                                v1::WorkerService::service_full_name()})
+        health->SetServingStatus(service, true);
 }
 
 GrpcServer::~GrpcServer() { shutdown(); }
 
+void GrpcServer::stop_serving() {
+    // The health service's Shutdown: NOT_SERVING for every service, and no later change.
+    if (server_)
+        if (grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService())
+            health->Shutdown();
+}
+
 void GrpcServer::shutdown() {
+    stop_serving();
     if (server_) {
         server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
         server_.reset();

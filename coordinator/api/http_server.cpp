@@ -784,6 +784,13 @@ struct HttpServer::Impl {
         server.Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
             send_json(res, {{"ok", true}});
         });
+        // Prometheus scrapes with the client token as a bearer (docs/API.md).
+        if (options.metrics)
+            server.Get("/metrics", guarded([this](const httplib::Request&, auto& res) {
+                           res.set_header("Cache-Control", "no-store");
+                           res.set_content(options.metrics->scrape(),
+                                           FarmMetrics::kContentType);
+                       }));
         server.Get("/api/workers", guarded([this](const httplib::Request&, auto& res) {
                        send_json(res, {{"workers", workers_json()},
                                        {"now_ms", unix_millis_now()}});

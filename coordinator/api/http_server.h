@@ -12,6 +12,7 @@
 
 #include "access.h"
 #include "coordinator.h"
+#include "metrics.h"
 
 namespace aliquot {
 
@@ -45,6 +46,9 @@ struct HttpOptions {
     // Both or neither; the coordinator passes its --tls-cert and --tls-key, the same pair
     // as gRPC's.
     std::filesystem::path tls_cert, tls_key;
+    // Served as GET /metrics (Prometheus' text format, the client token required);
+    // without it /metrics is 404.
+    FarmMetrics* metrics = nullptr;
 };
 
 class HttpServer {

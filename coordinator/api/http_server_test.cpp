@@ -24,6 +24,7 @@
 #include "exr_io.h"
 #include "grpc_server.h"
 #include "http_api.h"
+#include "http_session.h"
 #include "png_encoder.h"
 #include "scene_loader.h"
 #include "test_tokens.h"
@@ -181,7 +182,9 @@ protected:
         std::ofstream(dir_ / "studies" / "no-report" / "image.png") << "png";
 
         coordinator_ = std::make_unique<Coordinator>(CoordinatorOptions{});
+        metrics_ = std::make_unique<FarmMetrics>(*coordinator_);
         HttpOptions options = options_with_tokens();
+        options.metrics = metrics_.get();
         options.web_dir = dir_ / "web";
         options.study_dirs = {{"data", dir_ / "studies"}};
         options.event_interval = std::chrono::milliseconds(50);
@@ -192,6 +195,7 @@ protected:
     }
     void TearDown() override {
         server_.reset();
+        metrics_.reset();
         coordinator_.reset();
         fs::remove_all(dir_);
     }
@@ -217,6 +221,7 @@ protected:
 
     fs::path dir_;
     std::unique_ptr<Coordinator> coordinator_;
+    std::unique_ptr<FarmMetrics> metrics_;
     std::unique_ptr<HttpServer> server_;
     std::unique_ptr<httplib::Client> client_;
 };
@@ -1022,7 +1027,8 @@ std::vector<std::string> guarded_paths(const std::string& id) {
             "/api/studies/data/equal-budget/report.md",
             "/api/studies/data/equal-budget/charts/error.png",
             "/api/session",
-            "/api/no-such-route"};
+            "/api/no-such-route",
+            "/metrics"};
 }
 
 TEST_F(HttpServerTest, WithoutTheClientTokenEveryApiRouteAnswers401) {
@@ -1090,6 +1096,36 @@ TEST_F(HttpServerTest, TheClientTokenOpensEveryRoute) {
     RawStream events = open_stream(server_->port());
     EXPECT_EQ(events.status, 200);
     EXPECT_TRUE(events.read_until("\"hello\""));
+}
+
+// Prometheus scrapes with the client token as a bearer; a browser signed in may read it
+// with the cookie. Refusals are the API's (above: 401, 403).
+TEST_F(HttpServerTest, MetricsAreServedInPrometheusTextFormatWithTheClientToken) {
+    submit({{"resolution", "8x8"}, {"strategy", {{"spp", 2}}}});
+    fake_jobs(*coordinator_, "w1");
+    auto res = client_->Get("/metrics");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(res->get_header_value("Content-Type"), FarmMetrics::kContentType);
+    EXPECT_NE(res->body.find("aliquot_renders{state=\"done\"} 1"), std::string::npos)
+        << res->body;
+    EXPECT_NE(res->body.find("aliquot_samples_merged_total 128"), std::string::npos)
+        << res->body;  // 8x8 pixels at 2 spp
+    const httplib::Headers cookie = {{"Cookie", std::string(http_session::kCookieName) +
+                                                    "=" + testing::kTestTokens.client}};
+    auto with_cookie = get_with(server_->port(), "/metrics", cookie);
+    ASSERT_TRUE(with_cookie);
+    EXPECT_EQ(with_cookie->status, 200);
+}
+
+TEST(HttpServerMetrics, WithoutMetricsTheRouteIsNotFound) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    HttpServer server(coordinator, "127.0.0.1:0", options_with_tokens());
+    const httplib::Headers bearer = {{"Authorization", kClientBearer}};
+    auto res = get_with(server.port(), "/metrics", bearer);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 404);
+    EXPECT_EQ(get_with(server.port(), "/metrics", {})->status, 401);
 }
 
 TEST_F(HttpServerTest, HealthAndTheDashboardsFilesNeedNoToken) {

@@ -20,6 +20,8 @@ std::string_view trim(std::string_view s) {
 bool needs_token(std::string_view method, std::string_view path) {
     // Everything under /api, however it is spelled below it: a route added later is
     // guarded without anyone remembering to.
+    // /metrics too: the farm's counts and rates are the client's to read (docs/API.md).
+    if (path == "/metrics" || path.starts_with("/metrics/")) return true;
     if (path != "/api" && !path.starts_with("/api/")) return false;
     if (path == "/api/session") return method != "POST" && method != "DELETE";
     return true;

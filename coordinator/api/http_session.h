@@ -14,10 +14,10 @@ namespace aliquot::http_session {
 
 inline constexpr std::string_view kCookieName = "aliquot_session";
 
-// Whether a request needs the client token. /healthz and the dashboard's files (anything
-// outside /api/) hold no data and must load for the page to show its sign-in view;
-// signing in and out (POST and DELETE /api/session) are how a browser gets and drops the
-// token.
+// Whether a request needs the client token: every /api/ route and /metrics. /healthz and
+// the dashboard's files (anything else) hold no data and must load for the page to show
+// its sign-in view; signing in and out (POST and DELETE /api/session) are how a browser
+// gets and drops the token.
 bool needs_token(std::string_view method, std::string_view path);
 
 // The token a request presents: its bearer token when it sends one, else the token in its

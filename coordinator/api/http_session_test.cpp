@@ -7,6 +7,12 @@
 namespace aliquot::http_session {
 namespace {
 
+TEST(NeedsToken, MetricsNeedTheClientToken) {
+    EXPECT_TRUE(needs_token("GET", "/metrics"));
+    EXPECT_TRUE(needs_token("GET", "/metrics/"));
+    EXPECT_FALSE(needs_token("GET", "/metricsfoo"));
+}
+
 TEST(NeedsToken, EveryApiRouteButSigningInAndOut) {
     EXPECT_TRUE(needs_token("GET", "/api/renders"));
     EXPECT_TRUE(needs_token("POST", "/api/renders"));

@@ -875,6 +875,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     round_end_cpu_seconds_ += round_end_cpu;
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
+        samples_merged_ += result.total_samples();
         // The worker may have been forgotten meanwhile (it was silent for long): its
         // counts go with it.
         if (const auto w_it = workers_.find(worker); w_it != workers_.end()) {
@@ -982,6 +983,26 @@ bool Coordinator::knows_worker(const std::string& name) {
 size_t Coordinator::leases_out() {
     std::lock_guard lock(mutex_);
     return lease_render_.size();
+}
+
+uint64_t Coordinator::samples_merged() const { return samples_merged_; }
+
+uint64_t Coordinator::store_write_failures() const { return backlog_.failures(); }
+
+std::map<RenderState, uint64_t> Coordinator::render_counts() {
+    // The store is read off the coordinator's lock, as list() reads it.
+    if (store_) return store_->count_renders_by_state();
+    std::vector<SlotPtr> slots;
+    {
+        std::lock_guard lock(mutex_);
+        slots = slots_in_order();
+    }
+    std::map<RenderState, uint64_t> counts;
+    for (const SlotPtr& slot : slots) {
+        std::lock_guard render(slot->mutex);
+        ++counts[slot->session->state()];
+    }
+    return counts;
 }
 
 double Coordinator::round_end_seconds() {

@@ -13,6 +13,7 @@
 // held.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -177,6 +178,13 @@ public:
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
 
+    // Counters and counts for the metrics (coordinator/api/metrics.h). Samples merged
+    // and failed attempts to write the run record, since this process started (they only
+    // grow); renders by state, as the run record has them (in memory: the sessions).
+    uint64_t samples_merged() const;
+    uint64_t store_write_failures() const;
+    std::map<RenderState, uint64_t> render_counts();
+
     // The renders held in memory and their estimated bytes (render_memory_estimate). With
     // a data directory a finished render leaves memory once its end is recorded (image,
     // state); its info, image, rounds and buckets are then read from the store and disk.
@@ -325,6 +333,7 @@ private:
     int ticks_ = 0;
     std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
     double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0;
+    std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
     bool stopping_ = false;
     std::thread ticker_;
 

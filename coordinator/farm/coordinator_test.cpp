@@ -85,6 +85,40 @@ protected:
     CoordinatorOptions options;
 };
 
+// What the metrics read: samples merged only grow, and renders are counted by state in
+// memory and, with a data directory, as the run record has them.
+TEST_F(CoordinatorTest, CountsSamplesMergedAndRendersByState) {
+    for (const bool with_store : {false, true}) {
+        CoordinatorOptions o = options;
+        if (!with_store) o.data_dir.clear();
+        Coordinator c(o);
+        EXPECT_EQ(c.samples_merged(), 0u);
+        EXPECT_TRUE(c.render_counts().empty());
+        const std::string first = c.submit(small_spec());
+        c.submit(small_spec());
+        c.cancel(first);
+        const std::string session = c.register_worker("w", 1).session;
+        uint64_t traced = 0;
+        while (auto grant = c.lease(session, std::chrono::milliseconds(0))) {
+            const SampleJobResult result = zero_result(*grant);
+            ASSERT_EQ(c.complete(session, grant->lease_id, result).status,
+                      CompleteStatus::Merged);
+            traced += result.total_samples();
+        }
+        EXPECT_EQ(traced, 16u);  // the second render: 4x4 pixels at 1 spp
+        EXPECT_EQ(c.samples_merged(), traced);
+        const std::map<RenderState, uint64_t> want = {{RenderState::Cancelled, 1},
+                                                      {RenderState::Done, 1}};
+        // The record is written by the backlog's thread: wait for it to catch up.
+        for (int i = 0; i < 300 && c.render_counts() != want; ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        EXPECT_EQ(c.render_counts(), want) << (with_store ? "store" : "memory");
+        EXPECT_EQ(c.store_write_failures(), 0u);
+        c.stop();
+        fs::remove_all(dir);
+    }
+}
+
 // Issue 12, reproduction 1: a Lease from a worker that never registered here made an
 // in-memory worker with no store row; once it was lost, marking it threw on the ticker.
 // Since issue 13 a call with a session this coordinator never issued is refused with

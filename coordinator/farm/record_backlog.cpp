@@ -64,6 +64,7 @@ bool RecordBacklog::run(Pending& p, std::string& error) {
 void RecordBacklog::note(const Pending& p, bool ok, const std::string& error,
                          Clock::time_point now) {
     if (!ok) {
+        ++failures_;
         const bool first = warning_.empty();
         warning_ = "cannot " + p.what + ": " + error;
         // Logged when writes start failing and then at most every 30 s, not every retry.
@@ -148,6 +149,11 @@ size_t RecordBacklog::waiting() const {
 std::string RecordBacklog::warning() const {
     std::lock_guard lock(mutex_);
     return warning_;
+}
+
+uint64_t RecordBacklog::failures() const {
+    std::lock_guard lock(mutex_);
+    return failures_;
 }
 
 }  // namespace aliquot

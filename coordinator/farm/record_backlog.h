@@ -48,6 +48,9 @@ public:
     size_t waiting() const;
     // Why the oldest waiting write failed; empty when everything is written.
     std::string warning() const;
+    // Attempts that failed since the backlog began, retries included: a counter for the
+    // coordinator's metrics, which only grows.
+    uint64_t failures() const;
 
 private:
     struct Pending {
@@ -66,6 +69,7 @@ private:
     Clock::time_point next_try_{};
     Clock::duration delay_{};
     std::string warning_;
+    uint64_t failures_ = 0;
     bool background_ = false, stopping_ = false, running_ = false;
     std::thread writer_;
 };

@@ -52,6 +52,25 @@ TEST(RecordBacklog, TheBackoffDoublesWhileTheDiskStaysFull) {
     EXPECT_EQ(backlog.waiting(), 1u);
 }
 
+TEST(RecordBacklog, CountsEveryFailedAttemptAndNeverForgetsThem) {
+    RecordBacklog backlog;
+    bool disk_full = true;
+    const Clock::time_point t0 = Clock::now();
+    backlog.submit(
+        "x",
+        [&] {
+            if (disk_full) throw std::runtime_error("full");
+        },
+        t0);
+    EXPECT_EQ(backlog.failures(), 1u);
+    backlog.retry(t0 + milliseconds(600));
+    EXPECT_EQ(backlog.failures(), 2u);
+    disk_full = false;
+    backlog.retry(t0 + milliseconds(2000));
+    EXPECT_EQ(backlog.waiting(), 0u);
+    EXPECT_EQ(backlog.failures(), 2u);  // written at last; the count stays
+}
+
 TEST(RecordBacklog, WritesRunAtOnceWhenNothingWaits) {
     RecordBacklog backlog;
     int n = 0;

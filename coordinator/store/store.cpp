@@ -650,6 +650,20 @@ std::vector<RenderRecord> RunStore::list_renders(size_t limit,
     return renders;
 }
 
+std::map<RenderState, uint64_t> RunStore::count_renders_by_state() {
+    std::lock_guard lock(mutex_);
+    Query q = query("SELECT state, COUNT(*) FROM renders GROUP BY state",
+                    "count renders by state");
+    std::map<RenderState, uint64_t> counts;
+    while (q.step()) {
+        const std::string state = q.text(0);
+        const auto parsed = parse_render_state(state);
+        if (!parsed) q.refuse("a render has unknown state '" + state + "'");
+        counts[*parsed] = uint64_t(q.int64(1));
+    }
+    return counts;
+}
+
 std::vector<RenderRecord> RunStore::unfinished_renders() {
     std::lock_guard lock(mutex_);
     static const std::string sql = "SELECT " + kRenderColumns +

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -173,6 +174,9 @@ public:
     // Newest first (created_at, then insertion order); limit 0 means all.
     std::vector<RenderRecord> list_renders(
         size_t limit, std::optional<RenderState> state = std::nullopt);
+    // How many renders are in each state (states with none are absent): one query
+    // however many renders the record holds, for the coordinator's metrics.
+    std::map<RenderState, uint64_t> count_renders_by_state();
     // Queued and Running renders, oldest first: what a restarted coordinator resumes.
     std::vector<RenderRecord> unfinished_renders();
 

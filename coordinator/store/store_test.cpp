@@ -239,6 +239,19 @@ TEST_F(RunStoreTest, ListsRendersNewestFirstAndFiltersByState) {
     EXPECT_TRUE(store.list_renders(0, RenderState::Done).empty());
 }
 
+TEST_F(RunStoreTest, CountsRendersByState) {
+    RunStore store(dir);
+    store.put_scene("h1", "cornell-box", "{}", 1);
+    EXPECT_TRUE(store.count_renders_by_state().empty());
+    store.create_render(render("a", 100));
+    store.create_render(render("b", 300, RenderState::Running));
+    store.create_render(render("c", 200));
+    store.finish_render("c", RenderState::Failed, "{}", 400);
+    const std::map<RenderState, uint64_t> want = {
+        {RenderState::Queued, 1}, {RenderState::Running, 1}, {RenderState::Failed, 1}};
+    EXPECT_EQ(store.count_renders_by_state(), want);
+}
+
 TEST_F(RunStoreTest, RenderLifecycleStampsTimes) {
     RunStore store(dir);
     seed(store);

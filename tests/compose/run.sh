@@ -186,7 +186,9 @@ dockerfile_keeps_up() {
 import glob, re, sys
 # Tools for tests and development (the format check, the fuzzers), not for building the image.
 NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "python3-pip", "nodejs", "npm",
-                     "golang-go", "clang", "clang-format", "libclang-rt-14-dev", "openssl", "curl"}
+                     "golang-go", "clang", "clang-format", "libclang-rt-14-dev", "openssl", "curl",
+                     "python3-prometheus-client", "python3-grpcio", "python3-protobuf",
+                     "openimageio-tools"}
 # Built only with -DALIQUOT_FUZZ=ON, by scripts/fuzz.sh.
 DIRS_NOT_FOR_THE_IMAGE = {"fuzz"}
 dockerfile = open("deploy/Dockerfile").read()
@@ -282,6 +284,28 @@ restarted() {  # restarted CONTAINER: running again after at least one restart
     [[ $(docker inspect -f '{{.State.Running}} {{.RestartCount}}' "$1") =~ ^true\ [1-9] ]]
 }
 
+# A Kubernetes-style gRPC probe: grpc.health.v1.Health/Check with no token, for the
+# server ("") and each service, as the kubelet's `grpc:` probe asks it.
+grpc_healthy() {  # grpc_healthy [--ca PEM]
+    local service
+    for service in "" aliquot.v1.ClientService aliquot.v1.WorkerService; do
+        # Debian's Python, for which python3-grpcio is installed.
+        /usr/bin/python3 tests/ops/grpc_probe.py "$@" health "$ADDR" $service >/dev/null 2>&1 ||
+            return 1
+    done
+}
+
+# Every worker container's own HEALTHCHECK passes: its --health-file is fresh.
+workers_healthy() {
+    local ids id
+    ids=$(dc ps -q worker)
+    [[ -n $ids ]] || return 1
+    for id in $ids; do
+        [[ $(docker inspect -f '{{if .State.Health}}{{.State.Health.Status}}{{end}}' "$id") == healthy ]] ||
+            return 1
+    done
+}
+
 running_workers() { dc ps -q worker | xargs -r "${SUDO[@]}" docker inspect -f '{{.State.Running}}' | grep -c true; }
 
 # ---------------------------------------------------------------- teardown
@@ -339,7 +363,11 @@ trap 'fail "interrupted"; exit 1' INT TERM
 bash tests/compose/k8s_check.sh >"$TMP/k8s.log" 2>&1 &
 K8S_PID=$!
 
-install_missing docker.io docker-compose debootstrap openssl curl || { fail "install docker.io docker-compose debootstrap openssl curl"; exit 1; }
+# docker, compose and the base rootfs; TLS files; the gRPC health probe's Python gRPC,
+# protobuf, protoc and grpc-proto (tests/ops/grpc_probe.py).
+HOST_PACKAGES=(docker.io docker-compose debootstrap openssl curl
+    python3-grpcio python3-protobuf protobuf-compiler grpc-proto)
+install_missing "${HOST_PACKAGES[@]}" || { fail "install ${HOST_PACKAGES[*]}"; exit 1; }
 # ALIQUOT_COMPOSE picks the compose command ("docker compose" for v2); by default Debian's
 # docker-compose (v1), else `docker compose`.
 if [[ -n ${ALIQUOT_COMPOSE:-} ]]; then
@@ -420,6 +448,16 @@ fi
 wait_for 30 coordinator_answers && ok "host CLI reaches the coordinator on $ADDR" ||
     { fail "host CLI reaches the coordinator on $ADDR"; exit 1; }
 wait_for 30 workers_alive 3 && ok "3 workers registered with the worker token" || fail "3 workers registered"
+if grpc_healthy; then
+    ok "gRPC health answers SERVING without a token, for the server and both services (a Kubernetes grpc probe)"
+else
+    fail "gRPC health answers SERVING without a token (a Kubernetes grpc probe)"
+fi
+if wait_for 60 workers_healthy; then
+    ok "the worker containers' healthcheck passes on their --health-file"
+else
+    fail "the worker containers' healthcheck passes on their --health-file"
+fi
 # The worker token is not a client's.
 if ALIQUOT_TOKEN=$(cat "$ALIQUOT_SECRETS/worker.token") "$ALIQUOT" status --coordinator "$ADDR" \
     >/dev/null 2>"$TMP/wrong-token.log"; then
@@ -505,6 +543,8 @@ else
     ok "a client without --tls-ca is refused: $(cat "$TMP/plain.log")"
 fi
 wait_for 30 workers_alive 2 && ok "2 workers registered over TLS" || fail "2 workers registered over TLS"
+grpc_healthy --ca "$ALIQUOT_SECRETS/ca.pem" && ok "gRPC health answers over TLS with the CA" ||
+    fail "gRPC health answers over TLS with the CA"
 if "$ALIQUOT" submit --coordinator "$ADDR" "${TLS_ARGS[@]}" --scene cornell-box --resolution 32x32 \
     --spp 8 --out "$TMP/tls.exr" >"$TMP/tls-submit.log" 2>&1 &&
     "$ALIQUOT" render --scene cornell-box --resolution 32x32 --spp 8 --out "$TMP/tls-embedded.exr" \
