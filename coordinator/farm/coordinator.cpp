@@ -1093,7 +1093,11 @@ void Coordinator::tick() {
         bool any = !expired.empty();
         forget_ended_leases(expired, finished);
         const int64_t wall = unix_millis_now();
-        for (auto& [name, w] : workers_) {
+        // Not a structured binding: the lambdas below copy the name, and C++17 (clang's,
+        // for the fuzz build) cannot capture one.
+        for (auto& entry : workers_) {
+            const std::string& name = entry.first;
+            WorkerEntry& w = entry.second;
             if (w.unrecorded > 0) {
                 queue_worker_write(
                     "record the samples of " + name,
