@@ -13,6 +13,14 @@
 
 namespace aliquot::cli {
 
+std::string read_tls_ca(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream pem;
+    pem << in.rdbuf();
+    if (!in || pem.str().empty()) throw CommandError("--tls-ca: cannot read " + path);
+    return pem.str();
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -92,14 +100,7 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
     } catch (const TokenError& e) {
         throw CommandError(e.what());
     }
-    if (!tls_ca.empty()) {
-        std::ifstream in(tls_ca, std::ios::binary);
-        std::ostringstream pem;
-        pem << in.rdbuf();
-        if (!in || pem.str().empty())
-            throw CommandError("--tls-ca: cannot read " + tls_ca);
-        endpoint.tls_ca_pem = pem.str();
-    }
+    if (!tls_ca.empty()) endpoint.tls_ca_pem = read_tls_ca(tls_ca);
     // What the token file took is not waited again for the port: one timeout in all.
     endpoint.connect_timeout = std::max(
         std::chrono::milliseconds(0),

@@ -11,6 +11,9 @@
 
 namespace aliquot::cli {
 
+// The PEM of a --tls-ca file, or CommandError naming it when it cannot be read.
+std::string read_tls_ca(const std::string& path);
+
 // The address when neither --coordinator nor ALIQUOT_COORDINATOR says.
 inline constexpr const char* kDefaultCoordinator = "127.0.0.1:7070";
 

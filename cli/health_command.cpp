@@ -36,14 +36,7 @@ struct HealthCommand {
         where.address = address;
         CoordinatorEndpoint endpoint;
         endpoint.address = where.effective_address();
-        if (!tls_ca.empty()) {
-            std::ifstream in(tls_ca, std::ios::binary);
-            std::ostringstream pem;
-            pem << in.rdbuf();
-            if (!in || pem.str().empty())
-                throw CommandError("--tls-ca: cannot read " + tls_ca);
-            endpoint.tls_ca_pem = pem.str();
-        }
+        if (!tls_ca.empty()) endpoint.tls_ca_pem = read_tls_ca(tls_ca);
         const auto stub = grpc::health::v1::Health::NewStub(
             grpc::CreateChannel(endpoint.address, channel_credentials(endpoint)));
         grpc::ClientContext ctx;
