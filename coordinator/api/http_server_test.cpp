@@ -454,7 +454,8 @@ TEST_F(HttpServerTest, RoundsPreviewMapsAndBucketsFollowTheRender) {
 }
 
 TEST_F(HttpServerTest, CancelStopsARender) {
-    const std::string id = submit({{"resolution", "16x16"}, {"strategy", {{"spp", 64}}}});
+    // Wide enough for its first round to be several jobs, of which one is merged.
+    const std::string id = submit({{"resolution", "64x64"}, {"strategy", {{"spp", 64}}}});
     fake_jobs(*coordinator_, "w1", 1);
     const json r = post_json("/api/renders/" + id + "/cancel", "{}", 200);
     EXPECT_EQ(r["state"], "cancelled");

@@ -7,6 +7,12 @@
 namespace aliquot {
 namespace {
 
+uint64_t samples_of(const SampleJob& job) {
+    uint64_t n = 0;
+    for (uint32_t c : job.counts) n += c;
+    return n;
+}
+
 // A result that satisfies its job without tracing: the session checks shape, not values.
 SampleJobResult fake_result(const SampleJob& job) {
     SampleJobResult r;
@@ -64,7 +70,7 @@ TEST_F(RenderSessionTest, ReissuesAnExpiredLeaseAndIgnoresItsLateResult) {
     EXPECT_EQ(again->rect, job->rect);
     EXPECT_EQ(s.complete(1, "slow", fake_result(*job)).status, CompleteStatus::Ignored);
     EXPECT_EQ(s.complete(2, "fast", fake_result(*again)).status, CompleteStatus::Merged);
-    EXPECT_EQ(s.merged().total_samples(), job->rect.size());  // merged once, not twice
+    EXPECT_EQ(s.merged().total_samples(), samples_of(*job));  // merged once, not twice
 }
 
 // Found by fuzz/job_result_fuzz: a result whose merged sums would not stay finite threw
@@ -120,7 +126,7 @@ TEST_F(RenderSessionTest, OnlyTheHolderCompletesRenewsAbandonsOrFailsALease) {
     EXPECT_TRUE(s.holds(1));
     EXPECT_EQ(s.merged().total_samples(), 0u);
     EXPECT_EQ(s.complete(1, "holder", fake_result(*job)).status, CompleteStatus::Merged);
-    EXPECT_EQ(s.merged().total_samples(), job->rect.size());
+    EXPECT_EQ(s.merged().total_samples(), samples_of(*job));
     const PixelSums& first =
         s.merged().at(size_t(job->rect.y) * spec.width + job->rect.x);
     EXPECT_EQ(first.even[0], 0.5 * double(job->counts[0]));  // the holder's, not 100s
@@ -137,7 +143,7 @@ TEST_F(RenderSessionTest, CancelKeepsWhatWasMergedAndIgnoresTheRest) {
     s.cancel();
     EXPECT_EQ(s.state(), RenderState::Cancelled);
     EXPECT_EQ(s.complete(2, "w", fake_result(*b)).status, CompleteStatus::Ignored);
-    EXPECT_EQ(s.merged().total_samples(), a->rect.size());
+    EXPECT_EQ(s.merged().total_samples(), samples_of(*a));
     EXPECT_FALSE(s.issue(3, "w", far));
 }
 
@@ -151,6 +157,8 @@ TEST_F(RenderSessionTest, ACheckpointOfAnotherSizeIsRefused) {
 }
 
 TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne) {
+    // Enough samples for three rounds: uniform's first holds about kFirstRoundSamples.
+    spec.strategy.spp = uint32_t(2 * kFirstRoundSamples / (40 * 40) + 100);
     auto run = [&](int interrupt_after_round) {
         RenderSession s("r", spec, 0);
         std::optional<std::pair<Accumulator, nlohmann::json>> saved;

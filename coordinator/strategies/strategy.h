@@ -22,6 +22,12 @@ namespace aliquot {
 // there, and still a few seconds of one two-core worker between checkpoints.
 constexpr uint64_t kRoundSamples = uint64_t(1) << 25;
 
+// The least a method's first round holds when it is free to choose (uniform's doubling
+// starts here): about a second of one two-core worker, so a small image's first preview
+// still comes at once, and a round end's barrier is paid once, not every few
+// milliseconds.
+constexpr uint64_t kFirstRoundSamples = kRoundSamples / 8;
+
 struct Round {
     uint32_t index = 0;
     std::vector<uint32_t> spp;  // samples each pixel gets this round, row-major

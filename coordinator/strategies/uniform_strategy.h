@@ -17,8 +17,8 @@ public:
     nlohmann::json save_state() const override;
     void restore_state(const nlohmann::json& state) override;
 
-    // Samples per pixel of the next round after `done` of `spp`: rounds double (1, 1, 2,
-    // 4, ...) up to about 4 million samples per round.
+    // Samples per pixel of the next round after `done` of `spp`: rounds double from
+    // about kFirstRoundSamples up to about kRoundSamples samples.
     static uint32_t round_spp(uint32_t done, uint32_t spp, size_t pixels);
 
 private:

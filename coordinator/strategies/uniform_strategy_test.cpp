@@ -35,7 +35,16 @@ TEST(Uniform, ProgressiveRoundsAddUpToSpp) {
         EXPECT_EQ(round->index, rounds++);
     }
     EXPECT_EQ(sum, 100u);
-    EXPECT_LE(rounds, 8u);  // doubling: 1, 1, 2, 4, ..., so logarithmic in spp
+    EXPECT_EQ(rounds, 1u);  // a small image's first round holds kFirstRoundSamples
+}
+
+TEST(Uniform, RoundsDoubleFromAboutKFirstRoundSamples) {
+    const size_t pixels = 1 << 16;
+    const uint32_t first = uint32_t(kFirstRoundSamples / pixels);
+    EXPECT_EQ(UniformStrategy::round_spp(0, 4096, pixels), first);
+    EXPECT_EQ(UniformStrategy::round_spp(first, 4096, pixels), first);
+    EXPECT_EQ(UniformStrategy::round_spp(2 * first, 4096, pixels), 2 * first);
+    EXPECT_EQ(UniformStrategy::round_spp(0, 4096, 4096 * 4096), 1u);  // never below 1
 }
 
 TEST(Uniform, RoundsOfALargeImageStayNearKRoundSamples) {
