@@ -39,6 +39,14 @@ void add(MetricFamily& f, double value, std::vector<ClientMetric::Label> labels 
     f.metric.push_back(std::move(m));
 }
 
+// A family of one unlabelled value: most of the farm's figures are one number each.
+void add_single(std::vector<MetricFamily>& out, std::string name, std::string help,
+                MetricType type, double value) {
+    MetricFamily f = family(std::move(name), std::move(help), type);
+    add(f, value);
+    out.push_back(std::move(f));
+}
+
 // The farm as it is now, read from the Coordinator's public accessors.
 std::vector<MetricFamily> farm_state(Coordinator& c) {
     std::vector<MetricFamily> out;
@@ -56,12 +64,9 @@ std::vector<MetricFamily> farm_state(Coordinator& c) {
     }
     out.push_back(std::move(renders));
 
-    MetricFamily samples = family("aliquot_samples_merged_total",
-                                  "Samples merged into renders since the coordinator "
-                                  "started.",
-                                  MetricType::Counter);
-    add(samples, double(c.samples_merged()));
-    out.push_back(std::move(samples));
+    add_single(out, "aliquot_samples_merged_total",
+               "Samples merged into renders since the coordinator started.",
+               MetricType::Counter, double(c.samples_merged()));
 
     // The states are WorkerStatus's three; a state outside them is not reported rather
     // than becoming a new label value.
@@ -76,38 +81,22 @@ std::vector<MetricFamily> farm_state(Coordinator& c) {
     for (const auto& [state, n] : by_state) add(workers, double(n), {{"state", state}});
     out.push_back(std::move(workers));
 
-    MetricFamily leases =
-        family("aliquot_leases_outstanding",
-               "Sample jobs leased to workers and not yet returned.", MetricType::Gauge);
-    add(leases, double(c.leases_out()));
-    out.push_back(std::move(leases));
-
-    MetricFamily failures = family("aliquot_store_write_failures_total",
-                                   "Failed attempts to write the run record (SQLite, "
-                                   "checkpoints, images), retries included.",
-                                   MetricType::Counter);
-    add(failures, double(c.store_write_failures()));
-    out.push_back(std::move(failures));
-
-    MetricFamily warning =
-        family("aliquot_storage_warning", "1 while writes to the run record are failing.",
-               MetricType::Gauge);
-    add(warning, c.storage_warning().empty() ? 0 : 1);
-    out.push_back(std::move(warning));
-
-    MetricFamily memory =
-        family("aliquot_render_memory_bytes",
-               "Estimated bytes of the buffers of the renders in memory "
-               "(what --memory-limit bounds).",
-               MetricType::Gauge);
-    add(memory, double(c.memory_in_use()));
-    out.push_back(std::move(memory));
-
-    MetricFamily in_memory =
-        family("aliquot_renders_in_memory", "Renders whose buffers are in memory.",
-               MetricType::Gauge);
-    add(in_memory, double(c.sessions_in_memory()));
-    out.push_back(std::move(in_memory));
+    add_single(out, "aliquot_leases_outstanding",
+               "Sample jobs leased to workers and not yet returned.", MetricType::Gauge,
+               double(c.leases_out()));
+    add_single(out, "aliquot_store_write_failures_total",
+               "Failed attempts to write the run record (SQLite, checkpoints, images), "
+               "retries included.",
+               MetricType::Counter, double(c.store_write_failures()));
+    add_single(out, "aliquot_storage_warning",
+               "1 while writes to the run record are failing.", MetricType::Gauge,
+               c.storage_warning().empty() ? 0 : 1);
+    add_single(out, "aliquot_render_memory_bytes",
+               "Estimated bytes of the buffers of the renders in memory (what "
+               "--memory-limit bounds).",
+               MetricType::Gauge, double(c.memory_in_use()));
+    add_single(out, "aliquot_renders_in_memory", "Renders whose buffers are in memory.",
+               MetricType::Gauge, double(c.sessions_in_memory()));
     return out;
 }
 
