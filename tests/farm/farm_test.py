@@ -845,8 +845,11 @@ def test_cli_and_http_speak_the_same_json():
         farm.stop()
 
 
-def main():
-    tests = [(n, f) for n, f in sorted(globals().items()) if n.startswith("test_")]
+def main(namespace=None):
+    """Runs every test_* function of `namespace` (this module's by default; the ops suite
+    passes its own), or those whose name contains $FARM_TEST."""
+    namespace = globals() if namespace is None else namespace
+    tests = [(n, f) for n, f in sorted(namespace.items()) if n.startswith("test_")]
     only = os.environ.get("FARM_TEST")
     passed = failed = 0
     for name, fn in tests:
@@ -859,7 +862,7 @@ def main():
             print(f"ok   {name} ({time.time() - start:.1f}s)", flush=True)
         except Exception as e:  # report and go on: one failure should not hide the others
             failed += 1
-            print(f"FAIL {name}: {e}", flush=True)
+            print(f"FAIL {name}: {e!r}", flush=True)
     for p in PROCS:
         if p.poll() is None:
             p.kill()

@@ -9,7 +9,6 @@ Needs Debian's python3-grpcio, python3-protobuf, python3-prometheus-client, grpc
 protobuf-compiler (scripts/install-deps.sh). The farm's helpers are tests/farm/farm_test.py's.
 """
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -187,28 +186,5 @@ def test_a_worker_health_file_stops_while_the_worker_is_stuck():
         farm.stop()
 
 
-def main():
-    tests = [(n, f) for n, f in sorted(globals().items()) if n.startswith("test_")]
-    passed = failed = 0
-    for name, fn in tests:
-        start = time.time()
-        try:
-            fn()
-            passed += 1
-            print(f"ok   {name} ({time.time() - start:.1f}s)", flush=True)
-        except Exception as e:  # report and go on: one failure should not hide the others
-            failed += 1
-            print(f"FAIL {name}: {e!r}", flush=True)
-    for p in farm_test.PROCS:
-        if p.poll() is None:
-            p.kill()
-    if failed == 0:
-        shutil.rmtree(farm_test.TMP, ignore_errors=True)
-    else:
-        print(f"logs kept in {farm_test.TMP}")
-    print(f"{passed} passed, {failed} failed")
-    return 1 if failed else 0
-
-
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(farm_test.main(globals()))
