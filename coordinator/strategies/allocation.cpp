@@ -155,6 +155,52 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
     return total;
 }
 
+// Sorts keys into RemainderKey's order, which is total, so the result is the one
+// std::sort gives. The keys are first spread over buckets of their fractions' top bits
+// (a fraction in [0, 1) sorts as its bit pattern does; largest first), counted and
+// scattered in bands, and each bucket is then sorted alone, buckets shared among the
+// pool's threads. std::sort of all of them was most of optimal-time's round end.
+void sort_keys(std::vector<RemainderKey>& keys) {
+    constexpr int kShift = 48;
+    constexpr size_t kBuckets = size_t(1) << (63 - kShift);  // the sign bit is 0
+    const auto bucket_of = [](double fraction) {
+        uint64_t bits;
+        std::memcpy(&bits, &fraction, sizeof bits);
+        return size_t(bits >> kShift);
+    };
+    const size_t bands = band_count(keys.size(), kBandPixels);
+    // at[band][bucket]: where the band's next key of that bucket goes.
+    std::vector<std::vector<size_t>> at(bands);
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<size_t>& h = at[band];
+        h.assign(kBuckets, 0);
+        for (size_t k = begin; k < end; ++k) ++h[bucket_of(keys[k].fraction)];
+    });
+    std::vector<size_t> start(kBuckets + 1, 0);  // bucket b's first place, largest first
+    size_t place = 0;
+    for (size_t b = kBuckets; b-- > 0;) {
+        start[b] = place;
+        for (size_t band = 0; band < bands; ++band) {
+            const size_t n = at[band][b];
+            at[band][b] = place;
+            place += n;
+        }
+    }
+    std::vector<RemainderKey> sorted(keys.size());
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<size_t>& next = at[band];
+        for (size_t k = begin; k < end; ++k)
+            sorted[next[bucket_of(keys[k].fraction)]++] = keys[k];
+    });
+    for_each_band(kBuckets, 256, [&](size_t, size_t begin, size_t end) {
+        for (size_t b = begin; b < end; ++b) {
+            const size_t first = start[b], last = b ? start[b - 1] : keys.size();
+            std::sort(sorted.begin() + first, sorted.begin() + last);
+        }
+    });
+    keys.swap(sorted);
+}
+
 }  // namespace
 
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
@@ -203,7 +249,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         left -= double(give_one_each(keys, size_t(left), count, caps));
     }
     if (left == 0) return count;
-    std::sort(keys.begin(), keys.end());
+    sort_keys(keys);
     // Rounding can leave the floors a unit over the total: take it back from the smallest
     // fractional parts.
     for (size_t k = keys.size(); left < 0 && k-- > 0;) {
