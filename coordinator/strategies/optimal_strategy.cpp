@@ -124,6 +124,11 @@ std::vector<double> box_mean(const std::vector<double>& v, uint32_t w, uint32_t 
 double median_value(const std::vector<double>& v) {
     const size_t n = v.size();
     if (n == 0) return 0.0;
+    if (n <= kBandPixels) {  // one band: a histogram would cost more
+        std::vector<double> sorted = v;
+        std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+        return sorted[n / 2];
+    }
     const auto bits = [&](size_t i) {
         uint64_t b;
         std::memcpy(&b, &v[i], sizeof b);
