@@ -31,8 +31,8 @@ struct Pass {
     std::mutex error_mutex;
     std::exception_ptr error;
 
-    // Runs bands until none is left; true if this call finished the last one.
-    bool run() {
+    // Runs bands until none is left.
+    void run() {
         size_t finished = 0;
         for (size_t b; (b = next.fetch_add(1)) < bands;) {
             try {
@@ -43,7 +43,7 @@ struct Pass {
             }
             ++finished;
         }
-        return finished && done.fetch_add(finished) + finished == bands;
+        if (finished) done.fetch_add(finished);
     }
 };
 
