@@ -1,9 +1,11 @@
 #include "accumulator.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
 #include "aov_channels.h"
+#include "bands.h"
 #include "vec3.h"
 
 namespace aliquot {
@@ -75,6 +77,20 @@ void Accumulator::mean(size_t i, double rgb[3]) const {
     const PixelSums& p = pixels_[i];
     const double inv = p.samples ? 1.0 / double(p.samples) : 0.0;
     for (int c = 0; c < 3; ++c) rgb[c] = (p.even[c] + p.odd[c]) * inv;
+}
+
+void Accumulator::copy_from(const Accumulator& other) {
+    if (this == &other) return;
+    width_ = other.width_;
+    height_ = other.height_;
+    total_samples_ = other.total_samples_;
+    total_rays_ = other.total_rays_;
+    total_nonfinite_ = other.total_nonfinite_;
+    pixels_.resize(other.pixels_.size());
+    for_each_band(pixels_.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
+        std::copy(other.pixels_.begin() + begin, other.pixels_.begin() + end,
+                  pixels_.begin() + begin);
+    });
 }
 
 void Accumulator::half_means(size_t i, double even[3], double odd[3]) const {

@@ -21,6 +21,10 @@ public:
     Accumulator() = default;
     Accumulator(uint32_t width, uint32_t height);
 
+    // Becomes a copy of `other`, reusing this one's memory when the sizes match (a
+    // checkpoint's copy each round), the bytes copied in bands on the pool's threads.
+    void copy_from(const Accumulator& other);
+
     uint32_t width() const { return width_; }
     uint32_t height() const { return height_; }
     size_t pixel_count() const { return pixels_.size(); }

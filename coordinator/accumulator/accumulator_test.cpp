@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
+
 namespace aliquot {
 namespace {
 
@@ -94,6 +96,22 @@ TEST(Accumulator, ARefusedResultMergesNoneOfItsPixels) {
     EXPECT_EQ(acc.total_samples(), 0u);
     EXPECT_EQ(acc.at(0).samples, 0u);
     EXPECT_EQ(acc.at(0).even[0], 0.0);
+}
+
+TEST(Accumulator, CopyFromMakesAnEqualCopyOverAnyPreviousContents) {
+    // Several bands of pixels, so the copy runs on the pool's threads.
+    Accumulator source(400, 400), copy(3, 2);
+    for (uint32_t y = 0; y < 400; y += 7)
+        for (uint32_t x = 0; x < 400; x += 3)
+            source.merge(one_pixel(x, y, x * 0.5, y * 0.25, 2 + x % 5, 1.0 + y));
+    copy.merge(one_pixel(1, 1, 9, 9, 9, 9));
+    copy.copy_from(source);
+    ASSERT_EQ(copy.width(), 400u);
+    ASSERT_EQ(copy.height(), 400u);
+    EXPECT_EQ(copy.total_samples(), source.total_samples());
+    EXPECT_EQ(copy.total_rays(), source.total_rays());
+    for (size_t i = 0; i < source.pixel_count(); ++i)
+        ASSERT_EQ(std::memcmp(&copy.at(i), &source.at(i), sizeof(PixelSums)), 0) << i;
 }
 
 }  // namespace

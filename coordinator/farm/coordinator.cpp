@@ -11,6 +11,7 @@
 #include <ctime>
 #include <stdexcept>
 
+#include "bands.h"
 #include "checkpoint.h"
 #include "exr_io.h"
 #include "scene_loader.h"
@@ -219,7 +220,7 @@ void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) 
         if (!slot.checkpoint_copy)
             slot.checkpoint_copy = std::make_shared<CheckpointCopy>();
         const std::shared_ptr<CheckpointCopy> copy = slot.checkpoint_copy;
-        copy->cp.merged = r.merged();  // assigned, not constructed: reuses the memory
+        copy->cp.merged.copy_from(r.merged());  // reuses the memory, copies in bands
         copy->cp.strategy_state = r.strategy().save_state();
         copy->cp.rounds_done = r.rounds_done();
         copy->cp.seconds = round.seconds;
@@ -860,13 +861,16 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         RenderSession& s = *slot->session;
         const uint32_t rounds_before = s.rounds_done();
         const auto began = std::chrono::steady_clock::now();
-        const double began_cpu = thread_cpu_seconds();
+        // The band pool's threads work for the round end too (bands.h): their CPU time
+        // counts. Another render's round end running meanwhile would be counted here as
+        // well; farm_scale runs one render.
+        const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
         outcome = s.complete(lease_id, worker, result, *alive, options_.failure_policy);
         if (s.rounds_done() != rounds_before) {  // this result ended a round
             round_end =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
                     .count();
-            round_end_cpu = thread_cpu_seconds() - began_cpu;
+            round_end_cpu = thread_cpu_seconds() + band_pool_cpu_seconds() - began_cpu;
         }
         render_failed = s.state() == RenderState::Failed;
     }

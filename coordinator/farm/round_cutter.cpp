@@ -4,6 +4,8 @@
 #include <iterator>
 #include <optional>
 
+#include "bands.h"
+
 namespace aliquot {
 
 uint32_t job_tile_side(double mean_spp) {
@@ -18,20 +20,37 @@ std::optional<SampleJob> job_for(const PixelRect& rect, const Round& round,
                                  const Accumulator& merged) {
     SampleJob job;
     job.rect = rect;
-    job.counts.reserve(rect.size());
-    job.first_sample.reserve(rect.size());
+    job.counts.resize(rect.size());
+    job.first_sample.resize(rect.size());
     uint64_t any = 0;
     const uint32_t w = merged.width();
+    size_t k = 0;
     for (uint32_t y = rect.y; y < rect.y + rect.height; ++y) {
-        for (uint32_t x = rect.x; x < rect.x + rect.width; ++x) {
-            const size_t i = size_t(y) * w + x;
-            job.counts.push_back(round.spp[i]);
-            job.first_sample.push_back(merged.samples(i));
-            any += round.spp[i];
+        const size_t row = size_t(y) * w + rect.x;
+        for (uint32_t x = 0; x < rect.width; ++x, ++k) {
+            job.counts[k] = round.spp[row + x];
+            job.first_sample[k] = merged.samples(row + x);
+            any += round.spp[row + x];
         }
     }
     if (!any) return std::nullopt;
     return job;
+}
+
+// The jobs of `rects` that hold samples, in the rects' order; the rects are cut on the
+// band pool's threads, each into its own slot.
+std::vector<SampleJob> jobs_for(const std::vector<PixelRect>& rects, const Round& round,
+                                const Accumulator& merged) {
+    std::vector<std::optional<SampleJob>> cut(rects.size());
+    // A band of 16 tiles is 16 K pixels at the smallest automatic tile.
+    for_each_band(rects.size(), 16, [&](size_t, size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) cut[k] = job_for(rects[k], round, merged);
+    });
+    std::vector<SampleJob> jobs;
+    jobs.reserve(rects.size());
+    for (std::optional<SampleJob>& job : cut)
+        if (job) jobs.push_back(std::move(*job));
+    return jobs;
 }
 
 size_t tile_count(uint32_t w, uint32_t h, uint32_t tile) {
@@ -58,9 +77,7 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
         for (uint32_t x0 = 0; x0 < w; x0 += tile)
             tiles.push_back({x0, y0, std::min(tile, w - x0), std::min(tile, h - y0)});
 
-    std::vector<SampleJob> jobs;
-    for (const PixelRect& rect : tiles)
-        if (auto job = job_for(rect, round, merged)) jobs.push_back(std::move(*job));
+    std::vector<SampleJob> jobs = jobs_for(tiles, round, merged);
     if (tile < 2 * kMinAutoTile) return jobs;
 
     // A round ends when its last job does: whoever finishes early waits. Jobs are issued
@@ -71,6 +88,7 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
     std::vector<SampleJob> tail(std::make_move_iterator(jobs.begin() + whole),
                                 std::make_move_iterator(jobs.end()));
     jobs.resize(whole);
+    std::vector<PixelRect> quadrants;
     for (const SampleJob& big : tail) {
         const PixelRect& r = big.rect;
         const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
@@ -79,9 +97,11 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
               PixelRect{r.x, r.y + hh, hw, r.height - hh},
               PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}}) {
             if (q.width == 0 || q.height == 0) continue;
-            if (auto job = job_for(q, round, merged)) jobs.push_back(std::move(*job));
+            quadrants.push_back(q);
         }
     }
+    for (SampleJob& job : jobs_for(quadrants, round, merged))
+        jobs.push_back(std::move(job));
     return jobs;
 }
 

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
+#include "bands.h"
 #include "sampler.h"
 
 namespace aliquot {
@@ -18,13 +20,23 @@ std::vector<double> water_fill(std::vector<size_t> order,
                                const std::vector<uint32_t>& caps, double total,
                                const Cost& cost) {
     std::vector<double> share(weights.size(), 0.0);
-    double all = 0;
+    double all = 0;  // summed in order on one thread: the same bits as ever
     for (size_t i : order) all += cost(i) * weights[i];
     const double first = all > 0 ? total / all : 0.0;
-    bool any_capped = false;
-    for (size_t i : order) any_capped = any_capped || first * weights[i] >= caps[i];
+    std::vector<char> band_capped(band_count(order.size(), kBandPixels), 0);
+    for_each_band(order.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        bool capped = false;
+        for (size_t k = begin; k < end; ++k)
+            capped = capped || first * weights[order[k]] >= caps[order[k]];
+        band_capped[band] = capped;
+    });
+    const bool any_capped =
+        std::find(band_capped.begin(), band_capped.end(), 1) != band_capped.end();
     if (!any_capped) {  // the usual case: no cap binds, no sorting needed
-        for (size_t i : order) share[i] = first * weights[i];
+        for_each_band(order.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
+            for (size_t k = begin; k < end; ++k)
+                share[order[k]] = first * weights[order[k]];
+        });
         return share;
     }
     std::vector<std::pair<double, size_t>> by_ratio;
@@ -64,6 +76,147 @@ struct RemainderKey {
     }
 };
 
+// The indices i < n with keep(i), ascending; found in bands.
+template <typename Keep>
+std::vector<size_t> in_order(size_t n, const Keep& keep) {
+    const size_t bands = band_count(n, kBandPixels);
+    std::vector<size_t> offset(bands + 1, 0);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        size_t m = 0;
+        for (size_t i = begin; i < end; ++i) m += keep(i) ? 1 : 0;
+        offset[band + 1] = m;
+    });
+    for (size_t b = 0; b < bands; ++b) offset[b + 1] += offset[b];
+    std::vector<size_t> order(offset[bands]);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        size_t k = offset[band];
+        for (size_t i = begin; i < end; ++i)
+            if (keep(i)) order[k++] = i;
+    });
+    return order;
+}
+
+// Gives one more unit to each of the n first keys in RemainderKey's order (below its
+// cap) and returns how many it gave. The order is total (the index breaks ties), so
+// those n are one set, however they are found: here, a histogram of the fractions' top
+// bits (a fraction in [0, 1) sorts as its bit pattern does), counted in bands, finds
+// the bucket the n-th key falls in; every key in a larger bucket is taken, and selection
+// runs only on that bucket (nth_element on all the keys was most of apportion's time).
+size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
+                     std::vector<uint32_t>& count, const std::vector<uint32_t>& caps) {
+    if (n == 0) return 0;
+    if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
+        std::vector<RemainderKey> first(keys);
+        std::nth_element(first.begin(), first.begin() + n, first.end());
+        size_t given = 0;
+        for (size_t k = 0; k < n; ++k)
+            if (count[first[k].index] < caps[first[k].index]) {
+                ++count[first[k].index];
+                ++given;
+            }
+        return given;
+    }
+    constexpr int kShift = 48;
+    constexpr size_t kBuckets = size_t(1) << (64 - kShift);
+    const auto bucket_of = [](double fraction) {
+        uint64_t bits;
+        std::memcpy(&bits, &fraction, sizeof bits);
+        return size_t(bits >> kShift);
+    };
+    const size_t bands = band_count(keys.size(), kBandPixels);
+    std::vector<std::vector<uint32_t>> histogram(bands);
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<uint32_t>& h = histogram[band];
+        h.assign(kBuckets, 0);
+        for (size_t k = begin; k < end; ++k) ++h[bucket_of(keys[k].fraction)];
+    });
+    // Largest fractions first: the bucket holding the n-th key, and how many of it.
+    size_t bucket = kBuckets, wanted = n;
+    while (bucket-- > 0) {
+        size_t in_bucket = 0;
+        for (const std::vector<uint32_t>& h : histogram) in_bucket += h[bucket];
+        if (wanted <= in_bucket) break;
+        wanted -= in_bucket;
+    }
+    std::vector<size_t> offset(bands + 1, 0);
+    for (size_t b = 0; b < bands; ++b) offset[b + 1] = offset[b] + histogram[b][bucket];
+    std::vector<RemainderKey> tied(offset[bands]);
+    std::vector<size_t> given(bands, 0);
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        size_t t = offset[band], g = 0;
+        for (size_t k = begin; k < end; ++k) {
+            const size_t b = bucket_of(keys[k].fraction);
+            if (b == bucket) {
+                tied[t++] = keys[k];
+            } else if (b > bucket && count[keys[k].index] < caps[keys[k].index]) {
+                ++count[keys[k].index];
+                ++g;
+            }
+        }
+        given[band] = g;
+    });
+    std::nth_element(tied.begin(), tied.begin() + (wanted - 1), tied.end());
+    size_t total = 0;
+    for (size_t g : given) total += g;
+    for (size_t k = 0; k < wanted; ++k)
+        if (count[tied[k].index] < caps[tied[k].index]) {
+            ++count[tied[k].index];
+            ++total;
+        }
+    return total;
+}
+
+// Sorts keys into RemainderKey's order, which is total, so the result is the one
+// std::sort gives. The keys are first spread over buckets of their fractions' top bits
+// (a fraction in [0, 1) sorts as its bit pattern does; largest first), counted and
+// scattered in bands, and each bucket is then sorted alone, buckets shared among the
+// pool's threads. std::sort of all of them was the largest part of optimal-time's
+// round end at 1920x1080.
+void sort_keys(std::vector<RemainderKey>& keys) {
+    if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
+        std::sort(keys.begin(), keys.end());
+        return;
+    }
+    constexpr int kShift = 48;
+    constexpr size_t kBuckets = size_t(1) << (63 - kShift);  // the sign bit is 0
+    const auto bucket_of = [](double fraction) {
+        uint64_t bits;
+        std::memcpy(&bits, &fraction, sizeof bits);
+        return size_t(bits >> kShift);
+    };
+    const size_t bands = band_count(keys.size(), kBandPixels);
+    // at[band][bucket]: where the band's next key of that bucket goes.
+    std::vector<std::vector<size_t>> at(bands);
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<size_t>& h = at[band];
+        h.assign(kBuckets, 0);
+        for (size_t k = begin; k < end; ++k) ++h[bucket_of(keys[k].fraction)];
+    });
+    std::vector<size_t> start(kBuckets + 1, 0);  // bucket b's first place, largest first
+    size_t place = 0;
+    for (size_t b = kBuckets; b-- > 0;) {
+        start[b] = place;
+        for (size_t band = 0; band < bands; ++band) {
+            const size_t n = at[band][b];
+            at[band][b] = place;
+            place += n;
+        }
+    }
+    std::vector<RemainderKey> sorted(keys.size());
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<size_t>& next = at[band];
+        for (size_t k = begin; k < end; ++k)
+            sorted[next[bucket_of(keys[k].fraction)]++] = keys[k];
+    });
+    for_each_band(kBuckets, 256, [&](size_t, size_t begin, size_t end) {
+        for (size_t b = begin; b < end; ++b) {
+            const size_t first = start[b], last = b ? start[b - 1] : keys.size();
+            std::sort(sorted.begin() + first, sorted.begin() + last);
+        }
+    });
+    keys.swap(sorted);
+}
+
 }  // namespace
 
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
@@ -75,34 +228,44 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     std::vector<uint32_t> count(weights.size(), 0);
     if (!(total > 0)) return count;
 
-    std::vector<size_t> order;
-    for (size_t i = 0; i < weights.size(); ++i)
-        if (weights[i] > 0 && caps[i] > 0) order.push_back(i);
+    // The passes over every item run in bands on the pool's threads (bands.h); what is
+    // summed in floating point is summed in order on this one, so the counts are the
+    // same whatever the threads.
+    const std::vector<size_t> order =
+        in_order(weights.size(), [&](size_t i) { return weights[i] > 0 && caps[i] > 0; });
     const std::vector<double> share = water_fill(order, weights, caps, total, cost);
 
+    const size_t bands = band_count(order.size(), kBandPixels);
+    std::vector<uint64_t> band_floors(bands, 0);
+    std::vector<RemainderKey> keys(order.size());
+    for_each_band(order.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        uint64_t floors = 0;
+        for (size_t k = begin; k < end; ++k) {
+            const size_t i = order[k];
+            count[i] = uint32_t(std::min(std::floor(share[i]), double(caps[i])));
+            floors += count[i];
+            keys[k] = {share[i] - std::floor(share[i]), mix64(i), i};
+        }
+        band_floors[band] = floors;
+    });
     double left = total;
-    for (size_t i : order) {
-        count[i] = uint32_t(std::min(std::floor(share[i]), double(caps[i])));
-        left -= cost(i) * count[i];
+    if (unit) {
+        // Whole numbers far below 2^53: the difference is exact, as the running
+        // subtraction was.
+        uint64_t floors = 0;
+        for (uint64_t f : band_floors) floors += f;
+        left = total - double(floors);
+    } else {
+        for (size_t i : order) left -= cost(i) * count[i];
     }
-    std::vector<RemainderKey> keys;
-    keys.reserve(order.size());
-    for (size_t i : order) keys.push_back({share[i] - std::floor(share[i]), mix64(i), i});
     if (unit && left >= 0 && left < double(keys.size())) {
         // The usual case: one more unit each for the `left` largest fractional parts.
         // None of them is at its cap (a capped item has fraction 0 and sorts last among
         // them).
-        const size_t n = size_t(left);
-        std::nth_element(keys.begin(), keys.begin() + n, keys.end());
-        for (size_t k = 0; k < n; ++k) {
-            if (count[keys[k].index] < caps[keys[k].index]) {
-                ++count[keys[k].index];
-                left -= 1;
-            }
-        }
+        left -= double(give_one_each(keys, size_t(left), count, caps));
     }
     if (left == 0) return count;
-    std::sort(keys.begin(), keys.end());
+    sort_keys(keys);
     // Rounding can leave the floors a unit over the total: take it back from the smallest
     // fractional parts.
     for (size_t k = keys.size(); left < 0 && k-- > 0;) {

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "allocation.h"
+#include "bands.h"
 
 namespace aliquot {
 
@@ -81,22 +82,36 @@ std::optional<Round> CyclesStrategy::next_round(const Accumulator& merged) {
         // samples is itself too noisy to stop on.
         std::fill(round.spp.begin(), round.spp.end(), min_samples_);
     } else {
-        std::vector<bool> converged(pixels);
-        for (size_t i = 0; i < pixels; ++i)
-            converged[i] = pixel_error(merged, i) < threshold_;
+        // The per-pixel errors in bands on the pool's threads (bands.h), into bytes: two
+        // threads must not write bits of one std::vector<bool> word.
+        std::vector<char> below(pixels);
+        for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
+            for (size_t i = begin; i < end; ++i)
+                below[i] = pixel_error(merged, i) < threshold_;
+        });
+        std::vector<bool> converged(below.begin(), below.end());
         converged = dilate_unconverged(converged, width_, height_);
-        size_t done = 0, capped = 0;
-        for (size_t i = 0; i < pixels; ++i) {
-            const uint64_t have = merged.samples(i);
-            if (converged[i]) {
-                ++done;
-            } else if (have >= max_spp_) {
-                ++capped;
-            } else {
-                // The first check falls on a multiple of the step, as Cycles aligns it.
-                const uint64_t next = (have / step_ + 1) * uint64_t(step_);
-                round.spp[i] = uint32_t(std::min<uint64_t>(next, max_spp_) - have);
+        const size_t bands = band_count(pixels, kBandPixels);
+        std::vector<size_t> band_done(bands, 0), band_capped(bands, 0);
+        for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            for (size_t i = begin; i < end; ++i) {
+                const uint64_t have = merged.samples(i);
+                if (converged[i]) {
+                    ++band_done[band];
+                } else if (have >= max_spp_) {
+                    ++band_capped[band];
+                } else {
+                    // The first check falls on a multiple of the step, as Cycles aligns
+                    // it.
+                    const uint64_t next = (have / step_ + 1) * uint64_t(step_);
+                    round.spp[i] = uint32_t(std::min<uint64_t>(next, max_spp_) - have);
+                }
             }
+        });
+        size_t done = 0, capped = 0;
+        for (size_t b = 0; b < bands; ++b) {
+            done += band_done[b];
+            capped += band_capped[b];
         }
         converged_fraction_ = double(done) / double(pixels);
         if (done + capped == pixels) {

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "allocation.h"
+#include "bands.h"
 
 // Why n_i ∝ sigma_i^(2/3). The mean of n_i samples of pixel i has standard deviation
 // sigma_i / sqrt(n_i), and for a near-normal error its expected absolute value is
@@ -39,19 +41,53 @@ namespace {
 constexpr double kNeighbourhoodFactor = 0.5;
 constexpr double kImageFactor = 1.0 / 256;
 
+// The median of nine values: Paeth's 19 compare-exchanges, the same value selection
+// would pick (a median is a value, not a position), at a third of nth_element's cost.
+inline double median_of_nine(double p[9]) {
+    const auto order = [](double& a, double& b) {
+        const double lo = std::min(a, b), hi = std::max(a, b);
+        a = lo;
+        b = hi;
+    };
+    order(p[1], p[2]), order(p[4], p[5]), order(p[7], p[8]);
+    order(p[0], p[1]), order(p[3], p[4]), order(p[6], p[7]);
+    order(p[1], p[2]), order(p[4], p[5]), order(p[7], p[8]);
+    order(p[0], p[3]), order(p[5], p[8]), order(p[4], p[7]);
+    order(p[3], p[6]), order(p[1], p[4]), order(p[2], p[5]);
+    order(p[4], p[7]), order(p[4], p[2]), order(p[6], p[4]);
+    order(p[4], p[2]);
+    return p[4];
+}
+
+// Rows per band of a pass over rows: about kBandPixels pixels.
+size_t rows_per_band(uint32_t w) {
+    return std::max<size_t>(1, kBandPixels / std::max(w, 1u));
+}
+
 std::vector<double> median3x3(const std::vector<double>& v, uint32_t w, uint32_t h) {
     std::vector<double> out(v.size());
-    double window[9];
-    for (uint32_t y = 0; y < h; ++y) {
-        for (uint32_t x = 0; x < w; ++x) {
-            int n = 0;
-            for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
-                for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
-                    window[n++] = v[size_t(yy) * w + xx];
-            std::nth_element(window, window + n / 2, window + n);
-            out[size_t(y) * w + x] = window[n / 2];
+    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
+        double window[9];
+        for (uint32_t y = uint32_t(row0); y < row1; ++y) {
+            for (uint32_t x = 0; x < w; ++x) {
+                if (y > 0 && y + 1 < h && x > 0 && x + 1 < w) {
+                    const double* above = &v[size_t(y - 1) * w + x - 1];
+                    const double* row = above + w;
+                    const double* below = row + w;
+                    double p[9] = {above[0], above[1], above[2], row[0],  row[1],
+                                   row[2],   below[0], below[1], below[2]};
+                    out[size_t(y) * w + x] = median_of_nine(p);
+                    continue;
+                }
+                int n = 0;  // an edge: a clipped window of 4 or 6
+                for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
+                    for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
+                        window[n++] = v[size_t(yy) * w + xx];
+                std::nth_element(window, window + n / 2, window + n);
+                out[size_t(y) * w + x] = window[n / 2];
+            }
         }
-    }
+    });
     return out;
 }
 
@@ -66,17 +102,65 @@ std::vector<double> box_mean(const std::vector<double>& v, uint32_t w, uint32_t 
                 v[size_t(y) * w + x] + sat[size_t(y) * (w + 1) + x + 1] +
                 sat[size_t(y + 1) * (w + 1) + x] - sat[size_t(y) * (w + 1) + x];
     std::vector<double> out(v.size());
-    for (uint32_t y = 0; y < h; ++y) {
-        const uint32_t y0 = y > r ? y - r : 0, y1 = std::min(h, y + r + 1);
-        for (uint32_t x = 0; x < w; ++x) {
-            const uint32_t x0 = x > r ? x - r : 0, x1 = std::min(w, x + r + 1);
-            const double sum =
-                sat[size_t(y1) * (w + 1) + x1] - sat[size_t(y0) * (w + 1) + x1] -
-                sat[size_t(y1) * (w + 1) + x0] + sat[size_t(y0) * (w + 1) + x0];
-            out[size_t(y) * w + x] = sum / double(size_t(y1 - y0) * (x1 - x0));
+    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
+        for (uint32_t y = uint32_t(row0); y < row1; ++y) {
+            const uint32_t y0 = y > r ? y - r : 0, y1 = std::min(h, y + r + 1);
+            for (uint32_t x = 0; x < w; ++x) {
+                const uint32_t x0 = x > r ? x - r : 0, x1 = std::min(w, x + r + 1);
+                const double sum =
+                    sat[size_t(y1) * (w + 1) + x1] - sat[size_t(y0) * (w + 1) + x1] -
+                    sat[size_t(y1) * (w + 1) + x0] + sat[size_t(y0) * (w + 1) + x0];
+                out[size_t(y) * w + x] = sum / double(size_t(y1 - y0) * (x1 - x0));
+            }
         }
-    }
+    });
     return out;
+}
+
+// The element of rank n/2 of v (what nth_element on a copy gives), for values that are
+// finite and >= +0: their bit patterns sort as the values do, so a histogram of the top
+// 16 bits, counted in bands, finds the bucket that holds the rank and selection runs on
+// that bucket alone. A median is a value, so the result is the same as sorting's.
+double median_value(const std::vector<double>& v) {
+    const size_t n = v.size();
+    if (n == 0) return 0.0;
+    if (n <= kBandPixels) {  // one band: a histogram would cost more
+        std::vector<double> sorted = v;
+        std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+        return sorted[n / 2];
+    }
+    const auto bits = [&](size_t i) {
+        uint64_t b;
+        std::memcpy(&b, &v[i], sizeof b);
+        return b;
+    };
+    constexpr int kShift = 48;
+    constexpr size_t kBuckets = size_t(1) << (64 - kShift);
+    const size_t bands = band_count(n, kBandPixels);
+    std::vector<std::vector<uint32_t>> counts(bands);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<uint32_t>& c = counts[band];
+        c.assign(kBuckets, 0);
+        for (size_t i = begin; i < end; ++i) ++c[bits(i) >> kShift];
+    });
+    size_t rank = n / 2, bucket = 0;
+    for (;; ++bucket) {
+        size_t in_bucket = 0;
+        for (const std::vector<uint32_t>& c : counts) in_bucket += c[bucket];
+        if (rank < in_bucket) break;
+        rank -= in_bucket;
+    }
+    // The bucket's values, band by band in pixel order.
+    std::vector<size_t> offset(bands + 1, 0);
+    for (size_t b = 0; b < bands; ++b) offset[b + 1] = offset[b] + counts[b][bucket];
+    std::vector<double> candidates(offset[bands]);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        size_t k = offset[band];
+        for (size_t i = begin; i < end; ++i)
+            if ((bits(i) >> kShift) == bucket) candidates[k++] = v[i];
+    });
+    std::nth_element(candidates.begin(), candidates.begin() + rank, candidates.end());
+    return candidates[rank];
 }
 
 // Mean rays a sample costs so far; 1 before anything is traced.
@@ -90,10 +174,13 @@ double rays_per_sample(const Accumulator& merged) {
 std::vector<double> pixel_costs(const Accumulator& merged) {
     const double mean_cost = rays_per_sample(merged);
     std::vector<double> cost(merged.pixel_count());
-    for (size_t i = 0; i < cost.size(); ++i) {
-        const PixelSums& p = merged.at(i);
-        cost[i] = p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
-    }
+    for_each_band(cost.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            const PixelSums& p = merged.at(i);
+            cost[i] =
+                p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
+        }
+    });
     return cost;
 }
 
@@ -114,18 +201,30 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      uint32_t radius, uint32_t prior) {
     const size_t n = merged.pixel_count();
     std::vector<double> var(n);
+    // Each band's largest finite variance; max is exact in any order.
+    std::vector<double> band_largest(band_count(n, kBandPixels), 0.0);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        double largest = 0;
+        for (size_t i = begin; i < end; ++i) {
+            var[i] = merged.luminance_variance(i);
+            if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
+        }
+        band_largest[band] = largest;
+    });
     double largest = 0;
-    for (size_t i = 0; i < n; ++i) {
-        var[i] = merged.luminance_variance(i);
-        if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
-    }
+    for (double l : band_largest) largest = std::max(largest, l);
     // Sums that overflowed say "very noisy", not NaN.
-    for (double& v : var)
-        if (!std::isfinite(v)) v = largest;
-    std::vector<double> sorted = var;
-    std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
-    const double median = n ? sorted[n / 2] : 0.0;
+    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i)
+            if (!std::isfinite(var[i])) var[i] = largest;
+    });
+    const double median = median_value(var);
     std::vector<double> sigma(n);
+    const auto each_pixel = [&](auto&& f) {
+        for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+            for (size_t i = begin; i < end; ++i) f(i);
+        });
+    };
     if (prior > 0) {
         // Shrinkage: the pool is a prior worth `prior` samples, the pixel's own s^2 is
         // worth its (n - 1) degrees of freedom. A pixel whose four samples held one
@@ -133,12 +232,12 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         // a truly isolated noisy pixel still gets its share once it has been sampled.
         const std::vector<double> pooled =
             box_mean(var, merged.width(), merged.height(), std::max(radius, 1u));
-        for (size_t i = 0; i < n; ++i) {
+        each_pixel([&](size_t i) {
             const double own =
                 merged.samples(i) > 1 ? double(merged.samples(i) - 1) : 0.0;
             const double v = (own * var[i] + prior * pooled[i]) / (own + prior);
             sigma[i] = std::sqrt(std::max(v, kImageFactor * median));
-        }
+        });
         return sigma;
     }
     if (radius > 0) {
@@ -149,20 +248,30 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         // sharp edge between a noisy and a quiet region is blurred by r pixels.
         const std::vector<double> pooled =
             box_mean(var, merged.width(), merged.height(), radius);
-        for (size_t i = 0; i < n; ++i)
+        each_pixel([&](size_t i) {
             sigma[i] = std::sqrt(std::max(pooled[i], kImageFactor * median));
+        });
         return sigma;
     }
     const std::vector<double> near = median3x3(var, merged.width(), merged.height());
-    for (size_t i = 0; i < n; ++i)
+    each_pixel([&](size_t i) {
         sigma[i] = std::sqrt(
             std::max({var[i], kNeighbourhoodFactor * near[i], kImageFactor * median}));
+    });
     return sigma;
 }
 
 std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
                                                     const std::vector<double>& costs,
                                                     double total, double lo, double hi) {
+    std::vector<MuEvent> events;
+    return optimal_counts(weights, costs, total, lo, hi, events);
+}
+
+std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
+                                                    const std::vector<double>& costs,
+                                                    double total, double lo, double hi,
+                                                    std::vector<MuEvent>& events) {
     const size_t n = weights.size();
     auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
     double floor_cost = 0, cap_cost = 0;
@@ -186,17 +295,28 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
     // sums only the events it has not yet placed, so the work is linear in the events
     // where a sort was n log n (at 1920x1080 the sort was a quarter of optimal's round
     // end).
-    struct Event {
-        double mu, slope, constant;
-    };
-    std::vector<Event> events;
-    events.reserve(2 * n);
-    for (size_t i = 0; i < n; ++i) {
-        if (!(weights[i] > 0)) continue;
-        const double cw = cost(i) * weights[i];
-        events.push_back({lo / weights[i], cw, -cost(i) * lo});
-        events.push_back({hi / weights[i], -cw, cost(i) * hi});
-    }
+    //
+    // The events are laid out in pixel order, as one thread would push them, by bands:
+    // each band counts its pixels of positive weight, and writes from its offset.
+    using Event = MuEvent;
+    const size_t bands = band_count(n, kBandPixels);
+    std::vector<size_t> offset(bands + 1, 0);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        size_t m = 0;
+        for (size_t i = begin; i < end; ++i) m += weights[i] > 0;
+        offset[band + 1] = 2 * m;
+    });
+    for (size_t b = 0; b < bands; ++b) offset[b + 1] += offset[b];
+    events.resize(offset[bands]);  // the strategy's buffer: no new pages after round 1
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        Event* out = events.data() + offset[band];
+        for (size_t i = begin; i < end; ++i) {
+            if (!(weights[i] > 0)) continue;
+            const double cw = cost(i) * weights[i];
+            *out++ = {lo / weights[i], cw, -cost(i) * lo};
+            *out++ = {hi / weights[i], -cw, cost(i) * hi};
+        }
+    });
     const auto by_mu = [](const Event& a, const Event& b) { return a.mu < b.mu; };
     // Events [0, first) are placed below the root and summed into (constant, slope); the
     // crossing event is in [first, last).
@@ -231,8 +351,10 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
         constant += e.constant;
     }
     std::vector<double> counts(n);
-    for (size_t i = 0; i < n; ++i)
-        counts[i] = weights[i] > 0 ? std::clamp(mu * weights[i], lo, hi) : lo;
+    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i)
+            counts[i] = weights[i] > 0 ? std::clamp(mu * weights[i], lo, hi) : lo;
+    });
     return counts;
 }
 
@@ -245,6 +367,7 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         std::optional<std::vector<uint32_t>> spp = steered_round(merged);
         if (!spp) {
             finished_ = true;
+            std::vector<MuEvent>().swap(events_);
             return std::nullopt;
         }
         round.spp = std::move(*spp);
@@ -291,25 +414,32 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     const std::vector<double> cost =
         cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
     std::vector<double> weight(pixels);
-    bool any = false;
-    for (size_t i = 0; i < pixels; ++i) {
-        weight[i] = std::cbrt(cost_aware_ ? std::pow(sigma[i] / cost[i], 2.0)
-                                          : sigma[i] * sigma[i]);
-        any = any || weight[i] > 0;
-    }
-    if (!any) std::fill(weight.begin(), weight.end(), 1.0);  // no noise seen anywhere
+    std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
+    for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        bool any = false;
+        for (size_t i = begin; i < end; ++i) {
+            weight[i] = std::cbrt(cost_aware_ ? std::pow(sigma[i] / cost[i], 2.0)
+                                              : sigma[i] * sigma[i]);
+            any = any || weight[i] > 0;
+        }
+        band_any[band] = any;
+    });
+    if (std::find(band_any.begin(), band_any.end(), 1) == band_any.end())
+        std::fill(weight.begin(), weight.end(), 1.0);  // no noise seen anywhere
 
-    const std::vector<double> target =
-        optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
+    const std::vector<double> target = optimal_counts(
+        weight, cost, spent + share, double(min_spp_), double(cap_), events_);
     // The round closes the gap between what each pixel has and its target; pixels already
     // past their target get nothing, so the gaps are scaled to the share.
     std::vector<double> gap(pixels);
     std::vector<uint32_t> room(pixels);
-    for (size_t i = 0; i < pixels; ++i) {
-        const uint64_t have = merged.samples(i);
-        gap[i] = std::max(0.0, target[i] - double(have));
-        room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
-    }
+    for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            const uint64_t have = merged.samples(i);
+            gap[i] = std::max(0.0, target[i] - double(have));
+            room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
+        }
+    });
     return apportion(gap, share, room, cost);
 }
 
