@@ -3,6 +3,7 @@
 
   .venv/bin/python bench/cycles_adaptive.py [--spp 64] [--min-samples 32] [--seeds 1 2 3]
         [--resolution 128x128] [--reference-spp 8192] [--max-samples 4096] [--threads 2]
+        [--aliquot build/bin/aliquot]
 
 Issue 15 asks how much production adaptive sampling gains at equal budget, to set our
 `cycles` method (Cycles' algorithm re-implemented in Aliquot) beside the real one. This
@@ -23,6 +24,11 @@ the first --spp samples of a --max-samples uniform render (Cycles lays its sampl
 out for the count asked for: these are the samples adaptive draws, without stopping; the
 adaptive render is the first of these samples exactly, pixel by pixel, up to where each
 pixel stops).
+
+With --aliquot, our `cycles` method the same way: per seed, `aliquot render` uniform at
+--spp and `--method cycles` (the same min samples and cap) with its threshold tuned to the
+same mean spp (from its samples_done), E against our own uniform render at --reference-spp
+(seed 2^40). Our threshold's scale is not Cycles' (--ours-start-threshold).
 
 Tuning: the threshold starts at --start-threshold (0.026, the issue's Blender measurement)
 and moves by secant steps on log(mean spp) against log(threshold), staying inside the
@@ -47,6 +53,8 @@ sys.path.insert(0, os.path.join(ROOT, "tests", "validation"))
 
 from mitsuba_cornell import parse_resolution  # noqa: E402
 
+
+OURS_REFERENCE_SEED = 2**40  # the studies' reference seed: never a test render's
 
 # Cycles checks convergence every 16 samples (Integrator's adaptive step, fixed in Cycles;
 # our `cycles` method's default --adaptive-step too).
@@ -84,6 +92,78 @@ def next_threshold(tried, target):
             slope = min(-0.1, (math.log(sb) - math.log(sa)) / (math.log(tb) - math.log(ta)))
     step = (math.log(target) - math.log(spp)) / slope
     return t * math.exp(min(max(step, -math.log(4)), math.log(4)))
+
+
+def tune(render_at, start, target, tolerance, max_tries, what):
+    """Threshold whose render's mean spp is target within tolerance (or the closest tried).
+
+    render_at(t) -> (image, mean spp); returns (t, image, mean spp, [(t, spp), ...]).
+    """
+    tried, renders = [], {}
+    t = start
+    for _ in range(max_tries):
+        img, spp = render_at(t)
+        tried.append((t, spp))
+        renders[t] = (img, spp)
+        log(f"{what}: threshold {t:.5g}: mean {spp:.2f} spp")
+        if abs(spp / target - 1) <= tolerance:
+            break
+        t = next_threshold(tried, target)
+    best = min(tried, key=lambda p: abs(p[1] / target - 1))[0]
+    return (best, *renders[best], tried)
+
+
+def read_rgb(path):
+    """RGB (H, W, 3) float64 of a single-part EXR such as `aliquot render` writes."""
+    import numpy as np
+    from exr_parts import read_parts
+    (part,) = read_parts(path).values()
+    return np.stack([part[k] for k in "RGB"], axis=2).astype(np.float64)
+
+
+def ours_rows(args, aliquot):
+    """Our `cycles` method under the same protocol, against our own uniform reference."""
+    import subprocess
+    import numpy as np
+    w, h = args.resolution
+    res = f"{w}x{h}"
+
+    def render(out, *extra):
+        cmd = [aliquot, "render", "--scene", "cornell-box", "--resolution", res,
+               "--threads", str(args.threads), "--json", "--out", out, *extra]
+        done = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        summary = json.loads(done.stdout)
+        return read_rgb(out), summary["samples_done"] / (w * h)
+
+    ref_path = os.path.join(args.out_dir, f"ours-reference-{res}-{args.reference_spp}spp-"
+                                          f"seed{OURS_REFERENCE_SEED}.exr")
+    if not os.path.exists(ref_path):
+        log(f"ours: reference {args.reference_spp} spp, seed {OURS_REFERENCE_SEED}")
+        render(ref_path + ".tmp.exr", "--spp", str(args.reference_spp),
+               "--seed", str(OURS_REFERENCE_SEED))
+        os.replace(ref_path + ".tmp.exr", ref_path)
+    ref = read_rgb(ref_path)
+    rows = []
+    for seed in args.seeds:
+        uni, _ = render(os.path.join(args.out_dir, f"ours-uniform-seed{seed}.exr"),
+                        "--spp", str(args.spp), "--seed", str(seed))
+
+        def cycles_at(t, seed=seed):
+            return render(os.path.join(args.out_dir, f"ours-cycles-seed{seed}.exr"),
+                          "--method", "cycles", "--noise-threshold", f"{t:.6g}",
+                          "--adaptive-min-samples", str(args.min_samples),
+                          "--max-spp", str(args.max_samples), "--seed", str(seed))
+
+        t, img, spp, tried = tune(cycles_at, args.ours_start_threshold, args.spp,
+                                  args.spp_tolerance, args.max_tries, f"ours seed {seed}")
+        e_a = float(np.mean(np.abs(img - ref)))
+        e_u = float(np.mean(np.abs(uni - ref)))
+        rows.append({"seed": seed, "threshold": t, "adaptive_mean_spp": spp,
+                     "E_adaptive": e_a, "E_uniform": e_u,
+                     "ratio_at_equal_samples": e_a / e_u * math.sqrt(spp / args.spp),
+                     "tries": [[round(a, 6), round(b, 3)] for a, b in tried],
+                     "within_tolerance": abs(spp / args.spp - 1) <= args.spp_tolerance})
+    return rows
 
 
 class CyclesRenderer:
@@ -174,6 +254,11 @@ def main(argv=None):
                     help="relative tolerance on the adaptive mean spp (default 0.01)")
     ap.add_argument("--max-tries", type=int, default=12,
                     help="adaptive renders per seed at most while tuning (default 12)")
+    ap.add_argument("--aliquot", default=None,
+                    help="also run our `cycles` method the same way (uniform and tuned "
+                         "cycles per seed, against our own --reference-spp uniform render)")
+    ap.add_argument("--ours-start-threshold", type=float, default=0.12,
+                    help="our cycles' first threshold (our scale: ~0.12 gives 64 spp)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--bounces", type=int, default=6,
                     help="Cycles max bounces (6 = max depth 8, bench/cycles_cornell.py)")
@@ -247,22 +332,19 @@ def main(argv=None):
         # for the sample count asked for, and adaptive asks for --max-samples.
         uni_cap, _, _ = r.render(f"uniform-{args.spp}of{args.max_samples}spp-seed{seed}",
                                  args.max_samples, seed, subset=args.spp)
-        tried, renders = [], {}
-        t = args.start_threshold
-        for _ in range(args.max_tries):
+        timing = {}
+
+        def adaptive_at(t, seed=seed):
             img, count, secs = r.render(f"adaptive-seed{seed}-t{t:.6g}", args.max_samples,
                                         seed, threshold=t, min_samples=args.min_samples)
-            spp = float(samples_per_pixel(count, first_check).mean())
-            tried.append((t, spp))
-            renders[t] = (img, spp, secs)
-            log(f"seed {seed}: threshold {t:.5g}: mean {spp:.2f} spp, {secs:.1f} s")
-            if abs(spp / args.spp - 1) <= args.spp_tolerance:
-                break
-            t = next_threshold(tried, args.spp)
-        best = min(tried, key=lambda p: abs(p[1] / args.spp - 1))
-        img, spp, secs = renders[best[0]]
+            timing[t] = secs
+            return img, float(samples_per_pixel(count, first_check).mean())
+
+        t, img, spp, tried = tune(adaptive_at, args.start_threshold, args.spp,
+                                  args.spp_tolerance, args.max_tries, f"seed {seed}")
+        secs = timing[t]
         e_a, e_u = err(img), err(uni)
-        rows.append({"seed": seed, "threshold": best[0], "adaptive_mean_spp": spp,
+        rows.append({"seed": seed, "threshold": t, "adaptive_mean_spp": spp,
                      "uniform_spp": uni_spp, "E_adaptive": e_a, "E_uniform": e_u,
                      "ratio": e_a / e_u,
                      "ratio_at_equal_samples": e_a / e_u * math.sqrt(spp / args.spp),
@@ -272,6 +354,7 @@ def main(argv=None):
                      "within_tolerance": abs(spp / args.spp - 1) <= args.spp_tolerance})
 
     ratios = [x["ratio_at_equal_samples"] for x in rows]
+    ours = ours_rows(args, os.path.abspath(args.aliquot)) if args.aliquot else []
     out = {"blender_version": r.version, "resolution": [w, h], "spp": args.spp,
            "min_samples": args.min_samples, "max_samples": args.max_samples,
            "first_check": first_check,
@@ -279,6 +362,7 @@ def main(argv=None):
            "reference": ref_info, "reference_mean": float(ref.mean()),
            "threads": args.threads, "rows": rows,
            "mean_ratio_at_equal_samples": sum(ratios) / len(ratios),
+           "ours_cycles_rows": ours,
            "settings": r.settings,
            "load_start": [round(x, 2) for x in load_start],
            "load_end": [round(x, 2) for x in os.getloadavg()],
@@ -293,6 +377,17 @@ def main(argv=None):
                      f"{x['ratio_at_equal_samples']:.3f} | "
                      f"{x['E_uniform_in_max_pattern']:.6f} |")
     table.append(f"\nmean ratio at N: {out['mean_ratio_at_equal_samples']:.3f}")
+    if ours:
+        table += ["", "Ours (cycles method), same protocol:", "",
+                  "| seed | threshold | mean spp | E cycles | E uniform | ratio at N |",
+                  "|---|---|---|---|---|---|"]
+        for x in ours:
+            table.append(f"| {x['seed']} | {x['threshold']:.4f} | "
+                         f"{x['adaptive_mean_spp']:.2f} | {x['E_adaptive']:.6f} | "
+                         f"{x['E_uniform']:.6f} | {x['ratio_at_equal_samples']:.3f} |")
+        mean = sum(x["ratio_at_equal_samples"] for x in ours) / len(ours)
+        out["ours_mean_ratio_at_equal_samples"] = mean
+        table.append(f"\nours: mean ratio at N: {mean:.3f}")
     print("\n".join(table), file=sys.stderr, flush=True)
     print(json.dumps(out, indent=2))
     return 0
