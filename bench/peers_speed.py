@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""Speed and noise of Aliquot against its strongest CPU peers on the Cornell box, in one run.
+"""Speed and noise of Aliquot against its strongest CPU peers on one scene, in one run.
 
   python3 bench/peers_speed.py [--aliquot build/bin/aliquot] [--spp 64 256]
-        [--resolution 256x256] [--threads 2] [--repeat 3]
-        [--peers mitsuba-llvm,mitsuba-scalar,cycles] [--reference REF.exr] [--no-install]
+        [--scene cornell-box|cornell-caustics] [--resolution 256x256] [--threads 2]
+        [--repeat 3] [--peers mitsuba-llvm,mitsuba-scalar,cycles] [--reference REF.exr]
+        [--no-install]
 
 Peers (each in its own process, each timing its render alone: not start-up, scene
 building or writing the image):
@@ -16,18 +17,24 @@ building or writing the image):
   cycles          Blender Cycles on the CPU through the bpy package (Blender as a Python
                   module), the same scene built by bench/cycles_cornell.py; a 1-spp
                   render first, untimed.
-All render Mitsuba's cornell_box() (our cornell-box scene): box pixel filter, paths of
-at most 8 segments (our max depth 8), Russian roulette as each renderer does it.
+Scenes (--scene): cornell-box, Mitsuba's cornell_box() (our cornell-box scene), and
+cornell-caustics, our scenes/cornell-caustics.json (glass and mirror spheres, a smaller
+and brighter light), which tests/validation/mitsuba_scenes.py builds for Mitsuba with
+analytic `sphere` shapes. Cycles renders the box only: it has no analytic sphere, and
+bench/cycles_cornell.py builds the box alone, so on cornell-caustics it is skipped (said
+in the output's notes). All render with a box pixel filter, paths of at most 8 segments
+(our max depth 8), Russian roulette as each renderer does it.
 
 Interleaved: for each --spp, --repeat rounds of  peer A, ours, peer B, ours, ...
 so a change of machine load hits everyone alike. A renderer's speed is its best run's
 samples/s (the least disturbed); every run is listed, with the load average before it.
 
 Noise per sample: noise = mean |image - reference| over pixels and RGB, at equal spp.
-The reference is --reference, else a cached Mitsuba llvm_ad_rgb render at
+The reference is --reference, else a cached Mitsuba llvm_ad_rgb render of the scene at
 --reference-spp (made once under build/validation/, before any timing). Each peer's image
 mean is checked against the reference's: a peer whose mean is off by more than
---mean-tolerance renders another image, so its noise ratio is flagged, not trusted.
+--mean-tolerance (0.5 % on the box, 1 % on caustics, whose fireflies make an image's mean
+noisier) renders another image, so its noise ratio is flagged, not trusted.
 Both noises include the reference's own residual noise equally, which pulls noise
 ratios slightly towards 1.
 
@@ -68,6 +75,13 @@ MITSUBA_PIN = "mitsuba==3.9.1"
 BPY_PIN = "bpy==5.0.1"
 BPY_PYTHON = (3, 11)
 ALL_PEERS = ("mitsuba-llvm", "mitsuba-scalar", "cycles")
+SCENES = ("cornell-box", "cornell-caustics")
+# The image-mean tolerance per scene: ~3 sigma of a 4 M-sample image's mean (docs/VALIDATION.md).
+MEAN_TOLERANCE = {"cornell-box": 0.005, "cornell-caustics": 0.01}
+CYCLES_SKIPPED = {
+    "cornell-caustics": "skipped on cornell-caustics: Cycles has no analytic sphere (its "
+                        "spheres are meshes), so it cannot render the same image, and "
+                        "bench/cycles_cornell.py builds the box only"}
 
 
 def log(msg):
@@ -206,8 +220,8 @@ def run_json(cmd, what, env=None):
     return obj
 
 
-def markdown(spp, res, results, headline):
-    rows = [f"Cornell box {res}, {spp} spp:", "",
+def markdown(scene, spp, res, results, headline):
+    rows = [f"{scene} {res}, {spp} spp:", "",
             "| renderer | samples/s (all runs) | best | noise | mean vs ref | "
             "speed ratio | noise ratio | efficiency |",
             "|---|---|---|---|---|---|---|---|"]
@@ -228,6 +242,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description="Aliquot vs its CPU peers: samples/s and noise.")
     ap.add_argument("--aliquot", default=os.path.join("build", "bin", "aliquot"))
     ap.add_argument("--spp", type=int, nargs="+", default=[64])
+    ap.add_argument("--scene", choices=SCENES, default="cornell-box")
     ap.add_argument("--resolution", default="256x256")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seed", type=int, default=1)
@@ -236,9 +251,10 @@ def main(argv=None):
     ap.add_argument("--reference", default=None, help="high-spp EXR to measure noise against")
     ap.add_argument("--reference-spp", type=int, default=4096,
                     help="spp of the cached Mitsuba reference made when none is given")
-    ap.add_argument("--mean-tolerance", type=float, default=0.005,
+    ap.add_argument("--mean-tolerance", type=float, default=None,
                     help="relative image-mean difference above which a peer's image is "
-                         "flagged as not the same image (default 0.005)")
+                         "flagged as not the same image (default 0.005 on the box, 0.01 "
+                         "on caustics)")
     ap.add_argument("--out-dir", default=os.path.join(ROOT, "build", "validation"))
     ap.add_argument("--repeat", type=int, default=3,
                     help="interleaved rounds; the best run of each renderer counts")
@@ -253,7 +269,16 @@ def main(argv=None):
     if args.repeat < 1 or args.threads < 1 or min(args.spp) < 1:
         ap.error("--repeat, --spp and --threads must be positive")
 
-    notes = ensure_venv(peers, not args.no_install)
+    if args.mean_tolerance is None:
+        args.mean_tolerance = MEAN_TOLERANCE[args.scene]
+    skipped = {}
+    if "cycles" in peers and args.scene in CYCLES_SKIPPED:
+        skipped["cycles"] = CYCLES_SKIPPED[args.scene]
+        peers = [p for p in peers if p != "cycles"]
+    notes = ensure_venv(peers, not args.no_install)  # re-runs this script in .venv
+    for name, why in skipped.items():
+        log(f"{name}: {why}")
+    notes.update(skipped)
     env = dict(os.environ)
     if "mitsuba-llvm" in peers:
         lib = ensure_libllvm19(not args.no_install)
@@ -281,11 +306,12 @@ def main(argv=None):
     # Reference first, so that making it cannot disturb the timings.
     ref_path = args.reference
     if ref_path is None:
-        ref_path = os.path.join(args.out_dir,
-                                f"mitsuba-{res}-ref-{args.reference_spp}spp-seed5000.exr")
+        ref_path = os.path.join(
+            args.out_dir, f"mitsuba-{args.scene}-{res}-ref-{args.reference_spp}spp-seed5000.exr")
         if not os.path.exists(ref_path):
             variant = "llvm_rgb" if "DRJIT_LIBLLVM_PATH" in env else "scalar_rgb"
-            run_json([py, MITSUBA_SCRIPT, "--variant", variant, "--resolution", res,
+            run_json([py, MITSUBA_SCRIPT, "--scene", args.scene, "--variant", variant,
+                      "--resolution", res,
                       "--spp", str(args.reference_spp), "--seed", "5000",
                       "--threads", str(args.threads), "--out", ref_path],
                      f"reference at {args.reference_spp} spp (cached for next time)", env)
@@ -299,16 +325,17 @@ def main(argv=None):
     all_results = []
     for spp in args.spp:
         def out(name):
-            return os.path.join(args.out_dir, f"bench-{name}-{res}-{spp}spp.exr")
+            return os.path.join(args.out_dir, f"bench-{args.scene}-{name}-{res}-{spp}spp.exr")
         common = ["--resolution", res, "--spp", str(spp), "--seed", str(args.seed),
                   "--threads", str(args.threads)]
         cmds = {
-            "mitsuba-llvm": [py, MITSUBA_SCRIPT, "--variant", "llvm_rgb", "--warmup-spp", "1",
-                             *common, "--out", out("mitsuba-llvm")],
-            "mitsuba-scalar": [py, MITSUBA_SCRIPT, "--variant", "scalar_rgb",
-                               *common, "--out", out("mitsuba-scalar")],
+            "mitsuba-llvm": [py, MITSUBA_SCRIPT, "--scene", args.scene, "--variant", "llvm_rgb",
+                             "--warmup-spp", "1", *common, "--out", out("mitsuba-llvm")],
+            "mitsuba-scalar": [py, MITSUBA_SCRIPT, "--scene", args.scene,
+                               "--variant", "scalar_rgb", *common,
+                               "--out", out("mitsuba-scalar")],
             "cycles": [py, CYCLES_SCRIPT, *common, "--out", out("cycles")],
-            "ours": [aliquot, "render", "--scene", "cornell-box", *common,
+            "ours": [aliquot, "render", "--scene", args.scene, *common,
                      "--json", "--out", out("ours")],
         }
         runs = {name: [] for name in peers + ["ours"]}
@@ -359,9 +386,10 @@ def main(argv=None):
         if warnings:
             results["warnings"] = warnings
         all_results.append(results)
-        print(markdown(spp, res, results, headline), file=sys.stderr, flush=True)
+        print(markdown(args.scene, spp, res, results, headline), file=sys.stderr, flush=True)
 
-    print(json.dumps({"results": all_results, "notes": notes, "resolution": res,
+    print(json.dumps({"scene": args.scene, "results": all_results, "notes": notes,
+                      "resolution": res,
                       "threads": args.threads, "repeat": args.repeat, "peers": peers,
                       "reference": ref_path, "reference_mean": ref_mean,
                       "load_start": [round(x, 2) for x in load_start],

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""Render Mitsuba 3's built-in Cornell box as an independent reference for Aliquot.
+"""Render Mitsuba 3's Cornell box (or our caustics variant of it) as a reference for Aliquot.
 
-The scene is `mi.cornell_box()` unchanged except for:
+The scene (--scene, see mitsuba_scenes.py) is `mi.cornell_box()` for cornell-box, and
+for cornell-caustics cornell_box() with analytic glass and mirror spheres in place of
+the boxes and a smaller, brighter light; unchanged except for:
   * the film's reconstruction filter, overridden to a box filter (a pixel is the
     plain average of its samples, as in Aliquot and the seed study);
   * the film resolution, taken from --resolution;
@@ -39,6 +41,8 @@ import re
 import subprocess
 import sys
 import time
+
+from mitsuba_scenes import SCENES, scene_dict
 
 
 def parse_resolution(text):
@@ -85,6 +89,8 @@ def find_libllvm():
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--scene", choices=SCENES, default="cornell-box",
+                    help="which of our scenes (default cornell-box)")
     ap.add_argument("--resolution", type=parse_resolution, default=(256, 256),
                     help="WxH (default 256x256)")
     ap.add_argument("--spp", type=positive_int, required=True, help="samples per pixel")
@@ -150,14 +156,14 @@ def main(argv=None):
     threads = args.threads or os.cpu_count() or 1
     dr.set_thread_count(threads)
 
-    scene_dict = mi.cornell_box()
-    film = scene_dict["sensor"]["film"]
+    scene_desc = scene_dict(mi, args.scene)
+    film = scene_desc["sensor"]["film"]
     film["rfilter"] = {"type": "box"}
     film["width"], film["height"] = w, h
-    scene_dict["sensor"]["sampler"] = {"type": "independent", "sample_count": spp_per_pass}
-    scene_dict["integrator"] = {"type": "path", "max_depth": args.max_depth,
+    scene_desc["sensor"]["sampler"] = {"type": "independent", "sample_count": spp_per_pass}
+    scene_desc["integrator"] = {"type": "path", "max_depth": args.max_depth,
                                 "rr_depth": args.rr_depth}
-    scene = mi.load_dict(scene_dict)
+    scene = mi.load_dict(scene_desc)
 
     warmup_seconds = None
     if args.warmup_spp > 0:
@@ -216,6 +222,7 @@ def main(argv=None):
         "seconds": seconds,
         "samples_per_second": samples / seconds if seconds > 0 else None,
         "renderer": "mitsuba",
+        "scene": args.scene,
         "mitsuba_version": mi.__version__,
         "variant": variant,
         "resolution": [w, h],
