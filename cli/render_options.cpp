@@ -44,6 +44,10 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
            "optimal: shrink each pixel's variance towards its pool, a prior worth "
            "this many samples (0: off)")
         ->capture_default_str();
+    cmd.add_option("--floor-fraction", s.floor_fraction,
+                   "optimal: pilot and floor at this share of the budget's mean spp "
+                   "(0: min_spp alone)")
+        ->capture_default_str();
     cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
         ->capture_default_str();
     cmd.add_option("--adaptive-min-samples", s.adaptive_min_samples,

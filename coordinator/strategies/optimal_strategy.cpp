@@ -191,11 +191,18 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
     : width_(width),
       height_(height),
       budget_(sample_budget(p, size_t(width) * height)),
-      min_spp_(p.min_spp),
+      // The floor tied to the budget: a share of the mean spp, never below min_spp.
+      min_spp_(std::max<uint32_t>(
+          p.min_spp, uint32_t(std::min(double(UINT32_MAX),
+                                       std::floor(p.floor_fraction * double(budget_) /
+                                                  double(std::max<size_t>(
+                                                      size_t(width) * height, 1))))))),
       cap_(spp_cap(p)),
       sigma_radius_(p.sigma_radius),
       sigma_prior_(p.sigma_prior),
-      cost_aware_(cost_aware) {}
+      cost_aware_(cost_aware) {
+    min_spp_ = std::min(min_spp_, cap_);  // a floor from the budget never passes max_spp
+}
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      uint32_t radius, uint32_t prior) {

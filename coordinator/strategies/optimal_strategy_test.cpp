@@ -37,7 +37,7 @@ double expected_error(const Accumulator& merged, const SyntheticImage& image) {
 }
 
 // Renders the banded image (four bands of known sigma) with `p` and checks that each
-// band's samples are within 5 % of the analytic optimum's.
+// band's samples are within 5 % of the analytic optimum's under the same floor.
 void expect_bands_near_the_optimum(const StrategyParams& p) {
     const SyntheticImage image = banded_image();
     const uint64_t budget = p.budget;
@@ -48,7 +48,11 @@ void expect_bands_near_the_optimum(const StrategyParams& p) {
     std::vector<double> weight(4096);
     for (size_t i = 0; i < 4096; ++i)
         weight[i] = std::cbrt(image.sigma(i) * image.sigma(i));
-    const auto best = OptimalStrategy::optimal_counts(weight, {}, double(budget), 4, 1e9);
+    // The optimum under the same floor: min_spp, or floor_fraction of the mean spp.
+    const double floor =
+        std::max(double(p.min_spp), std::floor(p.floor_fraction * double(budget) / 4096));
+    const auto best =
+        OptimalStrategy::optimal_counts(weight, {}, double(budget), floor, 1e9);
     for (uint32_t band = 0; band < 4; ++band) {
         double got = 0, want = 0;
         for (uint32_t y = 0; y < 64; ++y)
@@ -255,6 +259,63 @@ TEST(Optimal, PooledSigmaStillFindsTheOptimumOnSmoothNoise) {
     StrategyParams p = optimal(4096 * 64);
     p.sigma_radius = 1;
     expect_bands_near_the_optimum(p);
+}
+
+TEST(Optimal, AFloorFractionPilotsAndFloorsAtThatShareOfTheMeanSpp) {
+    // Banded image, mean 32 spp: with floor_fraction 0.5 the pilot is 16 spp everywhere
+    // and no pixel ends below it; without, the quietest band ends below 16.
+    const SyntheticImage image = banded_image();
+    StrategyParams p = optimal(4096 * 32);
+    p.floor_fraction = 0.5;
+    OptimalStrategy floored(p, 64, 64, false);
+    Accumulator merged(64, 64);
+    std::vector<uint32_t> first_round;
+    run_synthetic(floored, image, merged, 100000,
+                  [&](const Round& r, const Accumulator&) {
+                      if (first_round.empty()) first_round = r.spp;
+                  });
+    EXPECT_EQ(first_round, std::vector<uint32_t>(4096, 16));
+    EXPECT_EQ(merged.total_samples(), 4096u * 32);
+    for (size_t i = 0; i < 4096; ++i) ASSERT_GE(merged.samples(i), 16u);
+    StrategyParams unfloored = optimal(4096 * 32);
+    unfloored.floor_fraction = 0;
+    OptimalStrategy plain(unfloored, 64, 64, false);
+    Accumulator plain_merged(64, 64);
+    run_synthetic(plain, image, plain_merged);
+    EXPECT_LT(plain_merged.samples(0), 16u);  // x = 0: the quietest band
+    // min_spp stays the floor when the fraction gives less, and max_spp caps both.
+    p.min_spp = 20;
+    p.max_spp = 18;
+    OptimalStrategy capped(p, 64, 64, false);
+    Accumulator capped_merged(64, 64);
+    run_synthetic(capped, image, capped_merged);
+    for (size_t i = 0; i < 4096; ++i) ASSERT_EQ(capped_merged.samples(i), 18u);
+}
+
+// Heavy-tailed pixels as in a caustic: each sample is a firefly of 40 with probability
+// 1/150, else near 0.1. The seed's E rewards deciding the allocation from many samples
+// per pixel here: a pixel whose four pilot samples drew a firefly would otherwise take a
+// large share on one lucky sample while its neighbours, equally heavy-tailed, are
+// starved.
+double heavy_tailed_error(const StrategyParams& p) {
+    double total = 0;
+    for (uint64_t seed = 1; seed <= 6; ++seed) {
+        SyntheticImage image(32, 32, seed, {0.1, 0.02, 1, 1.0 / 150, 40.0});
+        OptimalStrategy strategy(p, 32, 32, false);
+        Accumulator merged(32, 32);
+        run_synthetic(strategy, image, merged);
+        total += mean_absolute_error(merged, image);
+    }
+    return total;
+}
+
+TEST(Optimal, AFloorFractionLowersTheErrorOfHeavyTailedPixels) {
+    StrategyParams p = optimal(1024 * 64);
+    p.floor_fraction = 0;
+    const double plain = heavy_tailed_error(p);
+    p.floor_fraction = 0.5;
+    const double floored = heavy_tailed_error(p);
+    EXPECT_LT(floored, 0.95 * plain) << floored << " vs " << plain;
 }
 
 TEST(OptimalTime, GivesCheapPixelsMoreSamplesAsSigmaOverCostToTheTwoThirds) {

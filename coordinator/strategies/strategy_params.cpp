@@ -33,6 +33,7 @@ void to_json(json& j, const StrategyParams& p) {
              {"min_spp", p.min_spp},
              {"sigma_radius", p.sigma_radius},
              {"sigma_prior", p.sigma_prior},
+             {"floor_fraction", p.floor_fraction},
              {"noise_threshold", p.noise_threshold},
              {"adaptive_min_samples", p.adaptive_min_samples},
              {"adaptive_step", p.adaptive_step},
@@ -76,6 +77,8 @@ void read_member(const std::string& key, const JsonField& v, StrategyParams& p) 
         p.sigma_radius = whole<uint32_t>(v);
     else if (key == "sigma_prior")
         p.sigma_prior = whole<uint32_t>(v);
+    else if (key == "floor_fraction")
+        p.floor_fraction = v.number();
     else if (key == "noise_threshold")
         p.noise_threshold = v.number();
     else if (key == "adaptive_min_samples")
@@ -98,11 +101,26 @@ void from_json(const json& j, StrategyParams& p) {
             sigma->fail(
                 "the oracle's sigma is not a parameter: it is given in-process (aliquot "
                 "render --sigma FILE.exr, or a study), never to a coordinator");
-        root.allow_keys(
-            {"method", "spp", "budget", "max_variance", "samples_per_iteration",
-             "split_factor", "min_bucket_size", "error_norm", "initial_spp", "alpha",
-             "bucket_size", "min_spp", "sigma_radius", "sigma_prior", "noise_threshold",
-             "adaptive_min_samples", "adaptive_step", "max_spp", "max_samples"});
+        root.allow_keys({"method",
+                         "spp",
+                         "budget",
+                         "max_variance",
+                         "samples_per_iteration",
+                         "split_factor",
+                         "min_bucket_size",
+                         "error_norm",
+                         "initial_spp",
+                         "alpha",
+                         "bucket_size",
+                         "min_spp",
+                         "sigma_radius",
+                         "sigma_prior",
+                         "floor_fraction",
+                         "noise_threshold",
+                         "adaptive_min_samples",
+                         "adaptive_step",
+                         "max_spp",
+                         "max_samples"});
         for (const auto& [key, v] : root.members()) read_member(key, v, p);
     } catch (const JsonError& e) {
         // Parameters arrive inside other documents (a request, a study): name the
@@ -195,6 +213,8 @@ void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t heigh
     // A radius beyond 64 pools over more than 16641 pixels: not a neighbourhood.
     if (p.sigma_radius > 64) fail("sigma_radius must be at most 64");
     if (p.sigma_prior > (1u << 24)) fail("sigma_prior must be at most 16777216 samples");
+    if (!(p.floor_fraction >= 0 && p.floor_fraction < 1))
+        fail("floor_fraction must be at least 0 and below 1");
     if (!(p.noise_threshold > 0) || std::isinf(p.noise_threshold))
         fail("noise_threshold must be greater than 0 and finite");
     if (p.adaptive_step == 0) fail("adaptive_step must be at least 1");

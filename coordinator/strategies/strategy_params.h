@@ -46,6 +46,12 @@ struct StrategyParams {
     // pool (radius max(sigma_radius, 1)) as a prior worth n0 samples: (n s^2 + n0 pool) /
     // (n + n0). Few samples lean on the neighbourhood, many on the pixel itself.
     uint32_t sigma_prior = 0;
+    // optimal / optimal-time: f in [0, 1) raises the pilot and floor to f times the
+    // budget's mean spp when that is above min_spp, so the allocation is decided from
+    // many samples per pixel whatever the budget (0: min_spp alone). Half by default:
+    // heavy-tailed pixels (caustics) need it, smooth noise loses little to it
+    // (docs/RESULTS.md, issue 15).
+    double floor_fraction = 0.5;
 
     // cycles (Blender Cycles' adaptive sampling, with its defaults)
     double noise_threshold = 0.01;

@@ -208,19 +208,28 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
     p.sigma_radius = 1;
     p.sigma_prior = (1u << 24) + 1;
     EXPECT_NE(message(p).find("sigma_prior"), std::string::npos);
+    p.sigma_prior = 16;
+    for (double f : {-0.1, 1.0, std::nan("")}) {
+        p.floor_fraction = f;
+        EXPECT_NE(message(p).find("floor_fraction"), std::string::npos) << f;
+    }
+    p.floor_fraction = 0.5;
+    EXPECT_NO_THROW(validate(p, 8, 8));
     StrategyParams read;
     from_json(nlohmann::json{{"method", "cycles"},
                              {"noise_threshold", 0.05},
                              {"adaptive_min_samples", 8},
                              {"adaptive_step", 4},
                              {"sigma_radius", 2},
-                             {"sigma_prior", 16}},
+                             {"sigma_prior", 16},
+                             {"floor_fraction", 0.5}},
               read);
     EXPECT_EQ(read.noise_threshold, 0.05);
     EXPECT_EQ(read.adaptive_min_samples, 8u);
     EXPECT_EQ(read.adaptive_step, 4u);
     EXPECT_EQ(read.sigma_radius, 2u);
     EXPECT_EQ(read.sigma_prior, 16u);
+    EXPECT_EQ(read.floor_fraction, 0.5);
 }
 
 }  // namespace
