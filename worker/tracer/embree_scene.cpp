@@ -1,5 +1,7 @@
 #include "embree_scene.h"
 
+#include "sphere_hit.h"
+
 #include <embree3/rtcore.h>
 #include <pmmintrin.h>
 #include <xmmintrin.h>
@@ -148,21 +150,10 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
         rtcReleaseGeometry(geom);
     }
 
-    if (!scene.spheres.empty()) {
-        RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-        auto* v = static_cast<float*>(
-            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
-                                    4 * sizeof(float), scene.spheres.size()));
-        for (size_t i = 0; i < scene.spheres.size(); ++i) {
-            v[4 * i] = scene.spheres[i].center.x;
-            v[4 * i + 1] = scene.spheres[i].center.y;
-            v[4 * i + 2] = scene.spheres[i].center.z;
-            v[4 * i + 3] = scene.spheres[i].radius;
-        }
-        rtcCommitGeometry(geom);
-        sphere_geom_id_ = rtcAttachGeometry(scene_, geom);
-        rtcReleaseGeometry(geom);
-    }
+    // Spheres stay out of Embree's BVH: each query tests them itself (sphere_hit.h).
+    // Their geometry id is one past the meshes', which no Embree geometry has.
+    spheres_ = scene.spheres;
+    sphere_geom_id_ = uint32_t(meshes_.size());
 
     rtcCommitScene(scene_);
     throw_if_failed(device_, "build the scene");
@@ -178,18 +169,39 @@ Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
     Hit hit;
     hit.t = t;
     hit.geom_id = geom;
-    if (geom == sphere_geom_id_) {
-        hit.prim_id = prim;
-        hit.ng = normalize(Vec3(ng_x, ng_y, ng_z));
-    } else {
-        // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
-        const MeshInfo& mesh = meshes_[geom];
-        hit.prim_id = mesh.quads ? 2 * prim + (u + v > 1.0f) : prim;
-        // Embree's Ng has the same direction (counter-clockwise winding); the unit normal
-        // made once per triangle saves a square root and a division on every hit.
-        hit.ng = mesh.normals[hit.prim_id];
-    }
+    (void)ng_x, (void)ng_y, (void)ng_z;
+    // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
+    const MeshInfo& mesh = meshes_[geom];
+    hit.prim_id = mesh.quads ? 2 * prim + (u + v > 1.0f) : prim;
+    // Embree's Ng has the same direction (counter-clockwise winding); the unit normal
+    // made once per triangle saves a square root and a division on every hit.
+    hit.ng = mesh.normals[hit.prim_id];
     return hit;
+}
+
+bool EmbreeScene::nearer_sphere(const Vec3& origin, const Vec3& dir, float tmax,
+                                Hit& hit) const {
+    int nearest = -1;
+    for (size_t i = 0; i < spheres_.size(); ++i) {
+        const float t =
+            sphere_hit_t(origin, dir, spheres_[i].center, spheres_[i].radius, tmax);
+        if (t < tmax) {
+            tmax = t;
+            nearest = int(i);
+        }
+    }
+    if (nearest < 0) return false;
+    hit.t = tmax;
+    hit.geom_id = sphere_geom_id_;
+    hit.prim_id = uint32_t(nearest);
+    hit.ng = normalize(origin + dir * tmax - spheres_[size_t(nearest)].center);
+    return true;
+}
+
+bool EmbreeScene::sphere_blocks(const Vec3& origin, const Vec3& dir, float tmax) const {
+    for (const Sphere& s : spheres_)
+        if (sphere_hit_t(origin, dir, s.center, s.radius, tmax) < tmax) return true;
+    return false;
 }
 
 namespace {
@@ -306,6 +318,9 @@ void EmbreeScene::occluded_packet(const Vec3* origins, const Vec3* dirs,
         occluded_width<8, RTCRay8>(scene_, origins, dirs, tmax, count, occluded);
     else
         occluded_width<16, RTCRay16>(scene_, origins, dirs, tmax, count, occluded);
+    if (count > 1 && !spheres_.empty())
+        for (int i = 0; i < count; ++i)
+            occluded[i] = occluded[i] || sphere_blocks(origins[i], dirs[i], tmax[i]);
 }
 
 void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int count,
@@ -327,6 +342,13 @@ void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int co
     else
         intersect_width<16, RTCRayHit16>(scene_, origins, dirs, count, coherent, found,
                                          on_hit);
+    if (count > 1 && !spheres_.empty())
+        for (int i = 0; i < count; ++i)
+            found[i] = nearer_sphere(
+                           origins[i], dirs[i],
+                           found[i] ? hits[i].t : std::numeric_limits<float>::infinity(),
+                           hits[i]) ||
+                       found[i];
 }
 
 bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,
@@ -337,13 +359,15 @@ bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &context, &rh);
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-    hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
-                 rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
-    return true;
+    const bool mesh = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    if (mesh)
+        hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
+                     rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+    return nearer_sphere(origin, dir, mesh ? rh.ray.tfar : tmax, hit) || mesh;
 }
 
 bool EmbreeScene::occluded(const Vec3& origin, const Vec3& dir, float tmax) const {
+    if (sphere_blocks(origin, dir, tmax)) return true;
     RTCIntersectContext context = incoherent_context();
     RTCRay ray = single_ray(origin, dir, tmax);
     rtcOccluded1(scene_, &context, &ray);

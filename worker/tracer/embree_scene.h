@@ -67,10 +67,16 @@ public:
 private:
     Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x,
                float ng_y, float ng_z) const;
+    // Replaces `hit` by the nearest sphere along the ray nearer than `tmax` (the mesh
+    // hit's t, or the query's bound); returns whether one was.
+    bool nearer_sphere(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const;
+    bool sphere_blocks(const Vec3& origin, const Vec3& dir, float tmax) const;
 
     RTCDeviceTy* device_ = nullptr;
     RTCSceneTy* scene_ = nullptr;
-    uint32_t sphere_geom_id_ = ~0u;
+    uint32_t sphere_geom_id_ = ~0u;  // one past the meshes' ids
+    // Traced in our own code, not as Embree primitives (sphere_hit.h says why).
+    std::vector<Sphere> spheres_;
     struct MeshInfo {
         bool quads = false;         // traced as quads (see pairs_into_quads)
         std::vector<Vec3> normals;  // by triangle: unit geometric normal

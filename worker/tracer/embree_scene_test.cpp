@@ -102,6 +102,47 @@ TEST(EmbreeScene, PacketHitsAgreeWithSingleRayHits) {
     EXPECT_LE(other_primitive, rays / 1000);
 }
 
+// Spheres are tested in our own code beside Embree's meshes (sphere_hit.h): single rays,
+// packets and shadow rays see them, nearer than the wall behind, with outward normals.
+TEST(EmbreeScene, SpheresAreHitInFrontOfTheMeshesBehindThem) {
+    const Scene scene = load_scene("cornell-caustics");
+    ASSERT_EQ(scene.spheres.size(), 2u);
+    const EmbreeScene embree(scene);
+    const Sphere& glass = scene.spheres[0];
+    const Vec3 origin(glass.center.x, glass.center.y, 3.0f);
+    const Vec3 dir = normalize(glass.center - origin);
+    Hit hit;
+    ASSERT_TRUE(embree.intersect(origin, dir, 1e30f, hit));
+    EXPECT_EQ(hit.geom_id, embree.sphere_geometry());
+    EXPECT_EQ(hit.prim_id, 0u);
+    EXPECT_NEAR(hit.t, length(glass.center - origin) - glass.radius, 1e-5f);
+    EXPECT_NEAR(dot(hit.ng, -dir), 1.0f, 1e-5f);  // outward, facing the ray
+    // The wall behind the sphere is what a ray bounded before the sphere does not see.
+    EXPECT_FALSE(embree.intersect(origin, dir, hit.t * 0.99f, hit));
+    EXPECT_TRUE(embree.occluded(origin, dir, 1e30f));
+    EXPECT_FALSE(embree.occluded(origin, dir, 0.5f));
+
+    Vec3 origins[EmbreeScene::kPacket], dirs[EmbreeScene::kPacket];
+    float tmax[EmbreeScene::kPacket];
+    for (int j = 0; j < EmbreeScene::kPacket; ++j) {
+        origins[j] = origin;
+        dirs[j] = normalize(glass.center + Vec3(0.05f * float(j - 8), 0, 0) - origin);
+        tmax[j] = (j % 2) ? 1e30f : 0.5f;
+    }
+    Hit hits[EmbreeScene::kPacket];
+    bool found[EmbreeScene::kPacket], blocked[EmbreeScene::kPacket];
+    embree.intersect_packet(origins, dirs, EmbreeScene::kPacket, hits, found);
+    embree.occluded_packet(origins, dirs, tmax, EmbreeScene::kPacket, blocked);
+    for (int j = 0; j < EmbreeScene::kPacket; ++j) {
+        Hit single;
+        ASSERT_TRUE(found[j]);
+        ASSERT_TRUE(embree.intersect(origins[j], dirs[j], 1e30f, single));
+        EXPECT_EQ(hits[j].geom_id, single.geom_id) << j;
+        EXPECT_NEAR(hits[j].t, single.t, 1e-5f * single.t) << j;
+        EXPECT_EQ(blocked[j], embree.occluded(origins[j], dirs[j], tmax[j])) << j;
+    }
+}
+
 TEST(EmbreeScene, PacketRejectsMoreRaysThanItHolds) {
     const Scene scene = load_scene("cornell-box");
     const EmbreeScene embree(scene);
