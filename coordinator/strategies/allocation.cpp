@@ -96,6 +96,28 @@ std::vector<size_t> in_order(size_t n, const Keep& keep) {
     return order;
 }
 
+// A remainder fraction's bucket: the top bits of its bit pattern. A non-negative double
+// sorts as its bits do, so the buckets are in the fractions' order.
+constexpr int kFractionShift = 48;
+size_t fraction_bucket(double fraction) {
+    uint64_t bits;
+    std::memcpy(&bits, &fraction, sizeof bits);
+    return size_t(bits >> kFractionShift);
+}
+
+// For each band of keys, how many of its keys fall in each of `buckets` buckets.
+template <typename Count>
+std::vector<std::vector<Count>> bucket_counts(const std::vector<RemainderKey>& keys,
+                                              size_t buckets) {
+    std::vector<std::vector<Count>> counts(band_count(keys.size(), kBandPixels));
+    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        std::vector<Count>& h = counts[band];
+        h.assign(buckets, 0);
+        for (size_t k = begin; k < end; ++k) ++h[fraction_bucket(keys[k].fraction)];
+    });
+    return counts;
+}
+
 // Gives one more unit to each of the n first keys in RemainderKey's order (below its
 // cap) and returns how many it gave. The order is total (the index breaks ties), so
 // those n are one set, however they are found: here, a histogram of the fractions' top
@@ -116,20 +138,10 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
             }
         return given;
     }
-    constexpr int kShift = 48;
-    constexpr size_t kBuckets = size_t(1) << (64 - kShift);
-    const auto bucket_of = [](double fraction) {
-        uint64_t bits;
-        std::memcpy(&bits, &fraction, sizeof bits);
-        return size_t(bits >> kShift);
-    };
-    const size_t bands = band_count(keys.size(), kBandPixels);
-    std::vector<std::vector<uint32_t>> histogram(bands);
-    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        std::vector<uint32_t>& h = histogram[band];
-        h.assign(kBuckets, 0);
-        for (size_t k = begin; k < end; ++k) ++h[bucket_of(keys[k].fraction)];
-    });
+    constexpr size_t kBuckets = size_t(1) << (64 - kFractionShift);
+    const std::vector<std::vector<uint32_t>> histogram =
+        bucket_counts<uint32_t>(keys, kBuckets);
+    const size_t bands = histogram.size();
     // Largest fractions first: the bucket holding the n-th key, and how many of it.
     size_t bucket = kBuckets, wanted = n;
     while (bucket-- > 0) {
@@ -145,7 +157,7 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
     for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
         size_t t = offset[band], g = 0;
         for (size_t k = begin; k < end; ++k) {
-            const size_t b = bucket_of(keys[k].fraction);
+            const size_t b = fraction_bucket(keys[k].fraction);
             if (b == bucket) {
                 tied[t++] = keys[k];
             } else if (b > bucket && count[keys[k].index] < caps[keys[k].index]) {
@@ -177,21 +189,11 @@ void sort_keys(std::vector<RemainderKey>& keys) {
         std::sort(keys.begin(), keys.end());
         return;
     }
-    constexpr int kShift = 48;
-    constexpr size_t kBuckets = size_t(1) << (63 - kShift);  // the sign bit is 0
-    const auto bucket_of = [](double fraction) {
-        uint64_t bits;
-        std::memcpy(&bits, &fraction, sizeof bits);
-        return size_t(bits >> kShift);
-    };
-    const size_t bands = band_count(keys.size(), kBandPixels);
-    // at[band][bucket]: where the band's next key of that bucket goes.
-    std::vector<std::vector<size_t>> at(bands);
-    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        std::vector<size_t>& h = at[band];
-        h.assign(kBuckets, 0);
-        for (size_t k = begin; k < end; ++k) ++h[bucket_of(keys[k].fraction)];
-    });
+    constexpr size_t kBuckets = size_t(1) << (63 - kFractionShift);  // the sign bit is 0
+    // at[band][bucket]: first the band's count of that bucket, then where the band's next
+    // key of that bucket goes.
+    std::vector<std::vector<size_t>> at = bucket_counts<size_t>(keys, kBuckets);
+    const size_t bands = at.size();
     std::vector<size_t> start(kBuckets + 1, 0);  // bucket b's first place, largest first
     size_t place = 0;
     for (size_t b = kBuckets; b-- > 0;) {
@@ -206,7 +208,7 @@ void sort_keys(std::vector<RemainderKey>& keys) {
     for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
         std::vector<size_t>& next = at[band];
         for (size_t k = begin; k < end; ++k)
-            sorted[next[bucket_of(keys[k].fraction)]++] = keys[k];
+            sorted[next[fraction_bucket(keys[k].fraction)]++] = keys[k];
     });
     for_each_band(kBuckets, 256, [&](size_t, size_t begin, size_t end) {
         for (size_t b = begin; b < end; ++b) {
