@@ -36,13 +36,11 @@ TEST(SphereHit, APathLeavingTheSurfaceDoesNotHitItAgain) {
         const Vec3 out = c + n * (r + offset), in = c + n * (r - offset);
         // Away from the sphere, within 80 degrees of the normal.
         const Vec3 away = normalize(n + Vec3(0.3f, -0.2f, 0.1f) * 0.5f);
-        if (dot(away, n) > 0.2f) {
-            EXPECT_EQ(sphere_hit_t(out, away, c, r, kInf), kInf);
-        }
+        if (dot(away, n) <= 0.2f) continue;
+        EXPECT_EQ(sphere_hit_t(out, away, c, r, kInf), kInf);
         // Into the sphere: the chord's length 2 r cos(theta), from just inside.
-        const Vec3 into = -away;
-        const float t = sphere_hit_t(in, into, c, r, kInf);
-        if (dot(away, n) > 0.2f) EXPECT_NEAR(t, 2 * r * dot(away, n), 1e-3f) << i;
+        EXPECT_NEAR(sphere_hit_t(in, -away, c, r, kInf), 2 * r * dot(away, n), 1e-3f)
+            << i;
     }
 }
 
