@@ -7,28 +7,12 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "shading.h"
 #include "warp.h"
 
 namespace aliquot {
 
 namespace {
-
-constexpr float kInvPi = float(1.0 / std::numbers::pi);
-
-// Rays leave a surface from a point pushed off it along the geometric normal, to the side
-// they travel to; scaled by the point's magnitude so float spacing never swallows it.
-float offset_scale(const Vec3& p) {
-    return 1e-4f *
-           (1.0f + std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
-}
-Vec3 offset_origin(const Vec3& p, const Vec3& ng, float scale, const Vec3& dir) {
-    return dot(dir, ng) > 0 ? p + ng * scale : p - ng * scale;
-}
-
-float power_heuristic(float a, float b) {
-    const float a2 = a * a;
-    return a2 > 0 ? a2 / (a2 + b * b) : 0.0f;
-}
 
 // Unpolarised Fresnel reflectance of a smooth dielectric interface; eta = n_t / n_i.
 float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
@@ -57,25 +41,17 @@ const Material& PathTracer::material_at(const Hit& hit) const {
 
 Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction,
                               SampleRng& rng) const {
-    Hit hit;
-    const bool found =
-        embree_.intersect(origin, direction, std::numeric_limits<float>::infinity(), hit);
-    return radiance(origin, direction, found ? &hit : nullptr, rng);
+    Radiance out;
+    radiance_batch(origin, &direction, 1, &rng, &out);
+    return out;
 }
 
-// One vertex of a path, kept whole on purpose (longer than our ~80-line rule): the order
-// in which it draws from `rng` is the sample's identity, and split into functions that
-// order would be threaded through every call. What radiance() kept in locals between
-// vertices is the PathState, so that a batch of paths can advance a vertex at a time.
-bool PathTracer::shade(PathState& s, const Hit& hit, SampleRng& rng) const {
+const Material* PathTracer::arrive(PathState& s, const Hit& hit) const {
     s.shadow = false;
-    const Vec3 p = s.o + s.d * hit.t;
     const float cos_ng = dot(s.d, hit.ng);
-    const bool front = cos_ng < 0;
-
     // Emission found by the path itself, weighted against light sampling unless the
     // previous bounce could not have been light-sampled.
-    if (front && hit.geom_id != embree_.sphere_geometry()) {
+    if (cos_ng < 0 && hit.geom_id != embree_.sphere_geometry()) {
         const TriangleMesh& mesh = scene_.meshes[hit.geom_id];
         if (mesh.is_emitter()) {
             float w = 1.0f;
@@ -89,105 +65,112 @@ bool PathTracer::shade(PathState& s, const Hit& hit, SampleRng& rng) const {
     }
     // Path length counted in segments, as Mitsuba's max_depth: the next vertex would
     // make depth + 2 segments.
-    if (s.depth + 1 >= scene_.max_depth) return false;
-    const float offset = offset_scale(p);
+    if (s.depth + 1 >= scene_.max_depth) return nullptr;
+    return &material_at(hit);
+}
 
-    const Material& mat = material_at(hit);
+// The draws are the sample's identity: light pick and point, bounce, then roulette from
+// the fifth vertex on, as one path's shading always drew them.
+void PathTracer::add_diffuse(DiffuseLanes& l, int path, const PathState& s,
+                             const Hit& hit, const Material& mat, SampleRng& rng) const {
+    const int j = l.count++;
+    l.path[j] = path;
+    l.p.set(j, s.o + s.d * hit.t);
+    l.ng.set(j, hit.ng);
+    l.n.set(j, dot(s.d, hit.ng) < 0 ? hit.ng : -hit.ng);  // facing the incoming ray
+    l.beta.set(j, s.beta);
+    l.reflectance.set(j, mat.reflectance);
+    l.eta[j] = s.eta;
+    if (lights_.empty()) {
+        l.light_pdf[j] = 0.0f;  // no shadow ray; the other light inputs go unused
+        l.light_u1[j] = l.light_u2[j] = 0.0f;
+        for (DiffuseLanes::Vec3Lanes* v :
+             {&l.light_p0, &l.light_e1, &l.light_e2, &l.light_normal, &l.light_radiance})
+            v->set(j, Vec3(0.0f));
+    } else {
+        const Emitter& e = lights_.pick(rng.next_float());
+        l.light_u1[j] = rng.next_float();
+        l.light_u2[j] = rng.next_float();
+        l.light_p0.set(j, e.p0);
+        l.light_e1.set(j, e.e1);
+        l.light_e2.set(j, e.e2);
+        l.light_normal.set(j, e.normal);
+        l.light_radiance.set(j, e.radiance);
+        l.light_pdf[j] = e.pdf_area;
+    }
+    l.u1[j] = rng.next_float();
+    l.u2[j] = rng.next_float();
+    l.roulette[j] = s.depth + 1 >= kRussianRouletteDepth;
+    l.u_roulette[j] = l.roulette[j] ? rng.next_float() : 0.0f;
+}
+
+bool PathTracer::scatter_specular(PathState& s, const Hit& hit, const Material& mat,
+                                  SampleRng& rng) const {
+    const Vec3 p = s.o + s.d * hit.t;
+    const bool front = dot(s.d, hit.ng) < 0;
     const Vec3 n = front ? hit.ng : -hit.ng;  // facing the incoming ray
     Vec3 wo;
-    switch (mat.kind) {
-        case Material::Kind::Diffuse: {
-            if (!lights_.empty()) {
-                const float us = rng.next_float(), u1 = rng.next_float(),
-                            u2 = rng.next_float();
-                const LightSample ls = lights_.sample(us, u1, u2);
-                Vec3 to_light = ls.position - p;
-                const float dist2 = dot(to_light, to_light);
-                const float dist = std::sqrt(dist2);
-                to_light = to_light / dist;
-                const float cos_light = -dot(to_light, ls.normal);
-                const float cos_surf = dot(to_light, n);
-                if (cos_light > 0 && cos_surf > 0 && ls.pdf_area > 0) {
-                    // The shadow ray is the caller's to trace (alone or in a packet);
-                    // what it adds if nothing is in the way is fixed now.
-                    s.shadow = true;
-                    s.shadow_origin = offset_origin(p, hit.ng, offset, to_light);
-                    s.shadow_dir = to_light;
-                    // Stop short of the light so its own surface does not occlude.
-                    s.shadow_tmax = dist * (1.0f - 1e-3f);
-                    ++s.rays;
-                    const float light_pdf = ls.pdf_area * dist2 / cos_light;
-                    const float bsdf_pdf = cos_surf * kInvPi;
-                    const float w = power_heuristic(light_pdf, bsdf_pdf);
-                    s.shadow_L = s.beta * mat.reflectance * ls.radiance *
-                                 (kInvPi * cos_surf * w / light_pdf);
-                }
-            }
-            const float u1 = rng.next_float(), u2 = rng.next_float();
-            wo = cosine_hemisphere(n, u1, u2);
-            s.prev_bsdf_pdf = std::max(dot(wo, n), 0.0f) * kInvPi;
-            s.beta *= mat.reflectance;  // f * cos / pdf for a Lambertian lobe
-            s.prev_specular = false;
-            break;
-        }
-        case Material::Kind::Mirror: {
-            wo = s.d - n * (2.0f * dot(s.d, n));
-            s.beta *= mat.reflectance;
-            s.prev_specular = true;
-            break;
-        }
-        case Material::Kind::Dielectric: {
-            const float cos_i = -dot(s.d, n);
-            const float eta_rel = front ? mat.ior : 1.0f / mat.ior;
-            float cos_t;
-            const float F = fresnel_dielectric(cos_i, eta_rel, cos_t);
-            if (rng.next_float() < F) {
-                wo = s.d + n * (2.0f * cos_i);
-            } else {
-                wo = normalize(s.d / eta_rel + n * (cos_i / eta_rel - cos_t));
-                // Radiance is compressed into the denser medium (Veach's thesis, 5.2).
-                s.beta *= 1.0f / (eta_rel * eta_rel);
-                s.eta *= eta_rel;
-            }
-            s.prev_specular = true;
-            break;
+    if (mat.kind == Material::Kind::Mirror) {
+        wo = s.d - n * (2.0f * dot(s.d, n));
+        s.beta *= mat.reflectance;
+    } else {
+        const float cos_i = -dot(s.d, n);
+        const float eta_rel = front ? mat.ior : 1.0f / mat.ior;
+        float cos_t;
+        const float F = fresnel_dielectric(cos_i, eta_rel, cos_t);
+        if (rng.next_float() < F) {
+            wo = s.d + n * (2.0f * cos_i);
+        } else {
+            wo = normalize(s.d / eta_rel + n * (cos_i / eta_rel - cos_t));
+            // Radiance is compressed into the denser medium (Veach's thesis, 5.2).
+            s.beta *= 1.0f / (eta_rel * eta_rel);
+            s.eta *= eta_rel;
         }
     }
+    s.prev_specular = true;
 
-    // Russian roulette after the fifth vertex, with Mitsuba's survival probability.
+    // Russian roulette after the fifth vertex.
     if (s.depth + 1 >= kRussianRouletteDepth) {
-        const float q = std::min(max_component(s.beta) * s.eta * s.eta, 0.95f);
+        const float q = survival(s.beta, s.eta);
         if (!(rng.next_float() < q)) return false;
         s.beta *= 1.0f / q;
     }
     if (max_component(s.beta) <= 0.0f) return false;
-    s.o = offset_origin(p, hit.ng, offset, wo);
+    s.o = offset_origin(p, hit.ng, offset_scale(p), wo);
     s.d = wo;
     ++s.rays;
     ++s.depth;
     return true;
 }
 
-Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction, const Hit* first,
-                              SampleRng& rng) const {
-    PathState s;
-    s.o = origin;
-    s.d = direction;
-    if (!first) return {s.L, s.rays};
-    Hit hit = *first;
-    while (true) {
-        const bool more = shade(s, hit, rng);
-        if (s.shadow && !embree_.occluded(s.shadow_origin, s.shadow_dir, s.shadow_tmax))
-            s.L += s.shadow_L;
-        if (!more) break;
-        if (!embree_.intersect(s.o, s.d, std::numeric_limits<float>::infinity(), hit))
-            break;
+namespace {
+
+// Takes lane j's shading back into its path; whether the path goes on.
+bool finish_diffuse(const DiffuseLanes& l, int j, PathState& s) {
+    if (l.shadow[j]) {
+        s.shadow = true;
+        s.shadow_origin = l.shadow_origin.get(j);
+        s.shadow_dir = l.shadow_dir.get(j);
+        s.shadow_tmax = l.shadow_tmax[j];
+        s.shadow_L = l.shadow_L.get(j);
+        ++s.rays;
     }
-    return {s.L, s.rays};
+    s.prev_bsdf_pdf = l.bsdf_pdf[j];
+    s.prev_specular = false;
+    s.beta = l.beta.get(j);
+    if (!l.alive[j]) return false;
+    s.o = l.origin.get(j);
+    s.d = l.dir.get(j);
+    ++s.rays;
+    ++s.depth;
+    return true;
 }
+
+}  // namespace
 
 void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
                                 SampleRng* rngs, Radiance* out) const {
+    static_assert(kBatch <= DiffuseLanes::kMax);
     if (count < 0 || count > kBatch)
         throw std::invalid_argument("radiance_batch: more paths than a batch holds");
     constexpr int kPacket = EmbreeScene::kPacket;
@@ -205,16 +188,34 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
         paths[i].d = dirs[i];
         if (found[i]) active[n_active++] = i;
     }
+    DiffuseLanes lanes;
+    std::array<bool, kBatch> going;
     std::array<Vec3, kPacket> origins, directions;
     std::array<float, kPacket> tmax;
     std::array<bool, kPacket> blocked, hit_found;
     std::array<Hit, kPacket> packet_hits;
     while (n_active > 0) {
+        // Shade every vertex: specular ones one by one, diffuse ones together.
+        lanes.count = 0;
+        for (int a = 0; a < n_active; ++a) {
+            const int i = active[a];
+            const Material* mat = arrive(paths[i], hits[i]);
+            going[i] = false;
+            if (!mat) continue;
+            if (mat->kind == Material::Kind::Diffuse)
+                add_diffuse(lanes, i, paths[i], hits[i], *mat, rngs[i]);
+            else
+                going[i] = scatter_specular(paths[i], hits[i], *mat, rngs[i]);
+        }
+        shade_diffuse(lanes);
+        for (int j = 0; j < lanes.count; ++j)
+            going[lanes.path[j]] = finish_diffuse(lanes, j, paths[lanes.path[j]]);
+
         int n_next = 0, n_shadow = 0;
         std::array<int, kBatch> shadowed;
         for (int a = 0; a < n_active; ++a) {
             const int i = active[a];
-            if (shade(paths[i], hits[i], rngs[i])) next[n_next++] = i;
+            if (going[i]) next[n_next++] = i;
             if (paths[i].shadow) shadowed[n_shadow++] = i;
         }
         // Shadow rays, then the next bounces, kPacket at a time in sample order.

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 
+#include "diffuse_lanes.h"
 #include "embree_scene.h"
 #include "light_sampler.h"
 #include "sampler.h"
@@ -45,27 +46,31 @@ public:
     const Scene& scene() const { return scene_; }
     const EmbreeScene& embree() const { return embree_; }
 
-    // Radiance arriving at `origin` from direction `dir` (unit length).
+    // Radiance arriving at `origin` from direction `dir` (unit length): a batch of one.
     Radiance radiance(const Vec3& origin, const Vec3& dir, SampleRng& rng) const;
-    // The same, with the first hit already traced (nullptr: the ray hit nothing), as
-    // camera rays are, a packet at a time. It counts as the path's first ray.
-    Radiance radiance(const Vec3& origin, const Vec3& dir, const Hit* first,
-                      SampleRng& rng) const;
 
     // The radiance of `count` (at most kBatch) camera rays from `origin`, traced together
     // a vertex at a time: camera rays, shadow rays and bounces as Embree packets of the
-    // paths still going, in sample order. out[i] is what radiance() would give rngs[i]'s
-    // path up to Embree's rounding, which may differ between its packet and single-ray
-    // kernels: callers make batches from what the render fixes (trace_job.cpp).
+    // paths still going, in sample order, and the diffuse vertices shaded together
+    // (diffuse_lanes.h). out[i] is what radiance() would give rngs[i]'s path up to
+    // Embree's rounding, which may differ between its packet and single-ray kernels:
+    // callers make batches from what the render fixes (trace_job.cpp).
     void radiance_batch(const Vec3& origin, const Vec3* dirs, int count, SampleRng* rngs,
                         Radiance* out) const;
 
 private:
     const Material& material_at(const Hit& hit) const;
-    // Shades the vertex `hit` of path `s`: its emission, a shadow ray toward the light
-    // (s.shadow; the caller traces it), the next direction and Russian roulette. Whether
-    // the path goes on, along (s.o, s.d).
-    bool shade(PathState& s, const Hit& hit, SampleRng& rng) const;
+    // A path arrives at vertex `hit`: adds the emission it finds there and returns the
+    // surface's material, or nullptr if the path may not go on (its length is at most).
+    const Material* arrive(PathState& s, const Hit& hit) const;
+    // Hands a diffuse vertex to `lanes`, drawing its random numbers from `rng` now, in
+    // the order one-path shading would.
+    void add_diffuse(DiffuseLanes& lanes, int path, const PathState& s, const Hit& hit,
+                     const Material& mat, SampleRng& rng) const;
+    // Shades a mirror or dielectric vertex: the next direction and Russian roulette.
+    // Whether the path goes on, along (s.o, s.d).
+    bool scatter_specular(PathState& s, const Hit& hit, const Material& mat,
+                          SampleRng& rng) const;
 
     const Scene& scene_;
     EmbreeScene embree_;
