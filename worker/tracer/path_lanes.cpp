@@ -1,0 +1,72 @@
+#include "path_lanes.h"
+
+#include "shading.h"
+#include "warp.h"
+
+namespace aliquot {
+
+// The loop body is one-path shading written without branches: what a path would skip
+// (the shadow ray when the light faces away, roulette before the fifth vertex, a lane
+// that is not diffuse) is computed anyway and selected away, so the compiler can run
+// lanes side by side. That changes no result: each lane's operations are its own path's.
+// Cloned for AVX-512 and AVX2 (picked at load by the CPU), as wider lanes are more paths
+// an instruction; without fused multiply-adds every clone gives the same bits.
+__attribute__((target_clones("avx512f", "avx2", "default"))) void shade_diffuse(
+    PathLanes& l, int count) {
+    for (int i = 0; i < count; ++i) {
+        const bool diffuse = l.diffuse[i] != 0;
+        const Vec3 d = l.d.get(i), ng = l.ng.get(i);
+        const Vec3 p = l.o.get(i) + d * l.t[i];
+        const Vec3 n = ng * (dot(d, ng) < 0 ? 1.0f : -1.0f);  // facing the incoming ray
+        const Vec3 reflectance = l.reflectance.get(i);
+        Vec3 beta = l.beta.get(i);
+        const float offset = offset_scale(p);
+
+        // Next-event estimation: a uniform point on the picked triangle (square-root
+        // parameterisation), weighted against the bounce by the power heuristic.
+        const float su = std::sqrt(l.light_u1[i]);
+        const float b1 = 1.0f - su, b2 = l.light_u2[i] * su;
+        const Vec3 on_light =
+            l.light_p0.get(i) + l.light_e1.get(i) * b1 + l.light_e2.get(i) * b2;
+        Vec3 to_light = on_light - p;
+        const float dist2 = dot(to_light, to_light);
+        const float dist = std::sqrt(dist2);
+        to_light = to_light / dist;
+        const float cos_light = -dot(to_light, l.light_normal.get(i));
+        const float cos_surf = dot(to_light, n);
+        const float pdf_area = l.light_pdf[i];
+        l.shadow[i] = diffuse & (cos_light > 0) & (cos_surf > 0) & (pdf_area > 0);
+        l.shadow_origin.set(i, offset_origin(p, ng, offset, to_light));
+        l.shadow_dir.set(i, to_light);
+        // Stop short of the light so its own surface does not occlude.
+        l.shadow_tmax[i] = dist * (1.0f - 1e-3f);
+        const float light_pdf = pdf_area * dist2 / cos_light;
+        const float w = power_heuristic(light_pdf, cos_surf * kInvPi);
+        l.shadow_L.set(i, beta * reflectance * l.light_radiance.get(i) *
+                              (kInvPi * cos_surf * w / light_pdf));
+
+        // The bounce: f * cos / pdf of a Lambertian lobe is its reflectance.
+        const Vec3 wo = cosine_hemisphere(n, l.u1[i], l.u2[i]);
+        const float bsdf_pdf = std::max(dot(wo, n), 0.0f) * kInvPi;
+        Vec3 next_beta = beta * reflectance;
+
+        const bool roulette = l.roulette[i] != 0;
+        const float q = survival(next_beta, l.eta[i]);
+        const bool survived = !roulette | (l.u_roulette[i] < q);
+        next_beta *= roulette ? 1.0f / q : 1.0f;  // times 1 is the same bits
+        l.alive[i] = survived & !(max_component(next_beta) <= 0.0f);
+
+        // Other lanes keep theirs: selects of whole lanes, which the loop stores back.
+        const Vec3 next_o = offset_origin(p, ng, offset, wo);
+        const Vec3 o = l.o.get(i);
+        l.o.set(i, Vec3(diffuse ? next_o.x : o.x, diffuse ? next_o.y : o.y,
+                        diffuse ? next_o.z : o.z));
+        l.d.set(i,
+                Vec3(diffuse ? wo.x : d.x, diffuse ? wo.y : d.y, diffuse ? wo.z : d.z));
+        l.beta.set(i, Vec3(diffuse ? next_beta.x : beta.x, diffuse ? next_beta.y : beta.y,
+                           diffuse ? next_beta.z : beta.z));
+        l.prev_bsdf_pdf[i] = diffuse ? bsdf_pdf : l.prev_bsdf_pdf[i];
+    }
+}
+
+}  // namespace aliquot
