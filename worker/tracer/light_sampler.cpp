@@ -42,7 +42,7 @@ LightSampler::LightSampler(const Scene& scene) : pdf_by_mesh_(scene.meshes.size(
         triangles_[t].pdf_area = pdf_by_mesh_[mesh_of[t]];
 }
 
-const Emitter& LightSampler::pick(float u_select) const {
+const Emitter& LightSampler::pick_by_search(float u_select) const {
     const size_t i = std::min<size_t>(
         std::upper_bound(cdf_.begin(), cdf_.end(), u_select) - cdf_.begin(),
         cdf_.size() - 1);

@@ -32,11 +32,23 @@ public:
     LightSample sample(float u_select, float u1, float u2) const;
     // The triangle sample() would take for u_select: the batched shading picks it per
     // path, then places the points of many paths in one vectorised loop.
-    const Emitter& pick(float u_select) const;
+    // Inline and, for a few triangles (every built-in scene has two), without branches:
+    // which triangle a uniform picks is a coin flip a branch predictor always loses.
+    const Emitter& pick(float u_select) const {
+        constexpr size_t kLinear = 8;
+        if (cdf_.size() > kLinear) return pick_by_search(u_select);
+        // The first entry above u_select, as upper_bound finds it: the count of entries
+        // at most u_select (the cdf is sorted), the last one at most.
+        size_t i = 0;
+        for (size_t k = 0; k + 1 < cdf_.size(); ++k) i += cdf_[k] <= u_select;
+        return triangles_[i];
+    }
     // Area density of sampling any point of the given mesh (0 if it does not emit).
     float pdf_area(uint32_t mesh) const;
 
 private:
+    const Emitter& pick_by_search(float u_select) const;
+
     std::vector<Emitter> triangles_;
     std::vector<float> cdf_;  // inclusive, normalised to 1
     // pdf_area by mesh: weight / (area * total_weight) = luminance / total_weight.
