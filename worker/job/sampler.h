@@ -23,6 +23,20 @@ constexpr uint64_t sample_hash(uint64_t seed, uint32_t x, uint32_t y, uint64_t k
     return mix64(h ^ k);
 }
 
+// One PCG32 step (O'Neill, below) on a raw state and increment: SampleRng's, and the
+// batched tracer's, which keeps many samples' states side by side (path_lanes.h).
+constexpr uint32_t pcg32_step(uint64_t& state, uint64_t inc) {
+    const uint64_t old = state;
+    state = old * 6364136223846793005ULL + inc;
+    const uint32_t xorshifted = uint32_t(((old >> 18u) ^ old) >> 27u);
+    const uint32_t rot = uint32_t(old >> 59u);
+    return (xorshifted >> rot) | (xorshifted << ((32 - rot) & 31));
+}
+
+// Uniform in [0, 1) from 32 random bits: their top 24, so the result is never rounded
+// up to 1. (24 bits fit a signed int, whose conversion to float is one instruction.)
+constexpr float unit_float(uint32_t bits) { return float(int32_t(bits >> 8)) * 0x1p-24f; }
+
 // PCG32 (O'Neill, "PCG: A Family of Simple Fast Space-Efficient Statistically Good
 // Algorithms for Random Number Generation", 2014): 64-bit LCG state, XSH-RR output.
 class SampleRng {
@@ -36,17 +50,14 @@ public:
         next_u32();
     }
 
-    uint32_t next_u32() {
-        const uint64_t old = state_;
-        state_ = old * 6364136223846793005ULL + inc_;
-        const uint32_t xorshifted = uint32_t(((old >> 18u) ^ old) >> 27u);
-        const uint32_t rot = uint32_t(old >> 59u);
-        return (xorshifted >> rot) | (xorshifted << ((32 - rot) & 31));
-    }
+    uint32_t next_u32() { return pcg32_step(state_, inc_); }
+    float next_float() { return unit_float(next_u32()); }
 
-    // Uniform in [0, 1): 24 random bits, so the result is never rounded up to 1.
-    // (24 bits fit a signed int, whose conversion to float is one instruction.)
-    float next_float() { return float(int32_t(next_u32() >> 8)) * 0x1p-24f; }
+    // The raw generator, for code that steps many samples' generators side by side and
+    // hands each its state back.
+    uint64_t state() const { return state_; }
+    uint64_t increment() const { return inc_; }
+    void set_state(uint64_t state) { state_ = state; }
 
 private:
     uint64_t state_;

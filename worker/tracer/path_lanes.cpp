@@ -5,6 +5,32 @@
 
 namespace aliquot {
 
+// Every lane steps a copy of its generator; the lanes that draw keep the step. (One loop
+// over all lanes, as 64-bit multiplies and rotates vectorise where branches would not.)
+__attribute__((target_clones("avx512f", "avx2", "default"))) void draw_diffuse_uniforms(
+    PathLanes& l, int count, bool light) {
+    for (int i = 0; i < count; ++i) {
+        uint64_t state = l.rng_state[i];
+        const uint64_t inc = l.rng_inc[i];
+        const bool diffuse = l.diffuse[i] != 0;
+        const bool lit = diffuse & light;
+        const bool roulette = diffuse & (l.roulette[i] != 0);
+        const auto draw = [&](bool taken) {
+            uint64_t stepped = state;
+            const float u = unit_float(pcg32_step(stepped, inc));
+            state = taken ? stepped : state;
+            return u;
+        };
+        l.u_select[i] = draw(lit);
+        l.light_u1[i] = draw(lit);
+        l.light_u2[i] = draw(lit);
+        l.u1[i] = draw(diffuse);
+        l.u2[i] = draw(diffuse);
+        l.u_roulette[i] = draw(roulette);
+        l.rng_state[i] = state;
+    }
+}
+
 // The loop body is one-path shading written without branches: what a path would skip
 // (the shadow ray when the light faces away, roulette before the fifth vertex, a lane
 // that is not diffuse) is computed anyway and selected away, so the compiler can run

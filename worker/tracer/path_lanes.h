@@ -9,6 +9,7 @@
 
 #include <cstdint>
 
+#include "sampler.h"
 #include "vec3.h"
 
 namespace aliquot {
@@ -34,20 +35,26 @@ struct PathLanes {
     int32_t prev_specular[kMax];  // camera rays and delta lobes take emission unweighted
     int32_t depth[kMax];
     uint32_t rays[kMax];  // Embree queries so far, camera ray included
+    // The sample's random number generator (SampleRng's state, stepped in place).
+    uint64_t rng_state[kMax], rng_inc[kMax];
+    float next_float(int i) { return unit_float(pcg32_step(rng_state[i], rng_inc[i])); }
 
     // The vertex each path arrived at: distance along d and geometric normal.
     float t[kMax];
     Vec3Lanes ng;
 
-    // In, where diffuse[i] != 0: the surface's reflectance; the emitting triangle picked
-    // for next-event estimation (pdf 0: none, no shadow ray) and the two uniforms placing
-    // a point on it; the bounce's two uniforms; roulette's, used where roulette[i] != 0.
+    // In, where diffuse[i] != 0: the surface's reflectance, and whether roulette plays.
     int32_t diffuse[kMax];
     Vec3Lanes reflectance;
-    Vec3Lanes light_p0, light_e1, light_e2, light_normal, light_radiance;
-    float light_pdf[kMax], light_u1[kMax], light_u2[kMax];
-    float u1[kMax], u2[kMax], u_roulette[kMax];
     int32_t roulette[kMax];
+    // Drawn by draw_diffuse_uniforms: the uniform that picks an emitting triangle, the
+    // two that place a point on it, the bounce's two, roulette's.
+    float u_select[kMax], light_u1[kMax], light_u2[kMax];
+    float u1[kMax], u2[kMax], u_roulette[kMax];
+    // In: the emitting triangle picked for next-event estimation (pdf 0: none, and no
+    // shadow ray).
+    Vec3Lanes light_p0, light_e1, light_e2, light_normal, light_radiance;
+    float light_pdf[kMax];
 
     // Out, where diffuse[i] != 0: the shadow ray (where shadow[i] != 0) and what it adds
     // if nothing blocks it; whether the path goes on. The shading also moves o and d to
@@ -57,6 +64,11 @@ struct PathLanes {
     float shadow_tmax[kMax];
     int32_t alive[kMax];
 };
+
+// Draws the random numbers of the diffuse vertices among lanes [0, count) from their
+// generators, in the order one-path shading draws them: a light pick and point (if the
+// scene has a light), the bounce, roulette's where it plays.
+void draw_diffuse_uniforms(PathLanes& lanes, int count, bool light);
 
 // Shades the diffuse vertices among lanes [0, count).
 void shade_diffuse(PathLanes& lanes, int count);

@@ -70,23 +70,19 @@ const Material* PathTracer::arrive(PathLanes& l, int i, const Hit& hit) const {
     return &material_at(hit);
 }
 
-// The draws are the sample's identity: light pick and point, bounce, then roulette from
-// the fifth vertex on, as one path's shading always drew them.
-void PathTracer::prepare_diffuse(PathLanes& l, int i, const Material& mat,
-                                 SampleRng& rng) const {
+void PathTracer::prepare_diffuse(PathLanes& l, int i, const Material& mat) const {
     l.diffuse[i] = 1;
     l.prev_specular[i] = 0;
     l.reflectance.set(i, mat.reflectance);
-    if (lights_.empty()) {
-        l.light_pdf[i] = 0.0f;  // no shadow ray; the other light inputs go unused
-        l.light_u1[i] = l.light_u2[i] = 0.0f;
-        for (PathLanes::Vec3Lanes* v :
-             {&l.light_p0, &l.light_e1, &l.light_e2, &l.light_normal, &l.light_radiance})
-            v->set(i, Vec3(0.0f));
-    } else {
-        const Emitter& e = lights_.pick(rng.next_float());
-        l.light_u1[i] = rng.next_float();
-        l.light_u2[i] = rng.next_float();
+    l.roulette[i] = l.depth[i] + 1 >= kRussianRouletteDepth;
+}
+
+void PathTracer::pick_lights(PathLanes& l, const int* active, int n_active) const {
+    if (lights_.empty()) return;  // light_pdf stays 0: no shadow rays
+    for (int a = 0; a < n_active; ++a) {
+        const int i = active[a];
+        if (!l.diffuse[i]) continue;
+        const Emitter& e = lights_.pick(l.u_select[i]);
         l.light_p0.set(i, e.p0);
         l.light_e1.set(i, e.e1);
         l.light_e2.set(i, e.e2);
@@ -94,14 +90,10 @@ void PathTracer::prepare_diffuse(PathLanes& l, int i, const Material& mat,
         l.light_radiance.set(i, e.radiance);
         l.light_pdf[i] = e.pdf_area;
     }
-    l.u1[i] = rng.next_float();
-    l.u2[i] = rng.next_float();
-    l.roulette[i] = l.depth[i] + 1 >= kRussianRouletteDepth;
-    l.u_roulette[i] = l.roulette[i] ? rng.next_float() : 0.0f;
 }
 
 bool PathTracer::scatter_specular(PathLanes& l, int i, const Hit& hit,
-                                  const Material& mat, SampleRng& rng) const {
+                                  const Material& mat) const {
     const Vec3 d = l.d.get(i);
     Vec3 beta = l.beta.get(i);
     const Vec3 p = l.o.get(i) + d * hit.t;
@@ -116,7 +108,7 @@ bool PathTracer::scatter_specular(PathLanes& l, int i, const Hit& hit,
         const float eta_rel = front ? mat.ior : 1.0f / mat.ior;
         float cos_t;
         const float F = fresnel_dielectric(cos_i, eta_rel, cos_t);
-        if (rng.next_float() < F) {
+        if (l.next_float(i) < F) {
             wo = d + n * (2.0f * cos_i);
         } else {
             wo = normalize(d / eta_rel + n * (cos_i / eta_rel - cos_t));
@@ -131,7 +123,7 @@ bool PathTracer::scatter_specular(PathLanes& l, int i, const Hit& hit,
     bool going = true;
     if (l.depth[i] + 1 >= kRussianRouletteDepth) {
         const float q = survival(beta, l.eta[i]);
-        going = rng.next_float() < q;
+        going = l.next_float(i) < q;
         beta *= 1.0f / q;
     }
     l.beta.set(i, beta);
@@ -172,8 +164,9 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
         for (PathLanes::Vec3Lanes* v : {&l.reflectance, &l.light_p0, &l.light_e1,
                                         &l.light_e2, &l.light_normal, &l.light_radiance})
             v->set(i, Vec3(0.0f));
-        l.light_pdf[i] = l.light_u1[i] = l.light_u2[i] = 0.0f;
-        l.u1[i] = l.u2[i] = l.u_roulette[i] = 0.0f;
+        l.light_pdf[i] = 0.0f;
+        l.rng_state[i] = rngs[i].state();
+        l.rng_inc[i] = rngs[i].increment();
         l.t[i] = found[i] ? hits[i].t : 0.0f;
         l.ng.set(i, found[i] ? hits[i].ng : Vec3(0.0f));
         if (found[i]) active[n_active++] = i;
@@ -191,25 +184,28 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
             going[i] = false;
             if (!mat) continue;
             if (mat->kind == Material::Kind::Diffuse)
-                prepare_diffuse(l, i, *mat, rngs[i]);
+                prepare_diffuse(l, i, *mat);
             else
-                going[i] = scatter_specular(l, i, hits[i], *mat, rngs[i]);
+                going[i] = scatter_specular(l, i, hits[i], *mat);
         }
+        draw_diffuse_uniforms(l, count, !lights_.empty());
+        pick_lights(l, active.data(), n_active);
         shade_diffuse(l, count);
 
+        // The lists of paths with a shadow ray and of paths going on, in sample order,
+        // made without branches: which paths end or cast a shadow ray is random, and a
+        // mispredicted branch a path cost more than the rest of this loop.
         int n_next = 0, n_shadow = 0;
         for (int a = 0; a < n_active; ++a) {
             const int i = active[a];
-            if (l.diffuse[i]) going[i] = l.alive[i] != 0;
-            if (l.shadow[i]) {
-                shadowed[n_shadow++] = i;
-                ++l.rays[i];
-            }
-            if (going[i]) {
-                next[n_next++] = i;
-                ++l.rays[i];
-                ++l.depth[i];
-            }
+            const bool goes = l.diffuse[i] ? l.alive[i] != 0 : going[i];
+            const bool shadow = l.shadow[i] != 0;
+            shadowed[n_shadow] = i;
+            n_shadow += shadow;
+            next[n_next] = i;
+            n_next += goes;
+            l.rays[i] += uint32_t(shadow) + uint32_t(goes);
+            l.depth[i] += goes;
             l.diffuse[i] = 0;  // shade_diffuse leaves paths that ended alone
         }
         // Shadow rays, then the next bounces, kPacket at a time in sample order.
@@ -237,17 +233,21 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
             }
             embree_.intersect_packet(origins.data(), directions.data(), m,
                                      packet_hits.data(), hit_found.data());
-            for (int j = 0; j < m; ++j)
-                if (hit_found[j]) {
-                    const int i = next[b + j];
-                    hits[i] = packet_hits[j];
-                    l.t[i] = hits[i].t;
-                    l.ng.set(i, hits[i].ng);
-                    active[n_active++] = i;
-                }
+            for (int j = 0; j < m; ++j) {
+                // A path that hit nothing ends; its lane keeps what it is given here.
+                const int i = next[b + j];
+                hits[i] = packet_hits[j];
+                l.t[i] = packet_hits[j].t;
+                l.ng.set(i, packet_hits[j].ng);
+                active[n_active] = i;
+                n_active += hit_found[j];
+            }
         }
     }
-    for (int i = 0; i < count; ++i) out[i] = {l.L.get(i), l.rays[i]};
+    for (int i = 0; i < count; ++i) {
+        out[i] = {l.L.get(i), l.rays[i]};
+        rngs[i].set_state(l.rng_state[i]);
+    }
 }
 
 }  // namespace aliquot

@@ -46,14 +46,14 @@ private:
     // Path i arrives at vertex `hit`: adds the emission it finds there and returns the
     // surface's material, or nullptr if the path may not go on (its length is at most).
     const Material* arrive(PathLanes& paths, int i, const Hit& hit) const;
-    // Readies path i's diffuse vertex for shade_diffuse, drawing its random numbers
-    // from `rng` now, in the order one-path shading would.
-    void prepare_diffuse(PathLanes& paths, int i, const Material& mat,
-                         SampleRng& rng) const;
+    // Marks path i's vertex as diffuse, for draw_diffuse_uniforms and shade_diffuse.
+    void prepare_diffuse(PathLanes& paths, int i, const Material& mat) const;
+    // Copies the emitting triangle each diffuse lane's u_select picks into its lane.
+    void pick_lights(PathLanes& paths, const int* active, int n_active) const;
     // Shades path i's mirror or dielectric vertex `hit`: the next direction and Russian
     // roulette. Whether the path goes on.
-    bool scatter_specular(PathLanes& paths, int i, const Hit& hit, const Material& mat,
-                          SampleRng& rng) const;
+    bool scatter_specular(PathLanes& paths, int i, const Hit& hit,
+                          const Material& mat) const;
 
     const Scene& scene_;
     EmbreeScene embree_;
