@@ -1,6 +1,7 @@
 #include "embree_scene.h"
 
 #include "sphere_hit.h"
+#include "sphere_lanes.h"
 
 #include <embree3/rtcore.h>
 #include <pmmintrin.h>
@@ -191,11 +192,18 @@ bool EmbreeScene::nearer_sphere(const Vec3& origin, const Vec3& dir, float tmax,
         }
     }
     if (nearest < 0) return false;
-    hit.t = tmax;
-    hit.geom_id = sphere_geom_id_;
-    hit.prim_id = uint32_t(nearest);
-    hit.ng = normalize(origin + dir * tmax - spheres_[size_t(nearest)].center);
+    hit = sphere_hit(origin, dir, tmax, nearest);
     return true;
+}
+
+Hit EmbreeScene::sphere_hit(const Vec3& origin, const Vec3& dir, float t,
+                            int sphere) const {
+    Hit hit;
+    hit.t = t;
+    hit.geom_id = sphere_geom_id_;
+    hit.prim_id = uint32_t(sphere);
+    hit.ng = normalize(origin + dir * t - spheres_[size_t(sphere)].center);
+    return hit;
 }
 
 bool EmbreeScene::sphere_blocks(const Vec3& origin, const Vec3& dir, float tmax) const {
@@ -318,9 +326,12 @@ void EmbreeScene::occluded_packet(const Vec3* origins, const Vec3* dirs,
         occluded_width<8, RTCRay8>(scene_, origins, dirs, tmax, count, occluded);
     else
         occluded_width<16, RTCRay16>(scene_, origins, dirs, tmax, count, occluded);
-    if (count > 1 && !spheres_.empty())
-        for (int i = 0; i < count; ++i)
-            occluded[i] = occluded[i] || sphere_blocks(origins[i], dirs[i], tmax[i]);
+    if (count > 1 && !spheres_.empty()) {
+        RayLanes rays;
+        for (int i = 0; i < count; ++i) rays.set(i, origins[i], dirs[i], tmax[i]);
+        nearest_spheres(spheres_, rays, count);
+        for (int i = 0; i < count; ++i) occluded[i] = occluded[i] || rays.sphere[i] >= 0;
+    }
 }
 
 void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int count,
@@ -342,13 +353,18 @@ void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int co
     else
         intersect_width<16, RTCRayHit16>(scene_, origins, dirs, count, coherent, found,
                                          on_hit);
-    if (count > 1 && !spheres_.empty())
+    if (count > 1 && !spheres_.empty()) {
+        RayLanes rays;
         for (int i = 0; i < count; ++i)
-            found[i] = nearer_sphere(
-                           origins[i], dirs[i],
-                           found[i] ? hits[i].t : std::numeric_limits<float>::infinity(),
-                           hits[i]) ||
-                       found[i];
+            rays.set(i, origins[i], dirs[i],
+                     found[i] ? hits[i].t : std::numeric_limits<float>::infinity());
+        nearest_spheres(spheres_, rays, count);
+        for (int i = 0; i < count; ++i)
+            if (rays.sphere[i] >= 0) {
+                hits[i] = sphere_hit(origins[i], dirs[i], rays.t[i], rays.sphere[i]);
+                found[i] = true;
+            }
+    }
 }
 
 bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,

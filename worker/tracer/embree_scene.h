@@ -71,6 +71,8 @@ private:
     // hit's t, or the query's bound); returns whether one was.
     bool nearer_sphere(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const;
     bool sphere_blocks(const Vec3& origin, const Vec3& dir, float tmax) const;
+    // The hit of the ray on sphere `sphere` at t.
+    Hit sphere_hit(const Vec3& origin, const Vec3& dir, float t, int sphere) const;
 
     RTCDeviceTy* device_ = nullptr;
     RTCSceneTy* scene_ = nullptr;

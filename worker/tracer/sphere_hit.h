@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <limits>
-#include <utility>
 
 #include "vec3.h"
 
@@ -18,6 +17,8 @@ namespace aliquot {
 // first's product (Haines et al., "Precision Improvements for Ray/Sphere Intersection",
 // Ray Tracing Gems, 2019, ch. 7): the textbook b^2 - ac cancels catastrophically for a
 // small sphere far away, and a path leaving a sphere's surface needs the far root exact.
+// Written with selects, not early returns, so that a loop of it over many rays
+// vectorises (sphere_lanes.cpp); a ray that misses computes NaNs the selects discard.
 inline float sphere_hit_t(const Vec3& origin, const Vec3& dir, const Vec3& center,
                           float radius, float tmax) {
     constexpr float kMiss = std::numeric_limits<float>::infinity();
@@ -27,14 +28,14 @@ inline float sphere_hit_t(const Vec3& origin, const Vec3& dir, const Vec3& cente
     const float c = dot(oc, oc) - radius * radius;
     const Vec3 f = oc - dir * (b / a);
     const float d = radius * radius - dot(f, f);  // discriminant / a
-    if (!(d >= 0.0f)) return kMiss;
     const float q = -b - std::copysign(std::sqrt(a * d), b);
-    if (q == 0.0f) return kMiss;  // the origin on the surface, tangent: no crossing
-    float t0 = c / q, t1 = q / a;
-    if (t0 > t1) std::swap(t0, t1);
-    if (t0 > 0.0f && t0 < tmax) return t0;
-    if (t1 > 0.0f && t1 < tmax) return t1;
-    return kMiss;
+    // q == 0: the origin on the surface, tangent: no crossing.
+    const bool crosses = (d >= 0.0f) & (q != 0.0f);
+    const float t0 = c / q, t1 = q / a;
+    const float near = t0 > t1 ? t1 : t0, far = t0 > t1 ? t0 : t1;
+    const bool near_in = crosses & (near > 0.0f) & (near < tmax);
+    const bool far_in = crosses & (far > 0.0f) & (far < tmax);
+    return near_in ? near : (far_in ? far : kMiss);
 }
 
 }  // namespace aliquot
