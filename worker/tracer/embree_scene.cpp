@@ -214,16 +214,15 @@ bool EmbreeScene::sphere_blocks(const Vec3& origin, const Vec3& dir, float tmax)
 
 namespace {
 
-// Lane i of a packet from ray (origin, dir, tmax); lanes past the count repeat ray 0 and
-// are masked off.
+// Lane i of an Embree packet from lane `from` of `rays`, looking as far as `tmax`.
 template <typename RayN>
-void fill_lane(RayN& ray, int i, const Vec3& origin, const Vec3& dir, float tmax) {
-    ray.org_x[i] = origin.x;
-    ray.org_y[i] = origin.y;
-    ray.org_z[i] = origin.z;
-    ray.dir_x[i] = dir.x;
-    ray.dir_y[i] = dir.y;
-    ray.dir_z[i] = dir.z;
+void fill_lane(RayN& ray, int i, const RayLanes& rays, int from, float tmax) {
+    ray.org_x[i] = rays.ox[from];
+    ray.org_y[i] = rays.oy[from];
+    ray.org_z[i] = rays.oz[from];
+    ray.dir_x[i] = rays.dx[from];
+    ray.dir_y[i] = rays.dy[from];
+    ray.dir_z[i] = rays.dz[from];
     ray.tnear[i] = 0.0f;
     ray.tfar[i] = tmax;
     ray.time[i] = 0.0f;
@@ -257,16 +256,16 @@ void intersect_n(const int* v, RTCScene s, RTCIntersectContext* c, RTCRayHit16* 
     rtcIntersect16(v, s, c, r);
 }
 
+// Lanes past the count repeat lane 0 and are masked off.
 template <int N, typename RayN>
-void occluded_width(RTCScene scene, const Vec3* origins, const Vec3* dirs,
-                    const float* tmax, int count, bool* occluded) {
+void occluded_width(RTCScene scene, const RayLanes& rays, int count, bool* occluded) {
     RTCIntersectContext context = incoherent_context();
     alignas(64) RayN ray;
     alignas(64) int valid[N];
     for (int i = 0; i < N; ++i) {
         const int from = i < count ? i : 0;
         valid[i] = i < count ? -1 : 0;
-        fill_lane(ray, i, origins[from], dirs[from], tmax[from]);
+        fill_lane(ray, i, rays, from, rays.t[from]);
     }
     occluded_n(valid, scene, &context, &ray);
     // Embree marks an occluded ray by setting tfar to -inf.
@@ -276,8 +275,8 @@ void occluded_width(RTCScene scene, const Vec3* origins, const Vec3* dirs,
 // Closest hits of `count` <= N rays; calls hit(i, t, geom, prim, u, v, ng) for those
 // that hit and found[i] for all.
 template <int N, typename RayHitN, typename OnHit>
-void intersect_width(RTCScene scene, const Vec3* origins, const Vec3* dirs, int count,
-                     bool coherent, bool* found, OnHit on_hit) {
+void intersect_width(RTCScene scene, const RayLanes& rays, int count, bool coherent,
+                     bool* found, OnHit on_hit) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT
@@ -287,8 +286,7 @@ void intersect_width(RTCScene scene, const Vec3* origins, const Vec3* dirs, int 
     for (int i = 0; i < N; ++i) {
         const int from = i < count ? i : 0;
         valid[i] = i < count ? -1 : 0;
-        fill_lane(rh.ray, i, origins[from], dirs[from],
-                  std::numeric_limits<float>::infinity());
+        fill_lane(rh.ray, i, rays, from, std::numeric_limits<float>::infinity());
         rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
@@ -305,66 +303,78 @@ void intersect_width(RTCScene scene, const Vec3* origins, const Vec3* dirs, int 
 
 void EmbreeScene::intersect_packet(const Vec3& origin, const Vec3* dirs, int count,
                                    Hit* hits, bool* found) const {
-    const Vec3 origins[kPacket] = {origin, origin, origin, origin, origin, origin,
-                                   origin, origin, origin, origin, origin, origin,
-                                   origin, origin, origin, origin};
-    intersect_packet(origins, dirs, count, hits, found, true);
+    check_count(count);
+    RayLanes rays;
+    for (int i = 0; i < count; ++i)
+        rays.set(i, origin, dirs[i], std::numeric_limits<float>::infinity());
+    intersect_lanes(rays, count, hits, found, true);
+}
+
+void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int count,
+                                   Hit* hits, bool* found, bool coherent) const {
+    check_count(count);
+    RayLanes rays;
+    for (int i = 0; i < count; ++i)
+        rays.set(i, origins[i], dirs[i], std::numeric_limits<float>::infinity());
+    intersect_lanes(rays, count, hits, found, coherent);
+}
+
+void EmbreeScene::occluded_packet(const Vec3* origins, const Vec3* dirs,
+                                  const float* tmax, int count, bool* occluded) const {
+    check_count(count);
+    RayLanes rays;
+    for (int i = 0; i < count; ++i) rays.set(i, origins[i], dirs[i], tmax[i]);
+    occluded_lanes(rays, count, occluded);
 }
 
 // The narrowest packet that holds `count` rays: Embree's packet kernels cost about the
 // same per query whatever lanes are masked off, so a few rays in a 16-wide packet would
 // cost more than one query each. One ray alone takes the single-ray kernel. The width is
 // a function of the count, so the result is too.
-void EmbreeScene::occluded_packet(const Vec3* origins, const Vec3* dirs,
-                                  const float* tmax, int count, bool* occluded) const {
+void EmbreeScene::occluded_lanes(RayLanes& rays, int count, bool* occluded) const {
     check_count(count);
-    if (count == 1)
-        occluded[0] = this->occluded(origins[0], dirs[0], tmax[0]);
-    else if (count <= 4)
-        occluded_width<4, RTCRay4>(scene_, origins, dirs, tmax, count, occluded);
-    else if (count <= 8)
-        occluded_width<8, RTCRay8>(scene_, origins, dirs, tmax, count, occluded);
-    else
-        occluded_width<16, RTCRay16>(scene_, origins, dirs, tmax, count, occluded);
-    if (count > 1 && !spheres_.empty()) {
-        RayLanes rays;
-        for (int i = 0; i < count; ++i) rays.set(i, origins[i], dirs[i], tmax[i]);
-        nearest_spheres(spheres_, rays, count);
-        for (int i = 0; i < count; ++i) occluded[i] = occluded[i] || rays.sphere[i] >= 0;
+    if (count == 1) {
+        occluded[0] = this->occluded(rays.origin(0), rays.dir(0), rays.t[0]);
+        return;
     }
+    if (count <= 4)
+        occluded_width<4, RTCRay4>(scene_, rays, count, occluded);
+    else if (count <= 8)
+        occluded_width<8, RTCRay8>(scene_, rays, count, occluded);
+    else
+        occluded_width<16, RTCRay16>(scene_, rays, count, occluded);
+    if (spheres_.empty()) return;
+    nearest_spheres(spheres_, rays, count);
+    for (int i = 0; i < count; ++i) occluded[i] = occluded[i] || rays.sphere[i] >= 0;
 }
 
-void EmbreeScene::intersect_packet(const Vec3* origins, const Vec3* dirs, int count,
-                                   Hit* hits, bool* found, bool coherent) const {
+void EmbreeScene::intersect_lanes(RayLanes& rays, int count, Hit* hits, bool* found,
+                                  bool coherent) const {
     check_count(count);
+    if (count == 1) {
+        found[0] = intersect(rays.origin(0), rays.dir(0),
+                             std::numeric_limits<float>::infinity(), hits[0]);
+        return;
+    }
     const auto on_hit = [&](int i, float t, uint32_t geom, uint32_t prim, float u,
                             float v, float nx, float ny, float nz) {
         hits[i] = to_hit(t, geom, prim, u, v, nx, ny, nz);
     };
-    if (count == 1)
-        found[0] = intersect(origins[0], dirs[0], std::numeric_limits<float>::infinity(),
-                             hits[0]);
-    else if (count <= 4)
-        intersect_width<4, RTCRayHit4>(scene_, origins, dirs, count, coherent, found,
-                                       on_hit);
+    if (count <= 4)
+        intersect_width<4, RTCRayHit4>(scene_, rays, count, coherent, found, on_hit);
     else if (count <= 8)
-        intersect_width<8, RTCRayHit8>(scene_, origins, dirs, count, coherent, found,
-                                       on_hit);
+        intersect_width<8, RTCRayHit8>(scene_, rays, count, coherent, found, on_hit);
     else
-        intersect_width<16, RTCRayHit16>(scene_, origins, dirs, count, coherent, found,
-                                         on_hit);
-    if (count > 1 && !spheres_.empty()) {
-        RayLanes rays;
-        for (int i = 0; i < count; ++i)
-            rays.set(i, origins[i], dirs[i],
-                     found[i] ? hits[i].t : std::numeric_limits<float>::infinity());
-        nearest_spheres(spheres_, rays, count);
-        for (int i = 0; i < count; ++i)
-            if (rays.sphere[i] >= 0) {
-                hits[i] = sphere_hit(origins[i], dirs[i], rays.t[i], rays.sphere[i]);
-                found[i] = true;
-            }
-    }
+        intersect_width<16, RTCRayHit16>(scene_, rays, count, coherent, found, on_hit);
+    if (spheres_.empty()) return;
+    for (int i = 0; i < count; ++i)
+        rays.t[i] = found[i] ? hits[i].t : std::numeric_limits<float>::infinity();
+    nearest_spheres(spheres_, rays, count);
+    for (int i = 0; i < count; ++i)
+        if (rays.sphere[i] >= 0) {
+            hits[i] = sphere_hit(rays.origin(i), rays.dir(i), rays.t[i], rays.sphere[i]);
+            found[i] = true;
+        }
 }
 
 bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,

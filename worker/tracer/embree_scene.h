@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "scene.h"
+#include "sphere_lanes.h"
 #include "vec3.h"
 
 struct RTCDeviceTy;
@@ -56,6 +57,12 @@ public:
     // from a batch of paths, which trace ~1.8x faster so (bench/embree_limits).
     void occluded_packet(const Vec3* origins, const Vec3* dirs, const float* tmax,
                          int count, bool* occluded) const;
+    // The same queries for rays already in lanes (a batch's bounces and shadow rays),
+    // each looking as far as rays.t[i] (intersect_lanes: to infinity). They use the
+    // lanes' t and sphere as scratch.
+    void intersect_lanes(RayLanes& rays, int count, Hit* hits, bool* found,
+                         bool coherent = false) const;
+    void occluded_lanes(RayLanes& rays, int count, bool* occluded) const;
     // Whether anything lies along origin + t*dir for t in (0, tmax).
     bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
 

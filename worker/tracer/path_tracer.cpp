@@ -172,8 +172,7 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
         if (found[i]) active[n_active++] = i;
     }
     std::array<bool, kBatch> going;
-    std::array<Vec3, kPacket> origins, directions;
-    std::array<float, kPacket> tmax;
+    RayLanes rays;
     std::array<bool, kPacket> blocked, hit_found;
     std::array<Hit, kPacket> packet_hits;
     while (n_active > 0) {
@@ -213,12 +212,10 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
             const int m = std::min(kPacket, n_shadow - b);
             for (int j = 0; j < m; ++j) {
                 const int i = shadowed[b + j];
-                origins[j] = l.shadow_origin.get(i);
-                directions[j] = l.shadow_dir.get(i);
-                tmax[j] = l.shadow_tmax[i];
+                rays.set(j, l.shadow_origin.get(i), l.shadow_dir.get(i),
+                         l.shadow_tmax[i]);
             }
-            embree_.occluded_packet(origins.data(), directions.data(), tmax.data(), m,
-                                    blocked.data());
+            embree_.occluded_lanes(rays, m, blocked.data());
             for (int j = 0; j < m; ++j) {
                 const int i = shadowed[b + j];
                 if (!blocked[j]) l.L.set(i, l.L.get(i) + l.shadow_L.get(i));
@@ -228,11 +225,11 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
         for (int b = 0; b < n_next; b += kPacket) {
             const int m = std::min(kPacket, n_next - b);
             for (int j = 0; j < m; ++j) {
-                origins[j] = l.o.get(next[b + j]);
-                directions[j] = l.d.get(next[b + j]);
+                const int i = next[b + j];
+                rays.set(j, l.o.get(i), l.d.get(i),
+                         std::numeric_limits<float>::infinity());
             }
-            embree_.intersect_packet(origins.data(), directions.data(), m,
-                                     packet_hits.data(), hit_found.data());
+            embree_.intersect_lanes(rays, m, packet_hits.data(), hit_found.data());
             for (int j = 0; j < m; ++j) {
                 // A path that hit nothing ends; its lane keeps what it is given here.
                 const int i = next[b + j];

@@ -24,6 +24,8 @@ struct RayLanes {
         dx[i] = dir.x, dy[i] = dir.y, dz[i] = dir.z;
         t[i] = tmax;
     }
+    Vec3 origin(int i) const { return {ox[i], oy[i], oz[i]}; }
+    Vec3 dir(int i) const { return {dx[i], dy[i], dz[i]}; }
 };
 
 // For rays [0, count): the nearest sphere each hits nearer than its t, spheres taken in
