@@ -165,12 +165,10 @@ EmbreeScene::~EmbreeScene() {
     if (device_) rtcReleaseDevice(device_);
 }
 
-Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
-                        float ng_x, float ng_y, float ng_z) const {
+Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v) const {
     Hit hit;
     hit.t = t;
     hit.geom_id = geom;
-    (void)ng_x, (void)ng_y, (void)ng_z;
     // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
     const MeshInfo& mesh = meshes_[geom];
     hit.prim_id = mesh.quads ? 2 * prim + (u + v > 1.0f) : prim;
@@ -272,8 +270,8 @@ void occluded_width(RTCScene scene, const RayLanes& rays, int count, bool* occlu
     for (int i = 0; i < count; ++i) occluded[i] = ray.tfar[i] < 0.0f;
 }
 
-// Closest hits of `count` <= N rays; calls hit(i, t, geom, prim, u, v, ng) for those
-// that hit and found[i] for all.
+// Closest hits of `count` <= N rays; calls on_hit(i, t, geom, prim, u, v) for those
+// that hit and sets found[i] for all.
 template <int N, typename RayHitN, typename OnHit>
 void intersect_width(RTCScene scene, const RayLanes& rays, int count, bool coherent,
                      bool* found, OnHit on_hit) {
@@ -295,7 +293,7 @@ void intersect_width(RTCScene scene, const RayLanes& rays, int count, bool coher
         found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (found[i])
             on_hit(i, rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
-                   rh.hit.v[i], rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
+                   rh.hit.v[i]);
     }
 }
 
@@ -357,9 +355,7 @@ void EmbreeScene::intersect_lanes(RayLanes& rays, int count, Hit* hits, bool* fo
         return;
     }
     const auto on_hit = [&](int i, float t, uint32_t geom, uint32_t prim, float u,
-                            float v, float nx, float ny, float nz) {
-        hits[i] = to_hit(t, geom, prim, u, v, nx, ny, nz);
-    };
+                            float v) { hits[i] = to_hit(t, geom, prim, u, v); };
     if (count <= 4)
         intersect_width<4, RTCRayHit4>(scene_, rays, count, coherent, found, on_hit);
     else if (count <= 8)
@@ -386,9 +382,7 @@ bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &context, &rh);
     const bool mesh = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-    if (mesh)
-        hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
-                     rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+    if (mesh) hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v);
     return nearer_sphere(origin, dir, mesh ? rh.ray.tfar : tmax, hit) || mesh;
 }
 

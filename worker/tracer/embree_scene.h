@@ -72,8 +72,9 @@ public:
     RTCSceneTy* embree_handle() const { return scene_; }
 
 private:
-    Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v, float ng_x,
-               float ng_y, float ng_z) const;
+    // Our Hit from Embree's: the unit normal made at load by triangle (Embree's Ng is
+    // the same direction, unnormalised).
+    Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v) const;
     // Replaces `hit` by the nearest sphere along the ray nearer than `tmax` (the mesh
     // hit's t, or the query's bound); returns whether one was.
     bool nearer_sphere(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const;
