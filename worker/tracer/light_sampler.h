@@ -30,19 +30,21 @@ public:
 
     bool empty() const { return triangles_.empty(); }
     LightSample sample(float u_select, float u1, float u2) const;
-    // The triangle sample() would take for u_select: the batched shading picks it per
-    // path, then places the points of many paths in one vectorised loop.
-    // Inline and, for a few triangles (every built-in scene has two), without branches:
-    // which triangle a uniform picks is a coin flip a branch predictor always loses.
+    // The triangle sample() would take for u_select. Inline and, for kFew triangles or
+    // fewer (every built-in scene has two), without branches: which triangle a uniform
+    // picks is a coin flip a branch predictor always loses. (The batched tracer counts
+    // the same way over many paths at once: pick_few_lights, path_lanes.h.)
+    static constexpr size_t kFew = 8;
     const Emitter& pick(float u_select) const {
-        constexpr size_t kLinear = 8;
-        if (cdf_.size() > kLinear) return pick_by_search(u_select);
+        if (cdf_.size() > kFew) return pick_by_search(u_select);
         // The first entry above u_select, as upper_bound finds it: the count of entries
         // at most u_select (the cdf is sorted), the last one at most.
         size_t i = 0;
         for (size_t k = 0; k + 1 < cdf_.size(); ++k) i += cdf_[k] <= u_select;
         return triangles_[i];
     }
+    const std::vector<Emitter>& emitters() const { return triangles_; }
+    const std::vector<float>& cdf() const { return cdf_; }  // inclusive, normalised
     // Area density of sampling any point of the given mesh (0 if it does not emit).
     float pdf_area(uint32_t mesh) const;
 

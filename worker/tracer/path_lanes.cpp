@@ -31,6 +31,31 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void draw_diffuse_u
     }
 }
 
+// The count of cdf entries at most u_select, as LightSampler::pick_index counts it,
+// a cdf entry at a time over all lanes; then each triangle's fields into the lanes that
+// picked it, a triangle at a time.
+__attribute__((target_clones("avx512f", "avx2", "default"))) void pick_few_lights(
+    PathLanes& l, int count, const Emitter* emitters, const float* cdf, int n) {
+    int32_t picked[PathLanes::kMax];
+    for (int i = 0; i < count; ++i) picked[i] = 0;
+    for (int k = 0; k + 1 < n; ++k) {
+        const float c = cdf[k];
+        for (int i = 0; i < count; ++i) picked[i] += c <= l.u_select[i];
+    }
+    for (int k = 0; k < n; ++k) {
+        const Emitter e = emitters[k];
+        for (int i = 0; i < count; ++i) {
+            const bool take = picked[i] == k;
+            l.light_p0.set(i, select(take, e.p0, l.light_p0.get(i)));
+            l.light_e1.set(i, select(take, e.e1, l.light_e1.get(i)));
+            l.light_e2.set(i, select(take, e.e2, l.light_e2.get(i)));
+            l.light_normal.set(i, select(take, e.normal, l.light_normal.get(i)));
+            l.light_radiance.set(i, select(take, e.radiance, l.light_radiance.get(i)));
+            l.light_pdf[i] = take ? e.pdf_area : l.light_pdf[i];
+        }
+    }
+}
+
 // The loop body is one-path shading written without branches: what a path would skip
 // (the shadow ray when the light faces away, roulette before the fifth vertex, a lane
 // that is not diffuse) is computed anyway and selected away, so the compiler can run
@@ -83,14 +108,9 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void shade_diffuse(
         l.alive[i] = survived & !(max_component(next_beta) <= 0.0f);
 
         // Other lanes keep theirs: selects of whole lanes, which the loop stores back.
-        const Vec3 next_o = offset_origin(p, ng, offset, wo);
-        const Vec3 o = l.o.get(i);
-        l.o.set(i, Vec3(diffuse ? next_o.x : o.x, diffuse ? next_o.y : o.y,
-                        diffuse ? next_o.z : o.z));
-        l.d.set(i,
-                Vec3(diffuse ? wo.x : d.x, diffuse ? wo.y : d.y, diffuse ? wo.z : d.z));
-        l.beta.set(i, Vec3(diffuse ? next_beta.x : beta.x, diffuse ? next_beta.y : beta.y,
-                           diffuse ? next_beta.z : beta.z));
+        l.o.set(i, select(diffuse, offset_origin(p, ng, offset, wo), l.o.get(i)));
+        l.d.set(i, select(diffuse, wo, d));
+        l.beta.set(i, select(diffuse, next_beta, beta));
         l.prev_bsdf_pdf[i] = diffuse ? bsdf_pdf : l.prev_bsdf_pdf[i];
     }
 }

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 
+#include "light_sampler.h"
 #include "sampler.h"
 #include "vec3.h"
 
@@ -69,6 +70,11 @@ struct PathLanes {
 // generators, in the order one-path shading draws them: a light pick and point (if the
 // scene has a light), the bounce, roulette's where it plays.
 void draw_diffuse_uniforms(PathLanes& lanes, int count, bool light);
+
+// Copies into lanes [0, count) the emitting triangle each lane's u_select picks from
+// `emitters` (n of them, at most LightSampler::kFew) by its cdf, as LightSampler::pick.
+void pick_few_lights(PathLanes& lanes, int count, const Emitter* emitters,
+                     const float* cdf, int n);
 
 // Shades the diffuse vertices among lanes [0, count).
 void shade_diffuse(PathLanes& lanes, int count);

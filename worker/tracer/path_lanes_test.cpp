@@ -137,5 +137,40 @@ TEST(PathLanes, DiffuseLanesBounceAndCastShadowRaysOthersKeepTheirState) {
     EXPECT_LT(survivors, diffuse);  // roulette ended some
 }
 
+// The lanes pick the triangle LightSampler::pick picks for the same uniform, whatever
+// the number of triangles the counting serves (1 to kFew).
+TEST(PathLanes, FewLightsArePickedAsTheLightSamplerPicksThem) {
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int n = 1; n <= int(LightSampler::kFew); ++n) {
+        Scene scene;
+        for (int k = 0; k < n; ++k) {  // triangles of different areas and radiances
+            TriangleMesh mesh;
+            const float x = float(3 * k), size = 1.0f + 0.5f * float(k % 3);
+            mesh.positions = {{x, 0, 0}, {x + size, 0, 0}, {x, size, 0}};
+            mesh.triangles = {{0, 1, 2}};
+            mesh.emission = Vec3(float(1 + (k * 7) % 5));
+            scene.meshes.push_back(mesh);
+        }
+        const LightSampler lights(scene);
+        ASSERT_EQ(lights.emitters().size(), size_t(n));
+        PathLanes l = made_up_lanes(unsigned(n));
+        for (int i = 0; i < PathLanes::kMax; ++i) l.u_select[i] = u(gen);
+        l.u_select[0] = 0.0f;
+        l.u_select[1] = lights.cdf()[0];  // on an entry: the next triangle's
+        pick_few_lights(l, PathLanes::kMax, lights.emitters().data(), lights.cdf().data(),
+                        n);
+        for (int i = 0; i < PathLanes::kMax; ++i) {
+            const Emitter& e = lights.pick(l.u_select[i]);
+            EXPECT_EQ(l.light_p0.get(i), e.p0) << n << " triangles, lane " << i;
+            EXPECT_EQ(l.light_e1.get(i), e.e1);
+            EXPECT_EQ(l.light_e2.get(i), e.e2);
+            EXPECT_EQ(l.light_normal.get(i), e.normal);
+            EXPECT_EQ(l.light_radiance.get(i), e.radiance);
+            EXPECT_EQ(l.light_pdf[i], e.pdf_area);
+        }
+    }
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -77,8 +77,15 @@ void PathTracer::prepare_diffuse(PathLanes& l, int i, const Material& mat) const
     l.roulette[i] = l.depth[i] + 1 >= kRussianRouletteDepth;
 }
 
-void PathTracer::pick_lights(PathLanes& l, const int* active, int n_active) const {
+void PathTracer::pick_lights(PathLanes& l, int count, const int* active,
+                             int n_active) const {
     if (lights_.empty()) return;  // light_pdf stays 0: no shadow rays
+    const std::vector<Emitter>& emitters = lights_.emitters();
+    if (emitters.size() <= LightSampler::kFew) {
+        pick_few_lights(l, count, emitters.data(), lights_.cdf().data(),
+                        int(emitters.size()));
+        return;
+    }
     for (int a = 0; a < n_active; ++a) {
         const int i = active[a];
         if (!l.diffuse[i]) continue;
@@ -188,7 +195,7 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
                 going[i] = scatter_specular(l, i, hits[i], *mat);
         }
         draw_diffuse_uniforms(l, count, !lights_.empty());
-        pick_lights(l, active.data(), n_active);
+        pick_lights(l, count, active.data(), n_active);
         shade_diffuse(l, count);
 
         // The lists of paths with a shadow ray and of paths going on, in sample order,

@@ -49,7 +49,7 @@ private:
     // Marks path i's vertex as diffuse, for draw_diffuse_uniforms and shade_diffuse.
     void prepare_diffuse(PathLanes& paths, int i, const Material& mat) const;
     // Copies the emitting triangle each diffuse lane's u_select picks into its lane.
-    void pick_lights(PathLanes& paths, const int* active, int n_active) const;
+    void pick_lights(PathLanes& paths, int count, const int* active, int n_active) const;
     // Shades path i's mirror or dielectric vertex `hit`: the next direction and Russian
     // roulette. Whether the path goes on.
     bool scatter_specular(PathLanes& paths, int i, const Hit& hit,

@@ -30,6 +30,12 @@ inline float power_heuristic(float a, float b) {
     return a2 > 0 ? a2 / (a2 + b * b) : 0.0f;
 }
 
+// a where c holds, else b: a select a component at a time, which a loop over lanes
+// vectorises (a select of whole Vec3s compiles to a branch).
+inline Vec3 select(bool c, const Vec3& a, const Vec3& b) {
+    return {c ? a.x : b.x, c ? a.y : b.y, c ? a.z : b.z};
+}
+
 // Russian roulette's survival probability, Mitsuba's: the throughput's largest component
 // times the squared product of IORs crossed, at most 0.95.
 inline float survival(const Vec3& beta, float eta) {
