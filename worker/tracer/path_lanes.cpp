@@ -1,14 +1,14 @@
 #include "path_lanes.h"
 
 #include "shading.h"
+#include "simd_clones.h"
 #include "warp.h"
 
 namespace aliquot {
 
 // Every lane steps a copy of its generator; the lanes that draw keep the step. (One loop
 // over all lanes, as 64-bit multiplies and rotates vectorise where branches would not.)
-__attribute__((target_clones("avx512f", "avx2", "default"))) void draw_diffuse_uniforms(
-    PathLanes& l, int count, bool light) {
+ALIQUOT_SIMD_CLONES void draw_diffuse_uniforms(PathLanes& l, int count, bool light) {
     for (int i = 0; i < count; ++i) {
         uint64_t state = l.rng_state[i];
         const uint64_t inc = l.rng_inc[i];
@@ -34,8 +34,8 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void draw_diffuse_u
 // The count of cdf entries at most u_select, as LightSampler::pick_index counts it,
 // a cdf entry at a time over all lanes; then each triangle's fields into the lanes that
 // picked it, a triangle at a time.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void pick_few_lights(
-    PathLanes& l, int count, const Emitter* emitters, const float* cdf, int n) {
+ALIQUOT_SIMD_CLONES void pick_few_lights(PathLanes& l, int count, const Emitter* emitters,
+                                         const float* cdf, int n) {
     int32_t picked[PathLanes::kMax];
     for (int i = 0; i < count; ++i) picked[i] = 0;
     for (int k = 0; k + 1 < n; ++k) {
@@ -60,10 +60,8 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void pick_few_light
 // (the shadow ray when the light faces away, roulette before the fifth vertex, a lane
 // that is not diffuse) is computed anyway and selected away, so the compiler can run
 // lanes side by side. That changes no result: each lane's operations are its own path's.
-// Cloned for AVX-512 and AVX2 (picked at load by the CPU), as wider lanes are more paths
-// an instruction; without fused multiply-adds every clone gives the same bits.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void shade_diffuse(
-    PathLanes& l, int count) {
+// Cloned for wider vectors (simd_clones.h): more paths an instruction.
+ALIQUOT_SIMD_CLONES void shade_diffuse(PathLanes& l, int count) {
     for (int i = 0; i < count; ++i) {
         const bool diffuse = l.diffuse[i] != 0;
         const Vec3 d = l.d.get(i), ng = l.ng.get(i);

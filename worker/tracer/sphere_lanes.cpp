@@ -1,12 +1,12 @@
 #include "sphere_lanes.h"
 
+#include "simd_clones.h"
 #include "sphere_hit.h"
 
 namespace aliquot {
 
-// Without fused multiply-adds (the tracer's build) every clone gives the same bits.
-__attribute__((target_clones("avx512f", "avx2", "default"))) void nearest_spheres(
-    const std::vector<Sphere>& spheres, RayLanes& r, int count) {
+ALIQUOT_SIMD_CLONES void nearest_spheres(const std::vector<Sphere>& spheres, RayLanes& r,
+                                         int count) {
     // All kMax lanes, those past the count repeating ray 0: a loop of a fixed count runs
     // as whole SIMD vectors, where a partial packet's count would leave a remainder to
     // go one ray at a time.
