@@ -1265,12 +1265,13 @@ uint64_t default_memory_limit() {
 
 uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
     const uint64_t pixels = uint64_t(width) * height;
-    uint64_t per_pixel = sizeof(PixelSums)    // the accumulator
-                         + sizeof(PixelSums)  // the copy a checkpoint is written from
-                         + 12                 // a round's jobs: counts, first indices
-                         + 16                 // the round's spp; a strategy's per pixel
-                         + 48   // optimal's allocation events, kept between rounds
-                         + 20;  // the final image: RGB, spp, variance
+    uint64_t per_pixel =
+        Accumulator::kBytesPerPixel    // the accumulator
+        + Accumulator::kBytesPerPixel  // the copy a checkpoint is written from
+        + 12                           // a round's jobs: counts, first indices
+        + 16                           // the round's spp; a strategy's per pixel
+        + 48                           // optimal's allocation events, kept between rounds
+        + 20;                          // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
 }
