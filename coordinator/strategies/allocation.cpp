@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 
 #include "bands.h"
 #include "sampler.h"
@@ -96,13 +95,17 @@ std::vector<size_t> in_order(size_t n, const Keep& keep) {
     return order;
 }
 
-// A remainder fraction's bucket: the top bits of its bit pattern. A non-negative double
-// sorts as its bits do, so the buckets are in the fractions' order.
-constexpr int kFractionShift = 48;
+// A remainder fraction's bucket: floor(fraction * kFractionBuckets), which never falls
+// as the fraction rises, so the buckets are in the fractions' order. Fractions lie in
+// [0, 1) and spread evenly over it, so each bucket holds about as many keys (~120 at
+// 1920x1080); bucketing by the top bits of their bit patterns put half of them, those
+// in [0.5, 1), into 16 buckets, whose sorts were most of optimal-time's round end.
+constexpr size_t kFractionBuckets = size_t(1) << 14;
 size_t fraction_bucket(double fraction) {
-    uint64_t bits;
-    std::memcpy(&bits, &fraction, sizeof bits);
-    return size_t(bits >> kFractionShift);
+    // (Multiplying by a power of two is exact; a NaN, which no share gives, goes first.)
+    return fraction > 0 ? std::min(kFractionBuckets - 1,
+                                   size_t(fraction * double(kFractionBuckets)))
+                        : 0;
 }
 
 // For each band of keys, how many of its keys fall in each of `buckets` buckets.
@@ -120,10 +123,10 @@ std::vector<std::vector<Count>> bucket_counts(const std::vector<RemainderKey>& k
 
 // Gives one more unit to each of the n first keys in RemainderKey's order (below its
 // cap) and returns how many it gave. The order is total (the index breaks ties), so
-// those n are one set, however they are found: here, a histogram of the fractions' top
-// bits (a fraction in [0, 1) sorts as its bit pattern does), counted in bands, finds
-// the bucket the n-th key falls in; every key in a larger bucket is taken, and selection
-// runs only on that bucket (nth_element on all the keys was most of apportion's time).
+// those n are one set, however they are found: here, a histogram of the fractions'
+// buckets (fraction_bucket), counted in bands, finds the bucket the n-th key falls in;
+// every key in a larger bucket is taken, and selection runs only on that bucket
+// (nth_element on all the keys was most of apportion's time).
 size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
                      std::vector<uint32_t>& count, const std::vector<uint32_t>& caps) {
     if (n == 0) return 0;
@@ -138,7 +141,7 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
             }
         return given;
     }
-    constexpr size_t kBuckets = size_t(1) << (64 - kFractionShift);
+    constexpr size_t kBuckets = kFractionBuckets;
     const std::vector<std::vector<uint32_t>> histogram =
         bucket_counts<uint32_t>(keys, kBuckets);
     const size_t bands = histogram.size();
@@ -179,17 +182,16 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
 }
 
 // Sorts keys into RemainderKey's order, which is total, so the result is the one
-// std::sort gives. The keys are first spread over buckets of their fractions' top bits
-// (a fraction in [0, 1) sorts as its bit pattern does; largest first), counted and
-// scattered in bands, and each bucket is then sorted alone, buckets shared among the
-// pool's threads. std::sort of all of them was the largest part of optimal-time's
-// round end at 1920x1080.
+// std::sort gives. The keys are first spread over their fractions' buckets
+// (fraction_bucket; largest first), counted and scattered in bands, and each bucket is
+// then sorted alone, buckets shared among the pool's threads. std::sort of all of them
+// was the largest part of optimal-time's round end at 1920x1080.
 void sort_keys(std::vector<RemainderKey>& keys) {
     if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
         std::sort(keys.begin(), keys.end());
         return;
     }
-    constexpr size_t kBuckets = size_t(1) << (63 - kFractionShift);  // the sign bit is 0
+    constexpr size_t kBuckets = kFractionBuckets;
     // at[band][bucket]: first the band's count of that bucket, then where the band's next
     // key of that bucket goes.
     std::vector<std::vector<size_t>> at = bucket_counts<size_t>(keys, kBuckets);
