@@ -24,7 +24,11 @@ bool stays_finite(double merged, double added) {
 }  // namespace
 
 Accumulator::Accumulator(uint32_t width, uint32_t height)
-    : width_(width), height_(height), pixels_(size_t(width) * height) {}
+    : width_(width),
+      height_(height),
+      pixels_(size_t(width) * height),
+      samples_(pixels_.size(), 0),
+      half_difference_(pixels_.size(), -1.0) {}
 
 void Accumulator::merge(const SampleJobResult& result) {
     const PixelRect& r = result.rect;
@@ -47,6 +51,9 @@ void Accumulator::merge(const SampleJobResult& result) {
             dst.samples += src.samples;
             dst.rays += src.rays;
             dst.nonfinite += src.nonfinite;
+            const size_t i = size_t(&dst - pixels_.data());
+            samples_[i] = dst.samples;
+            half_difference_[i] = compute_half_difference(i);
             total_samples_ += src.samples;
             total_rays_ += src.rays;
             total_nonfinite_ += src.nonfinite;
@@ -87,9 +94,15 @@ void Accumulator::copy_from(const Accumulator& other) {
     total_rays_ = other.total_rays_;
     total_nonfinite_ = other.total_nonfinite_;
     pixels_.resize(other.pixels_.size());
+    samples_.resize(other.samples_.size());
+    half_difference_.resize(other.half_difference_.size());
     for_each_band(pixels_.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
         std::copy(other.pixels_.begin() + begin, other.pixels_.begin() + end,
                   pixels_.begin() + begin);
+        std::copy(other.samples_.begin() + begin, other.samples_.begin() + end,
+                  samples_.begin() + begin);
+        std::copy(other.half_difference_.begin() + begin,
+                  other.half_difference_.begin() + end, half_difference_.begin() + begin);
     });
 }
 
@@ -102,6 +115,15 @@ void Accumulator::half_means(size_t i, double even[3], double odd[3]) const {
         even[c] = n_even ? p.even[c] / double(n_even) : 0.0;
         odd[c] = n_odd ? p.odd[c] / double(n_odd) : 0.0;
     }
+}
+
+double Accumulator::compute_half_difference(size_t i) const {
+    if (pixels_[i].samples < 2) return -1.0;  // the odd half has no sample yet
+    double even[3], odd[3];
+    half_means(i, even, odd);
+    return (std::abs(even[0] - odd[0]) + std::abs(even[1] - odd[1]) +
+            std::abs(even[2] - odd[2])) /
+           3.0;
 }
 
 double Accumulator::luminance_variance(size_t i) const {

@@ -18,6 +18,10 @@ public:
 
 class Accumulator {
 public:
+    // Memory a pixel takes: its sums, its sample count and its half difference.
+    static constexpr size_t kBytesPerPixel =
+        sizeof(PixelSums) + sizeof(uint64_t) + sizeof(double);
+
     Accumulator() = default;
     Accumulator(uint32_t width, uint32_t height);
 
@@ -35,7 +39,10 @@ public:
     void merge(const SampleJobResult& result);
 
     const PixelSums& at(size_t i) const { return pixels_[i]; }
-    uint64_t samples(size_t i) const { return pixels_[i].samples; }
+    // Read from an array of counts kept beside the sums: passes that need only the counts
+    // (cutting a round into jobs, the strategies' plans) stream 8 bytes a pixel instead
+    // of the sums' 80 (16 MB instead of 160 MB at 1920x1080).
+    uint64_t samples(size_t i) const { return samples_[i]; }
 
     // Mean RGB of pixel i over all its samples (0 with no samples).
     void mean(size_t i, double rgb[3]) const;
@@ -43,6 +50,11 @@ public:
     void half_means(size_t i, double even[3], double odd[3]) const;
     // Sample variance of one sample's luminance at pixel i (0 below two samples).
     double luminance_variance(size_t i) const;
+    // Mean over RGB of |even half mean - odd half mean| at pixel i, or -1 below two
+    // samples: what the error estimate and Dammertz's seed norm are made of. Kept as
+    // results merge, while the merged pixels are in cache, so a round's end reads 8
+    // bytes a pixel for it instead of streaming the sums once more.
+    double half_difference(size_t i) const { return half_difference_[i]; }
 
     uint64_t total_samples() const { return total_samples_; }
     uint64_t total_rays() const { return total_rays_; }
@@ -55,9 +67,14 @@ public:
 
 private:
     void check_finite_after(const SampleJobResult& result) const;
+    double compute_half_difference(size_t i) const;
 
     uint32_t width_ = 0, height_ = 0;
     std::vector<PixelSums> pixels_;
+    // Derived from pixels_ and kept in step with it by merge(): see samples() and
+    // half_difference().
+    std::vector<uint64_t> samples_;
+    std::vector<double> half_difference_;
     uint64_t total_samples_ = 0, total_rays_ = 0, total_nonfinite_ = 0;
 };
 

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 
 namespace aliquot {
@@ -110,8 +111,43 @@ TEST(Accumulator, CopyFromMakesAnEqualCopyOverAnyPreviousContents) {
     ASSERT_EQ(copy.height(), 400u);
     EXPECT_EQ(copy.total_samples(), source.total_samples());
     EXPECT_EQ(copy.total_rays(), source.total_rays());
-    for (size_t i = 0; i < source.pixel_count(); ++i)
+    for (size_t i = 0; i < source.pixel_count(); ++i) {
         ASSERT_EQ(std::memcmp(&copy.at(i), &source.at(i), sizeof(PixelSums)), 0) << i;
+        ASSERT_EQ(copy.samples(i), source.samples(i)) << i;
+        ASSERT_EQ(copy.half_difference(i), source.half_difference(i)) << i;
+    }
+}
+
+TEST(Accumulator, SampleCountsFollowEveryMerge) {
+    Accumulator acc(3, 1);
+    acc.merge(one_pixel(1, 0, 1.0, 1.0, 4, 0));
+    acc.merge(one_pixel(1, 0, 1.0, 1.0, 3, 0));
+    acc.merge(one_pixel(2, 0, 1.0, 1.0, 1, 0));
+    EXPECT_EQ(acc.samples(0), 0u);
+    EXPECT_EQ(acc.samples(1), 7u);
+    EXPECT_EQ(acc.samples(2), 1u);
+    for (size_t i = 0; i < 3; ++i) EXPECT_EQ(acc.samples(i), acc.at(i).samples);
+}
+
+TEST(Accumulator, HalfDifferenceIsTheHalvesMeanGapOverRgbFromTwoSamples) {
+    Accumulator acc(2, 1);
+    EXPECT_EQ(acc.half_difference(0), -1.0);  // no samples
+    acc.merge(one_pixel(0, 0, 6.0, 0.0, 1, 0));
+    EXPECT_EQ(acc.half_difference(0), -1.0);  // one sample: no odd half yet
+    // Then 5 samples: 3 even summing to 6 (mean 2) and 2 odd summing to 2 (mean 1)...
+    acc.merge(one_pixel(0, 0, 0.0, 2.0, 4, 0));
+    EXPECT_DOUBLE_EQ(acc.half_difference(0), 1.0);
+    // ... and what a fresh computation from the merged sums gives, to the bit.
+    SampleJobResult r = one_pixel(1, 0, 1.0, 0.25, 3, 0);
+    r.pixels[0].even[1] = 0.7;
+    r.pixels[0].odd[2] = 0.3;
+    acc.merge(r);
+    double even[3], odd[3];
+    acc.half_means(1, even, odd);
+    EXPECT_EQ(acc.half_difference(1),
+              (std::abs(even[0] - odd[0]) + std::abs(even[1] - odd[1]) +
+               std::abs(even[2] - odd[2])) /
+                  3.0);
 }
 
 }  // namespace

@@ -27,7 +27,7 @@ void save_checkpoint(const std::filesystem::path& path, const Checkpoint& checkp
 std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path);
 
 // Whether a round's checkpoint is due: checkpoints may take at most 1/kCheckpointShare of
-// a render's time. A checkpoint holds the whole buffers (72 bytes a pixel) and Dammertz
+// a render's time. A checkpoint holds the whole buffers (80 bytes a pixel) and Dammertz
 // runs thousands of short rounds: one per round wrote gigabytes a render. `since_last` is
 // the time since the last checkpoint ended, `last_cost` how long writing it took (0: none
 // yet).

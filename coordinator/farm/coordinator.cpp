@@ -153,11 +153,42 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     order_.push_back(s->id());
     sessions_[s->id()] = std::move(slot);
     s->start();
-    if (store_ && s->state() == RenderState::Running)
+    if (store_ && s->state() == RenderState::Running) {
         backlog_.submit("record " + s->id() + " as running", [this, id = s->id()] {
             store_->update_render_state(id, RenderState::Running, "", unix_millis_now());
         });
+        prepare_checkpoint_copy(*raw);
+    }
     changed();
+}
+
+// The first checkpoint's copy went into fresh pages at the first round's end, under the
+// render's lock: 80-100 ms of the kernel zeroing 150 MB at 1920x1080, once a render but a
+// third of each round end for a render of two rounds (docs/PERFORMANCE.md). The backlog's
+// thread allocates it instead, touching every page, off every lock; a round end that
+// comes first allocates it as before.
+void Coordinator::prepare_checkpoint_copy(RenderSlot& slot) {
+    const RenderSpec& spec = slot.session->spec();
+    backlog_.submit(
+        "prepare the checkpoint copy of " + slot.session->id(),
+        [width = spec.width, height = spec.height, weak = slot.weak_from_this()] {
+            const auto wanted = [&](const SlotPtr& s) {
+                std::lock_guard lock(s->mutex);
+                return !s->checkpoint_copy && s->session->state() == RenderState::Running;
+            };
+            if (const SlotPtr s = weak.lock(); !s || !wanted(s)) return;
+            auto copy = std::make_shared<CheckpointCopy>();
+            try {
+                copy->cp.merged = Accumulator(width, height);  // zeroed: pages touched
+            } catch (const std::bad_alloc&) {
+                return;  // the round end tries when a checkpoint is due
+            }
+            if (const SlotPtr s = weak.lock()) {
+                std::lock_guard lock(s->mutex);
+                if (!s->checkpoint_copy && s->session->state() == RenderState::Running)
+                    s->checkpoint_copy = copy;
+            }
+        });
 }
 
 void Coordinator::record_round(RenderSlot& slot, const RoundSummary& round) {
@@ -1265,12 +1296,13 @@ uint64_t default_memory_limit() {
 
 uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
     const uint64_t pixels = uint64_t(width) * height;
-    uint64_t per_pixel = sizeof(PixelSums)    // the accumulator
-                         + sizeof(PixelSums)  // the copy a checkpoint is written from
-                         + 12                 // a round's jobs: counts, first indices
-                         + 16                 // the round's spp; a strategy's per pixel
-                         + 48   // optimal's allocation events, kept between rounds
-                         + 20;  // the final image: RGB, spp, variance
+    uint64_t per_pixel =
+        Accumulator::kBytesPerPixel    // the accumulator
+        + Accumulator::kBytesPerPixel  // the copy a checkpoint is written from
+        + 12                           // a round's jobs: counts, first indices
+        + 16                           // the round's spp; a strategy's per pixel
+        + 48                           // optimal's allocation events, kept between rounds
+        + 20;                          // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
 }

@@ -41,7 +41,7 @@ class RunStore;
 // default budget for the buffers of the renders a coordinator holds in memory.
 uint64_t default_memory_limit();
 
-// What a render's session may hold in memory at its peak, in bytes: the accumulator (72
+// What a render's session may hold in memory at its peak, in bytes: the accumulator (96
 // bytes a pixel), a round's jobs and the strategy's per-pixel state, the copy of the
 // buffers a checkpoint is written from, the final image, and the reference with its
 // per-round comparison image when there is one. docs/FARM.md has the measured numbers.
@@ -245,6 +245,8 @@ private:
     // queue writes on the backlog, never `mutex_`.
     void record_round(RenderSlot& slot, const RoundSummary& round);
     void queue_checkpoint(RenderSlot& slot, const RoundSummary& round);
+    // Allocates the render's checkpoint copy on the backlog's thread, off every lock.
+    void prepare_checkpoint_copy(RenderSlot& slot);
     void record_end(RenderSlot& slot);
     uint64_t first_free_render_number() const;
     std::string claim_render_id();

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "allocation.h"
+#include "bands.h"
 #include "vec3.h"
 
 namespace aliquot {
@@ -124,8 +125,13 @@ std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {
     if (phase_ == Phase::allocate) {
         const std::vector<PixelRect> cells = grid();
         variances_.resize(cells.size());
-        for (size_t b = 0; b < cells.size(); ++b)
-            variances_[b] = bucket_variance(merged, cells[b]);
+        // Each bucket's range on its own, on the pool's threads (bands.h): a pass over
+        // every pixel's sums, ~25 ms of this round end's ~150 at 1920x1080 on one
+        // thread. A band of 64 buckets is 16 K pixels at the default 16x16.
+        for_each_band(cells.size(), 64, [&](size_t, size_t begin, size_t end) {
+            for (size_t b = begin; b < end; ++b)
+                variances_[b] = bucket_variance(merged, cells[b]);
+        });
         weights_ = bucket_weights(variances_, max_variance_, alpha_);
         const uint64_t spent = merged.total_samples();
         remainder_ = budget_ > spent ? budget_ - spent : 0;

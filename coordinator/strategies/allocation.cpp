@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
+#include <memory>
+#include <new>
+#include <utility>
 
 #include "bands.h"
 #include "sampler.h"
@@ -11,15 +13,40 @@ namespace aliquot {
 
 namespace {
 
+// A per-item buffer whose every element is written before it is read: built without the
+// zero fill std::vector gives, which at 1920x1080 was ~90 MB of memset at a round's end
+// on top of the kernel's zeroing of the same fresh pages.
+template <typename T>
+struct NoZeroFill : std::allocator<T> {
+    template <typename U>
+    struct rebind {
+        using other = NoZeroFill<U>;
+    };
+    NoZeroFill() = default;
+    template <typename U>
+    NoZeroFill(const NoZeroFill<U>&) noexcept {}
+    template <typename U>
+    void construct(U* p) noexcept {
+        ::new (static_cast<void*>(p)) U;  // default-initialised: left as it is
+    }
+    template <typename U, typename... Args>
+    void construct(U* p, Args&&... args) {
+        ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+    }
+};
+template <typename T>
+using Scratch = std::vector<T, NoZeroFill<T>>;
+
 // The real-valued shares: item i gets min(lambda * w_i, cap_i) with one lambda for all,
 // chosen so the costs add up to `total`. The items that reach their cap are those with
 // the smallest cap_i / w_i, so walking them in that order finds lambda exactly.
+// Only the shares of the items in `order` are written, and only they are read after.
 template <typename Cost>
-std::vector<double> water_fill(std::vector<size_t> order,
-                               const std::vector<double>& weights,
-                               const std::vector<uint32_t>& caps, double total,
-                               const Cost& cost) {
-    std::vector<double> share(weights.size(), 0.0);
+Scratch<double> water_fill(const Scratch<size_t>& order,
+                           const std::vector<double>& weights,
+                           const std::vector<uint32_t>& caps, double total,
+                           const Cost& cost) {
+    Scratch<double> share(weights.size());
     double all = 0;  // summed in order on one thread: the same bits as ever
     for (size_t i : order) all += cost(i) * weights[i];
     const double first = all > 0 ? total / all : 0.0;
@@ -43,22 +70,23 @@ std::vector<double> water_fill(std::vector<size_t> order,
     by_ratio.reserve(order.size());
     for (size_t i : order) by_ratio.emplace_back(caps[i] / weights[i], i);
     std::sort(by_ratio.begin(), by_ratio.end());
-    for (size_t k = 0; k < order.size(); ++k) order[k] = by_ratio[k].second;
-    std::vector<double> suffix(order.size() + 1, 0.0);  // sum of cost * weight from k on
-    for (size_t k = order.size(); k-- > 0;)
-        suffix[k] = suffix[k + 1] + cost(order[k]) * weights[order[k]];
+    Scratch<size_t> ranked(order.size());  // the items, first to reach their caps first
+    for (size_t k = 0; k < ranked.size(); ++k) ranked[k] = by_ratio[k].second;
+    std::vector<double> suffix(ranked.size() + 1, 0.0);  // sum of cost * weight from k on
+    for (size_t k = ranked.size(); k-- > 0;)
+        suffix[k] = suffix[k + 1] + cost(ranked[k]) * weights[ranked[k]];
     double left = total;
     size_t k = 0;
-    for (; k < order.size(); ++k) {
-        const size_t i = order[k];
+    for (; k < ranked.size(); ++k) {
+        const size_t i = ranked[k];
         if (!(suffix[k] > 0) || left / suffix[k] * weights[i] < caps[i]) break;
         share[i] = caps[i];
         left -= cost(i) * caps[i];
     }
     const double lambda =
-        (k < order.size() && suffix[k] > 0 && left > 0) ? left / suffix[k] : 0;
-    for (; k < order.size(); ++k) {
-        const size_t i = order[k];
+        (k < ranked.size() && suffix[k] > 0 && left > 0) ? left / suffix[k] : 0;
+    for (; k < ranked.size(); ++k) {
+        const size_t i = ranked[k];
         share[i] = std::min(lambda * weights[i], double(caps[i]));
     }
     return share;
@@ -78,7 +106,7 @@ struct RemainderKey {
 
 // The indices i < n with keep(i), ascending; found in bands.
 template <typename Keep>
-std::vector<size_t> in_order(size_t n, const Keep& keep) {
+Scratch<size_t> in_order(size_t n, const Keep& keep) {
     const size_t bands = band_count(n, kBandPixels);
     std::vector<size_t> offset(bands + 1, 0);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
@@ -87,7 +115,7 @@ std::vector<size_t> in_order(size_t n, const Keep& keep) {
         offset[band + 1] = m;
     });
     for (size_t b = 0; b < bands; ++b) offset[b + 1] += offset[b];
-    std::vector<size_t> order(offset[bands]);
+    Scratch<size_t> order(offset[bands]);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         size_t k = offset[band];
         for (size_t i = begin; i < end; ++i)
@@ -96,18 +124,22 @@ std::vector<size_t> in_order(size_t n, const Keep& keep) {
     return order;
 }
 
-// A remainder fraction's bucket: the top bits of its bit pattern. A non-negative double
-// sorts as its bits do, so the buckets are in the fractions' order.
-constexpr int kFractionShift = 48;
+// A remainder fraction's bucket: floor(fraction * kFractionBuckets), which never falls
+// as the fraction rises, so the buckets are in the fractions' order. Fractions lie in
+// [0, 1) and spread evenly over it, so each bucket holds about as many keys (~120 at
+// 1920x1080); bucketing by the top bits of their bit patterns put half of them, those
+// in [0.5, 1), into 16 buckets, whose sorts were most of optimal-time's round end.
+constexpr size_t kFractionBuckets = size_t(1) << 14;
 size_t fraction_bucket(double fraction) {
-    uint64_t bits;
-    std::memcpy(&bits, &fraction, sizeof bits);
-    return size_t(bits >> kFractionShift);
+    // (Multiplying by a power of two is exact; a NaN, which no share gives, goes first.)
+    return fraction > 0 ? std::min(kFractionBuckets - 1,
+                                   size_t(fraction * double(kFractionBuckets)))
+                        : 0;
 }
 
 // For each band of keys, how many of its keys fall in each of `buckets` buckets.
 template <typename Count>
-std::vector<std::vector<Count>> bucket_counts(const std::vector<RemainderKey>& keys,
+std::vector<std::vector<Count>> bucket_counts(const Scratch<RemainderKey>& keys,
                                               size_t buckets) {
     std::vector<std::vector<Count>> counts(band_count(keys.size(), kBandPixels));
     for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
@@ -120,25 +152,27 @@ std::vector<std::vector<Count>> bucket_counts(const std::vector<RemainderKey>& k
 
 // Gives one more unit to each of the n first keys in RemainderKey's order (below its
 // cap) and returns how many it gave. The order is total (the index breaks ties), so
-// those n are one set, however they are found: here, a histogram of the fractions' top
-// bits (a fraction in [0, 1) sorts as its bit pattern does), counted in bands, finds
-// the bucket the n-th key falls in; every key in a larger bucket is taken, and selection
-// runs only on that bucket (nth_element on all the keys was most of apportion's time).
-size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
-                     std::vector<uint32_t>& count, const std::vector<uint32_t>& caps) {
+// those n are one set, however they are found: here, a histogram of the fractions'
+// buckets (fraction_bucket), counted in bands, finds the bucket the n-th key falls in;
+// every key in a larger bucket is taken, and selection runs only on that bucket
+// (nth_element on all the keys was most of apportion's time). The keys are left in
+// some other order: no caller depends on theirs, and reordering them in place spares a
+// copy of the bucket, which for a method whose shares are all alike (adaptive's flat
+// buckets) is nearly all of them: 48 MB of fresh pages at 1920x1080.
+size_t give_one_each(Scratch<RemainderKey>& keys, size_t n, std::vector<uint32_t>& count,
+                     const std::vector<uint32_t>& caps) {
     if (n == 0) return 0;
     if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
-        std::vector<RemainderKey> first(keys);
-        std::nth_element(first.begin(), first.begin() + n, first.end());
+        std::nth_element(keys.begin(), keys.begin() + n, keys.end());
         size_t given = 0;
         for (size_t k = 0; k < n; ++k)
-            if (count[first[k].index] < caps[first[k].index]) {
-                ++count[first[k].index];
+            if (count[keys[k].index] < caps[keys[k].index]) {
+                ++count[keys[k].index];
                 ++given;
             }
         return given;
     }
-    constexpr size_t kBuckets = size_t(1) << (64 - kFractionShift);
+    constexpr size_t kBuckets = kFractionBuckets;
     const std::vector<std::vector<uint32_t>> histogram =
         bucket_counts<uint32_t>(keys, kBuckets);
     const size_t bands = histogram.size();
@@ -152,14 +186,17 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
     }
     std::vector<size_t> offset(bands + 1, 0);
     for (size_t b = 0; b < bands; ++b) offset[b + 1] = offset[b] + histogram[b][bucket];
-    std::vector<RemainderKey> tied(offset[bands]);
+    // A small bucket is copied out in bands; a large one is gathered at the front of the
+    // keys in place (one serial pass, but no new pages).
+    const bool in_place = offset[bands] > keys.size() / 8;
+    Scratch<RemainderKey> copied(in_place ? 0 : offset[bands]);
     std::vector<size_t> given(bands, 0);
     for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
         size_t t = offset[band], g = 0;
         for (size_t k = begin; k < end; ++k) {
             const size_t b = fraction_bucket(keys[k].fraction);
             if (b == bucket) {
-                tied[t++] = keys[k];
+                if (!in_place) copied[t++] = keys[k];
             } else if (b > bucket && count[keys[k].index] < caps[keys[k].index]) {
                 ++count[keys[k].index];
                 ++g;
@@ -167,7 +204,14 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
         }
         given[band] = g;
     });
-    std::nth_element(tied.begin(), tied.begin() + (wanted - 1), tied.end());
+    RemainderKey* tied = copied.data();
+    if (in_place) {
+        std::partition(keys.begin(), keys.end(), [&](const RemainderKey& key) {
+            return fraction_bucket(key.fraction) == bucket;
+        });
+        tied = keys.data();
+    }
+    std::nth_element(tied, tied + (wanted - 1), tied + offset[bands]);
     size_t total = 0;
     for (size_t g : given) total += g;
     for (size_t k = 0; k < wanted; ++k)
@@ -179,17 +223,16 @@ size_t give_one_each(const std::vector<RemainderKey>& keys, size_t n,
 }
 
 // Sorts keys into RemainderKey's order, which is total, so the result is the one
-// std::sort gives. The keys are first spread over buckets of their fractions' top bits
-// (a fraction in [0, 1) sorts as its bit pattern does; largest first), counted and
-// scattered in bands, and each bucket is then sorted alone, buckets shared among the
-// pool's threads. std::sort of all of them was the largest part of optimal-time's
-// round end at 1920x1080.
-void sort_keys(std::vector<RemainderKey>& keys) {
+// std::sort gives. The keys are first spread over their fractions' buckets
+// (fraction_bucket; largest first), counted and scattered in bands, and each bucket is
+// then sorted alone, buckets shared among the pool's threads. std::sort of all of them
+// was the largest part of optimal-time's round end at 1920x1080.
+void sort_keys(Scratch<RemainderKey>& keys) {
     if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
         std::sort(keys.begin(), keys.end());
         return;
     }
-    constexpr size_t kBuckets = size_t(1) << (63 - kFractionShift);  // the sign bit is 0
+    constexpr size_t kBuckets = kFractionBuckets;
     // at[band][bucket]: first the band's count of that bucket, then where the band's next
     // key of that bucket goes.
     std::vector<std::vector<size_t>> at = bucket_counts<size_t>(keys, kBuckets);
@@ -204,7 +247,7 @@ void sort_keys(std::vector<RemainderKey>& keys) {
             place += n;
         }
     }
-    std::vector<RemainderKey> sorted(keys.size());
+    Scratch<RemainderKey> sorted(keys.size());
     for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
         std::vector<size_t>& next = at[band];
         for (size_t k = begin; k < end; ++k)
@@ -233,13 +276,13 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // The passes over every item run in bands on the pool's threads (bands.h); what is
     // summed in floating point is summed in order on this one, so the counts are the
     // same whatever the threads.
-    const std::vector<size_t> order =
+    const Scratch<size_t> order =
         in_order(weights.size(), [&](size_t i) { return weights[i] > 0 && caps[i] > 0; });
-    const std::vector<double> share = water_fill(order, weights, caps, total, cost);
+    const Scratch<double> share = water_fill(order, weights, caps, total, cost);
 
     const size_t bands = band_count(order.size(), kBandPixels);
     std::vector<uint64_t> band_floors(bands, 0);
-    std::vector<RemainderKey> keys(order.size());
+    Scratch<RemainderKey> keys(order.size());
     for_each_band(order.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
         uint64_t floors = 0;
         for (size_t k = begin; k < end; ++k) {

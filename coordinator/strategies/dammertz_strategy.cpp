@@ -78,6 +78,12 @@ std::vector<double> DammertzStrategy::pixel_errors(const Accumulator& merged,
     for (uint32_t row = 0; row < rect.height; ++row) {
         for (uint32_t col = 0; col < rect.width; ++col) {
             const size_t i = size_t(rect.y + row) * width_ + rect.x + col;
+            if (!paper_norm_ && merged.half_difference(i) >= 0) {
+                // The seed's norm below, kept by the accumulator as results merge (the
+                // same operations, so the same bits): 8 bytes a pixel to read.
+                errors[size_t(row) * rect.width + col] = merged.half_difference(i);
+                continue;
+            }
             double even[3], odd[3];
             merged.half_means(i, even, odd);
             double e = 0;

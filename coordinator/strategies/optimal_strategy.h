@@ -68,7 +68,8 @@ private:
     uint64_t issued_ = 0;  // samples handed out in all rounds
     bool piloted_ = false;
     bool finished_ = false;
-    std::vector<MuEvent> events_;  // optimal_counts' buffer; freed when the render ends
+    // optimal_counts' buffer, from construction (see there); freed when the render ends.
+    std::vector<MuEvent> events_;
 };
 
 }  // namespace aliquot

@@ -564,8 +564,9 @@ def rss_mb(pid):
 
 # Issue 12, item 7: finished renders' buffers stayed in memory; 20 submit-and-cancel
 # cycles at 1024x1024 took the coordinator from 24 MB to 2.1 GB. One such render holds
-# about 90 MB (72 bytes a pixel of sums, a round's jobs) while it lives; cancelled, it
-# leaves memory once its image is written. 300 MB leaves room for the process itself and
+# about 110 MB (96 bytes a pixel of accumulator, a round's jobs) while it lives, and as
+# much again for its checkpoint copy once the backlog has prepared it (not for a render
+# already cancelled); cancelled, it leaves memory once its image is written. 300 MB leaves room for the process itself and
 # two renders in flight at once, and is a seventh of what 20 kept renders took.
 def test_cancelled_renders_give_their_memory_back():
     farm = Farm("memory")

@@ -1,0 +1,84 @@
+#include "allocation.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include "bands.h"
+#include "sampler.h"
+
+namespace aliquot {
+namespace {
+
+// apportion with unit costs and caps that never bind, the plain way: shares by one
+// multiplier (summed in item order, as apportion does), floors, and one more each for
+// the `left` largest fractional parts, ties by the index's hash and then the index,
+// found by sorting every item.
+std::vector<uint32_t> reference(const std::vector<double>& weights, double total) {
+    double all = 0;
+    for (double w : weights) all += w;
+    const double first = total / all;
+    std::vector<uint32_t> count(weights.size());
+    std::vector<std::tuple<double, uint64_t, size_t>> keys;  // -fraction: largest first
+    uint64_t floors = 0;
+    for (size_t i = 0; i < weights.size(); ++i) {
+        if (!(weights[i] > 0)) continue;
+        const double share = first * weights[i];
+        count[i] = uint32_t(std::floor(share));
+        floors += count[i];
+        keys.emplace_back(-(share - std::floor(share)), mix64(i), i);
+    }
+    std::sort(keys.begin(), keys.end());
+    const size_t left = size_t(total - double(floors));
+    for (size_t k = 0; k < left; ++k) ++count[std::get<2>(keys[k])];
+    return count;
+}
+
+std::vector<uint32_t> no_caps(size_t n) { return std::vector<uint32_t>(n, 1u << 30); }
+
+// Equal weights give every item the same fractional part: the bucket holding the last
+// unit given is every item, which is selected in place.
+TEST(Apportion, EqualSharesOverManyBandsGoToTheSameItemsAsAFullSort) {
+    const size_t n = 5 * kBandPixels + 123;
+    const std::vector<double> weights(n, 1.0);
+    const double total = 3.0 * double(n) + double(n) / 3;
+    const std::vector<uint32_t> got = apportion(weights, total, no_caps(n));
+    EXPECT_EQ(got, reference(weights, total));
+    uint64_t sum = 0;
+    for (uint32_t c : got) sum += c;
+    EXPECT_EQ(sum, uint64_t(total));
+}
+
+// Weights in a few classes: few items share the last unit's bucket, which is copied out.
+TEST(Apportion, VariedSharesOverManyBandsGoToTheSameItemsAsAFullSort) {
+    const size_t n = 4 * kBandPixels + 77;
+    std::vector<double> weights(n);
+    for (size_t i = 0; i < n; ++i) weights[i] = 0.5 + double(mix64(i) % 1000) / 250.0;
+    weights[17] = 0;  // gets nothing
+    const double total = 2.5 * double(n);
+    const std::vector<uint32_t> got = apportion(weights, total, no_caps(n));
+    EXPECT_EQ(got, reference(weights, total));
+    EXPECT_EQ(got[17], 0u);
+}
+
+// Adaptive's case: equal weights within blocks of items, so the ties are whole blocks.
+TEST(Apportion, BlocksOfEqualSharesGoToTheSameItemsAsAFullSort) {
+    const size_t n = 3 * kBandPixels;
+    std::vector<double> weights(n);
+    for (size_t i = 0; i < n; ++i) weights[i] = 1.0 + double((i / 256) % 3);
+    const double total = 7.0 * double(n) / 3.0 + 11;
+    EXPECT_EQ(apportion(weights, total, no_caps(n)), reference(weights, total));
+}
+
+TEST(Apportion, WithinOneBandGoesToTheSameItemsAsAFullSort) {
+    const size_t n = 1000;
+    std::vector<double> weights(n, 2.0);
+    for (size_t i = 0; i < n; i += 3) weights[i] = 1.0;
+    const double total = 1234.0;
+    EXPECT_EQ(apportion(weights, total, no_caps(n)), reference(weights, total));
+}
+
+}  // namespace
+}  // namespace aliquot
