@@ -39,16 +39,26 @@ constexpr float unit_float(uint32_t bits) { return float(int32_t(bits >> 8)) * 0
 
 // PCG32 (O'Neill, "PCG: A Family of Simple Fast Space-Efficient Statistically Good
 // Algorithms for Random Number Generation", 2014): 64-bit LCG state, XSH-RR output.
+//
+// seed_pcg is its seeding on raw state, for code that seeds many samples' generators in
+// one vectorised loop (worker/tracer/camera_rays.cpp).
+constexpr void seed_pcg(uint64_t seed, uint32_t x, uint32_t y, uint64_t k,
+                        uint64_t& state, uint64_t& inc) {
+    const uint64_t h = sample_hash(seed, x, y, k);
+    inc = (mix64(h ^ 0xda3e39cb94b95bdbULL) << 1) | 1u;
+    state = 0;
+    pcg32_step(state, inc);
+    state += h;
+    pcg32_step(state, inc);
+}
+
 class SampleRng {
 public:
     SampleRng(uint64_t seed, uint32_t x, uint32_t y, uint64_t k) {
-        const uint64_t h = sample_hash(seed, x, y, k);
-        inc_ = (mix64(h ^ 0xda3e39cb94b95bdbULL) << 1) | 1u;
-        state_ = 0;
-        next_u32();
-        state_ += h;
-        next_u32();
+        seed_pcg(seed, x, y, k, state_, inc_);
     }
+    // The generator at a raw state, as state() and increment() read it.
+    static SampleRng at(uint64_t state, uint64_t inc) { return SampleRng(state, inc); }
 
     uint32_t next_u32() { return pcg32_step(state_, inc_); }
     float next_float() { return unit_float(next_u32()); }
@@ -60,6 +70,8 @@ public:
     void set_state(uint64_t state) { state_ = state; }
 
 private:
+    SampleRng(uint64_t state, uint64_t inc) : state_(state), inc_(inc) {}
+
     uint64_t state_;
     uint64_t inc_;
 };

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "camera_model.h"
+#include "camera_rays.h"
 
 namespace aliquot {
 
@@ -20,8 +21,7 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
                SampleJobResult& result) {
     constexpr int kBatch = PathTracer::kBatch;
     const PixelRect& r = job.rect;
-    std::vector<SampleRng> rngs;
-    rngs.reserve(kBatch);
+    std::vector<SampleRng> rngs(kBatch, SampleRng(0, 0, 0, 0));
     std::array<Vec3, kBatch> dirs;
     std::array<Radiance, kBatch> radiance;
     for (uint32_t col = 0; col < r.width; ++col) {
@@ -36,15 +36,7 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
         // workers.
         for (uint64_t k0 = first; k0 < end; k0 += kBatch) {
             const int n = int(std::min<uint64_t>(kBatch, end - k0));
-            rngs.clear();
-            for (int j = 0; j < n; ++j) {
-                SampleRng& rng = rngs.emplace_back(geometry.seed, x, y, k0 + j);
-                // Box filter: a uniform point in the pixel, so the pixel is its area's
-                // average.
-                const float px = float(x) + rng.next_float();
-                const float py = float(y) + rng.next_float();
-                dirs[j] = camera.direction(px, py);
-            }
+            camera_rays(camera, geometry.seed, x, y, k0, n, dirs.data(), rngs.data());
             tracer.radiance_batch(camera.origin(), dirs.data(), n, rngs.data(),
                                   radiance.data());
             for (int j = 0; j < n; ++j)

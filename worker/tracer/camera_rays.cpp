@@ -1,0 +1,35 @@
+#include "camera_rays.h"
+
+#include <stdexcept>
+
+#include "path_lanes.h"
+#include "simd_clones.h"
+
+namespace aliquot {
+
+ALIQUOT_SIMD_CLONES void camera_rays(const CameraModel& camera, uint64_t seed, uint32_t x,
+                                     uint32_t y, uint64_t k0, int n, Vec3* dirs,
+                                     SampleRng* rngs) {
+    constexpr int kMax = PathLanes::kMax;
+    if (n < 0 || n > kMax)
+        throw std::invalid_argument("camera_rays: more samples than a batch");
+    uint64_t state[kMax], inc[kMax];
+    float dx[kMax], dy[kMax], dz[kMax];
+    const CameraModel cam = camera;  // a local copy: nothing the loop stores can alias it
+    for (int j = 0; j < n; ++j) {
+        uint64_t s, i;
+        seed_pcg(seed, x, y, k0 + uint64_t(j), s, i);
+        const float px = float(x) + unit_float(pcg32_step(s, i));
+        const float py = float(y) + unit_float(pcg32_step(s, i));
+        const Vec3 d = cam.direction(px, py);
+        state[j] = s;
+        inc[j] = i;
+        dx[j] = d.x, dy[j] = d.y, dz[j] = d.z;
+    }
+    for (int j = 0; j < n; ++j) {
+        dirs[j] = Vec3(dx[j], dy[j], dz[j]);
+        rngs[j] = SampleRng::at(state[j], inc[j]);
+    }
+}
+
+}  // namespace aliquot
