@@ -151,10 +151,29 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
         rtcReleaseGeometry(geom);
     }
 
-    // Spheres stay out of Embree's BVH: each query tests them itself (sphere_hit.h).
-    // Their geometry id is one past the meshes', which no Embree geometry has.
-    spheres_ = scene.spheres;
+    // A few spheres stay out of Embree's BVH: each query tests them itself
+    // (sphere_hit.h), faster than Embree's point spheres. Many go into it as point
+    // spheres, since a test of every sphere by every ray grows with their number and a
+    // BVH does not (a 4 MB scene can hold tens of thousands). Either way their geometry
+    // id is one past the meshes'.
     sphere_geom_id_ = uint32_t(meshes_.size());
+    if (scene.spheres.size() <= kOwnSpheres) {
+        spheres_ = scene.spheres;
+    } else {
+        RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        auto* v = static_cast<float*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                    4 * sizeof(float), scene.spheres.size()));
+        for (size_t i = 0; i < scene.spheres.size(); ++i) {
+            v[4 * i] = scene.spheres[i].center.x;
+            v[4 * i + 1] = scene.spheres[i].center.y;
+            v[4 * i + 2] = scene.spheres[i].center.z;
+            v[4 * i + 3] = scene.spheres[i].radius;
+        }
+        rtcCommitGeometry(geom);
+        rtcAttachGeometryByID(scene_, geom, sphere_geom_id_);
+        rtcReleaseGeometry(geom);
+    }
 
     rtcCommitScene(scene_);
     throw_if_failed(device_, "build the scene");
@@ -165,10 +184,16 @@ EmbreeScene::~EmbreeScene() {
     if (device_) rtcReleaseDevice(device_);
 }
 
-Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v) const {
+Hit EmbreeScene::to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
+                        const Vec3& embree_ng) const {
     Hit hit;
     hit.t = t;
     hit.geom_id = geom;
+    if (geom == sphere_geom_id_) {  // one of many spheres, in Embree's BVH
+        hit.prim_id = prim;
+        hit.ng = normalize(embree_ng);
+        return hit;
+    }
     // A quad's second half (v2, v3, v1) has u + v > 1 in the quad's parametrisation.
     const MeshInfo& mesh = meshes_[geom];
     hit.prim_id = mesh.quads ? 2 * prim + (u + v > 1.0f) : prim;
@@ -229,6 +254,8 @@ void fill_lane(RayN& ray, int i, const RayLanes& rays, int from, float tmax) {
     ray.flags[i] = 0;
 }
 
+static_assert(RayLanes::kMax == EmbreeScene::kPacket, "a packet's rays fit its lanes");
+
 void check_count(int count) {
     if (count < 0 || count > EmbreeScene::kPacket)
         throw std::invalid_argument("packet query: more rays than a packet holds");
@@ -270,7 +297,7 @@ void occluded_width(RTCScene scene, const RayLanes& rays, int count, bool* occlu
     for (int i = 0; i < count; ++i) occluded[i] = ray.tfar[i] < 0.0f;
 }
 
-// Closest hits of `count` <= N rays; calls on_hit(i, t, geom, prim, u, v) for those
+// Closest hits of `count` <= N rays; calls on_hit(i, t, geom, prim, u, v, ng) for those
 // that hit and sets found[i] for all.
 template <int N, typename RayHitN, typename OnHit>
 void intersect_width(RTCScene scene, const RayLanes& rays, int count, bool coherent,
@@ -293,7 +320,7 @@ void intersect_width(RTCScene scene, const RayLanes& rays, int count, bool coher
         found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (found[i])
             on_hit(i, rh.ray.tfar[i], rh.hit.geomID[i], rh.hit.primID[i], rh.hit.u[i],
-                   rh.hit.v[i]);
+                   rh.hit.v[i], Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]));
     }
 }
 
@@ -355,7 +382,9 @@ void EmbreeScene::intersect_lanes(RayLanes& rays, int count, Hit* hits, bool* fo
         return;
     }
     const auto on_hit = [&](int i, float t, uint32_t geom, uint32_t prim, float u,
-                            float v) { hits[i] = to_hit(t, geom, prim, u, v); };
+                            float v, const Vec3& ng) {
+        hits[i] = to_hit(t, geom, prim, u, v, ng);
+    };
     if (count <= 4)
         intersect_width<4, RTCRayHit4>(scene_, rays, count, coherent, found, on_hit);
     else if (count <= 8)
@@ -382,7 +411,9 @@ bool EmbreeScene::intersect(const Vec3& origin, const Vec3& dir, float tmax,
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene_, &context, &rh);
     const bool mesh = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-    if (mesh) hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v);
+    if (mesh)
+        hit = to_hit(rh.ray.tfar, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
+                     Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
     return nearer_sphere(origin, dir, mesh ? rh.ray.tfar : tmax, hit) || mesh;
 }
 

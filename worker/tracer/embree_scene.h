@@ -67,14 +67,18 @@ public:
     bool occluded(const Vec3& origin, const Vec3& dir, float tmax) const;
 
     uint32_t sphere_geometry() const { return sphere_geom_id_; }
+    // Spheres a scene may have and still have them tested in our own code rather than
+    // Embree's BVH (the constructor says why).
+    static constexpr size_t kOwnSpheres = 16;
     // The Embree scene itself, for bench/embree_limits alone: it times Embree's packet
     // and stream queries on this very BVH, which the tracer does not use.
     RTCSceneTy* embree_handle() const { return scene_; }
 
 private:
-    // Our Hit from Embree's: the unit normal made at load by triangle (Embree's Ng is
-    // the same direction, unnormalised).
-    Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v) const;
+    // Our Hit from Embree's: a mesh's unit normal made at load by triangle (Embree's Ng
+    // has its direction, unnormalised); a sphere's from Embree's Ng.
+    Hit to_hit(float t, uint32_t geom, uint32_t prim, float u, float v,
+               const Vec3& embree_ng) const;
     // Replaces `hit` by the nearest sphere along the ray nearer than `tmax` (the mesh
     // hit's t, or the query's bound); returns whether one was.
     bool nearer_sphere(const Vec3& origin, const Vec3& dir, float tmax, Hit& hit) const;
@@ -85,7 +89,8 @@ private:
     RTCDeviceTy* device_ = nullptr;
     RTCSceneTy* scene_ = nullptr;
     uint32_t sphere_geom_id_ = ~0u;  // one past the meshes' ids
-    // Traced in our own code, not as Embree primitives (sphere_hit.h says why).
+    // Traced in our own code, not as Embree primitives (sphere_hit.h says why); empty
+    // when the scene has more than kOwnSpheres, which Embree then traces.
     std::vector<Sphere> spheres_;
     struct MeshInfo {
         bool quads = false;         // traced as quads (see pairs_into_quads)

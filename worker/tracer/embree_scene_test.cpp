@@ -102,6 +102,48 @@ TEST(EmbreeScene, PacketHitsAgreeWithSingleRayHits) {
     EXPECT_LE(other_primitive, rays / 1000);
 }
 
+// A scene of more spheres than our own test takes (a 4 MB scene can hold tens of
+// thousands, and every ray would test each) has them traced by Embree's BVH: single rays,
+// packets and shadow rays find the sphere they aim at, at its analytic distance, with the
+// outward normal and the sphere's index, as for a few spheres.
+TEST(EmbreeScene, ManySpheresAreTracedByEmbreesBvh) {
+    Scene scene;
+    const int count = int(EmbreeScene::kOwnSpheres) * 4;
+    for (int k = 0; k < count; ++k)
+        scene.spheres.push_back({Vec3(float(3 * k), 0, 0), 1.0f, 0});
+    const EmbreeScene embree(scene);
+    ASSERT_EQ(embree.sphere_geometry(), 0u);  // one past no meshes
+    for (int k : {0, 17, count - 1}) {
+        const Vec3 origin(float(3 * k), 0, 5), dir(0, 0, -1);
+        Hit hit;
+        ASSERT_TRUE(embree.intersect(origin, dir, 1e30f, hit)) << k;
+        EXPECT_EQ(hit.geom_id, embree.sphere_geometry());
+        EXPECT_EQ(hit.prim_id, uint32_t(k));
+        EXPECT_NEAR(hit.t, 4.0f, 1e-4f);
+        EXPECT_NEAR(dot(hit.ng, -dir), 1.0f, 1e-4f);
+        EXPECT_TRUE(embree.occluded(origin, dir, 1e30f));
+        EXPECT_FALSE(embree.occluded(origin, dir, 3.9f));
+    }
+    Vec3 origins[EmbreeScene::kPacket], dirs[EmbreeScene::kPacket];
+    float tmax[EmbreeScene::kPacket];
+    for (int j = 0; j < EmbreeScene::kPacket; ++j) {
+        origins[j] = Vec3(float(3 * (2 * j)), 0.5f, 5);  // sphere 2j, off its centre
+        dirs[j] = Vec3(0, 0, -1);
+        tmax[j] = j % 2 ? 1e30f : 3.0f;
+    }
+    Hit hits[EmbreeScene::kPacket];
+    bool found[EmbreeScene::kPacket], blocked[EmbreeScene::kPacket];
+    embree.intersect_packet(origins, dirs, EmbreeScene::kPacket, hits, found);
+    embree.occluded_packet(origins, dirs, tmax, EmbreeScene::kPacket, blocked);
+    for (int j = 0; j < EmbreeScene::kPacket; ++j) {
+        ASSERT_TRUE(found[j]) << j;
+        EXPECT_EQ(hits[j].prim_id, uint32_t(2 * j));
+        EXPECT_NEAR(hits[j].t, 5.0f - std::sqrt(0.75f), 1e-4f);
+        EXPECT_NEAR(length(hits[j].ng), 1.0f, 1e-5f);
+        EXPECT_EQ(blocked[j], j % 2 == 1) << j;
+    }
+}
+
 // Spheres are tested in our own code beside Embree's meshes (sphere_hit.h): single rays,
 // packets and shadow rays see them, nearer than the wall behind, with outward normals.
 TEST(EmbreeScene, SpheresAreHitInFrontOfTheMeshesBehindThem) {
