@@ -21,7 +21,7 @@ void trace_row(const PathTracer& tracer, const CameraModel& camera,
                SampleJobResult& result) {
     constexpr int kBatch = PathTracer::kBatch;
     const PixelRect& r = job.rect;
-    std::vector<SampleRng> rngs(kBatch, SampleRng(0, 0, 0, 0));
+    std::vector<SampleRng> rngs(kBatch, SampleRng::at(0, 1));  // camera_rays seeds them
     std::array<Vec3, kBatch> dirs;
     std::array<Radiance, kBatch> radiance;
     for (uint32_t col = 0; col < r.width; ++col) {
