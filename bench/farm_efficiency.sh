@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
-# Farm efficiency, measured in one run: samples/s of a render through a coordinator with
-# 2 workers of 1 thread each, divided by samples/s of `aliquot render --threads 2` on the
-# same render. Both rates are the coordinator's own (merged samples / render wall time).
-# Usage: bench/farm_efficiency.sh [aliquot] [resolution] [spp]
+# Farm efficiency, measured in one interleaved run: samples/s of a render through a
+# coordinator with 2 workers of 1 thread each, divided by samples/s of
+# `aliquot render --threads 2` on the same render. Both rates are the coordinator's own
+# (merged samples / render wall time). A one-second render moves ±10 % from run to run on
+# a shared machine, so the two alternate (which goes first alternates too) REPEATS times,
+# and the ratio of the median rates is the headline; every pair's ratio is printed too.
+# Usage: bench/farm_efficiency.sh [aliquot] [resolution] [spp] [repeats]
 set -euo pipefail
 aliquot=${1:-build/bin/aliquot}
 resolution=${2:-256x256}
 spp=${3:-128}
+repeats=${4:-5}
 tmp=$(mktemp -d)
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 pids=()
@@ -14,8 +18,6 @@ cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 
 trap cleanup EXIT
 
 render=(--scene cornell-box --resolution "$resolution" --spp "$spp" --seed 1)
-embedded=$("$aliquot" render "${render[@]}" --threads 2 --out "$tmp/embedded.exr" --json)
-
 "$aliquot" coordinator --grpc "127.0.0.1:$port" --data "$tmp/data" 2>"$tmp/coordinator.log" &
 pids+=($!)
 client_token=(--token-file "$tmp/data/client.token")  # made by the coordinator at start
@@ -25,18 +27,33 @@ for w in a b; do
     pids+=($!)
 done
 sleep 0.5  # both workers registered and polling before the clock starts
-farm=$("$aliquot" submit --coordinator "127.0.0.1:$port" "${client_token[@]}" "${render[@]}" --out "$tmp/farm.exr" --json)
-identical=false
-cmp -s "$tmp/embedded.exr" "$tmp/farm.exr" && identical=true
 
-python3 - "$embedded" "$farm" "$identical" <<'PY'
-import json, sys
-e, f = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+embedded() { "$aliquot" render "${render[@]}" --threads 2 --out "$tmp/embedded.exr" --json >>"$tmp/embedded.jsonl"; }
+farm() {
+    "$aliquot" submit --coordinator "127.0.0.1:$port" "${client_token[@]}" "${render[@]}" \
+        --out "$tmp/farm.exr" --json >>"$tmp/farm.jsonl"
+    cmp -s "$tmp/embedded.exr" "$tmp/farm.exr" && echo true >>"$tmp/identical" || echo false >>"$tmp/identical"
+}
+embedded  # the reference image the first farm render is compared with
+: >"$tmp/embedded.jsonl"
+for i in $(seq "$repeats"); do
+    if ((i % 2)); then embedded; farm; else farm; embedded; fi
+done
+
+python3 - "$tmp" <<'PY'
+import json, statistics, sys
+tmp = sys.argv[1]
+e = [json.loads(l) for l in open(f"{tmp}/embedded.jsonl")]
+f = [json.loads(l) for l in open(f"{tmp}/farm.jsonl")]
+identical = [l.strip() == "true" for l in open(f"{tmp}/identical")]
+es = [r["samples_per_second"] for r in e]
+fs = [r["samples_per_second"] for r in f]
 print(json.dumps({
-    "render": f"cornell-box {e['width']}x{e['height']} {e['spp']} spp",
-    "embedded_samples_per_second": e["samples_per_second"],
-    "farm_samples_per_second": f["samples_per_second"],
-    "farm_efficiency": f["samples_per_second"] / e["samples_per_second"],
-    "identical_output": sys.argv[3] == "true",
+    "render": f"cornell-box {e[0]['width']}x{e[0]['height']} {e[0]['spp']} spp",
+    "embedded_samples_per_second": es,
+    "farm_samples_per_second": fs,
+    "pair_efficiency": [round(b / a, 3) for a, b in zip(es, fs)],
+    "farm_efficiency": statistics.median(fs) / statistics.median(es),
+    "identical_output": all(identical),
 }, indent=2))
 PY

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "courier.h"
 #include "trace_job.h"
 
 namespace aliquot {
@@ -201,34 +202,82 @@ void WorkerLoop::thread_main() {
     enable_flush_to_zero();
     Retries retries{Backoff(options_.backoff_initial, options_.reconnect_max),
                     Backoff(options_.backoff_initial, options_.failure_max)};
-    std::optional<LeaseGrant> next;  // the lease that came back with the last result
+    // While a job is traced, its courier returns the last one's sums and leases the next
+    // (docs/FARM.md, "A job in flight while the next is traced"). Whatever it is doing,
+    // only one of the two threads uses `retries` at a time: the tracing thread touches
+    // it only while the courier is idle.
+    Courier courier;
+    std::optional<LeaseGrant> grant;  // the lease this thread traces next
     while (!stopping_) {
         beat();
-        std::optional<LeaseGrant> grant =
-            next ? std::exchange(next, std::nullopt) : next_lease(retries);
+        if (!grant) grant = courier.busy() ? courier.wait() : next_lease(retries);
         if (!grant) continue;
-        {
-            std::lock_guard lock(held_mutex_);
-            held_.insert(grant->lease_id);
-        }
+        hold(grant->lease_id);
+        // Asked without waiting: a long-poll here could wait for the end of the round
+        // that this very job ends.
+        if (!courier.busy()) courier.send([&] { return lease_ahead(); });
         Traced traced = trace(*grant);
+        std::optional<LeaseGrant> ahead = courier.wait();  // held already
         if (traced.session_gone) {
+            // The coordinator restarted: what it leased under the old session is gone.
             release(grant->lease_id);
+            if (ahead) release(ahead->lease_id);
+            ahead.reset();
             reregister(retries.registrations, retries.announced);
-        } else if (traced.result) {
+        } else if (traced.result && ahead) {
             release(grant->lease_id);  // from here on the result answers for the lease
-            next = return_result(*grant, *traced.result, retries);
+            courier.send([this, done = std::move(*grant),
+                          result = std::move(*traced.result), &retries] {
+                std::optional<LeaseGrant> next =
+                    return_result(done, result, Millis(0), retries);
+                // Held at once, so the keeper renews it however long this trace takes.
+                if (next) hold(next->lease_id);
+                return next;
+            });
+        } else if (traced.result) {
+            // Nothing else to trace: the return may wait for the next job.
+            release(grant->lease_id);
+            ahead = return_result(*grant, *traced.result, options_.lease_wait, retries);
         } else {
+            // A job not traced (this worker cannot, or is stopping): the one leased
+            // ahead goes back at once, not held through the wait that follows.
+            if (ahead) give_back(*ahead);
+            ahead.reset();
             hand_back(*grant, traced, retries);
         }
+        grant = std::move(ahead);
     }
-    if (next) {  // stopping with a lease not yet begun: give it back at once
-        try {
-            link_.abandon(session(), next->lease_id);
-        } catch (const std::exception&) {
-            // It expires on its own.
-        }
+    // Stopping: leases not yet begun are given back at once.
+    if (grant) give_back(*grant);
+    if (std::optional<LeaseGrant> last = courier.wait()) give_back(*last);
+}
+
+void WorkerLoop::give_back(const LeaseGrant& untraced) {
+    release(untraced.lease_id);
+    try {
+        link_.abandon(session(), untraced.lease_id);
+    } catch (const std::exception&) {
+        // It expires on its own.
     }
+}
+
+void WorkerLoop::hold(uint64_t lease_id) {
+    std::lock_guard lock(held_mutex_);
+    held_.insert(lease_id);
+}
+
+std::optional<LeaseGrant> WorkerLoop::lease_ahead() {
+    try {
+        std::optional<LeaseGrant> grant = link_.lease(session(), Millis(0));
+        if (grant) hold(grant->lease_id);
+        return grant;
+    } catch (const LinkRefused& e) {
+        refused(e);
+    } catch (const std::exception&) {
+        // Unreachable, or a coordinator that forgot us: the tracing thread's own next
+        // call meets it again, and retries as it does.
+    }
+    return std::nullopt;
 }
 
 std::optional<LeaseGrant> WorkerLoop::next_lease(Retries& retries) {
@@ -294,12 +343,12 @@ WorkerLoop::Traced WorkerLoop::trace(const LeaseGrant& grant) {
 
 std::optional<LeaseGrant> WorkerLoop::return_result(const LeaseGrant& grant,
                                                     const SampleJobResult& result,
-                                                    Retries& retries) {
+                                                    Millis wait, Retries& retries) {
     std::optional<LeaseGrant> next;
     try {
         // The next lease rides on the reply: one round trip a job (docs/FARM.md).
-        const CompleteOutcome outcome = link_.complete_and_lease(
-            session(), grant.lease_id, result, options_.lease_wait, next);
+        const CompleteOutcome outcome =
+            link_.complete_and_lease(session(), grant.lease_id, result, wait, next);
         if (outcome.status == CompleteStatus::Merged) {
             samples_traced_ += result.total_samples();
             ++jobs_done_;

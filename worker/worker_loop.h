@@ -55,14 +55,24 @@ public:
 private:
     struct Retries;
     struct Traced;
-    // One tracing thread: lease, trace, then return the result or hand the lease back.
+    // One tracing thread: lease, trace, then return the result or hand the lease back;
+    // the next job is leased, and the last one's result returned, while it traces.
     void thread_main();
     // A lease, or nullopt after waiting as the failure asked (then ask again).
     std::optional<LeaseGrant> next_lease(Retries& retries);
+    // A lease if there is work now, without waiting; nullopt on any failure (the
+    // tracing thread's next call meets it again and retries).
+    std::optional<LeaseGrant> lease_ahead();
+    // Marks a lease held: the keeper renews it until release().
+    void hold(uint64_t lease_id);
+    // A lease not begun, released and abandoned: re-issued at once.
+    void give_back(const LeaseGrant& untraced);
     Traced trace(const LeaseGrant& grant);
-    // Returns the result and, when it merged, the next lease with it (nullopt: ask).
+    // Returns the result and, when it merged, the next lease with it, waiting up to
+    // `wait` for one (nullopt: ask).
     std::optional<LeaseGrant> return_result(const LeaseGrant& grant,
                                             const SampleJobResult& result,
+                                            std::chrono::milliseconds wait,
                                             Retries& retries);
     // A lease not traced to the end: reported as failed (with why) or abandoned.
     void hand_back(const LeaseGrant& grant, const Traced& traced, Retries& retries);
