@@ -48,6 +48,10 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
                    "optimal: pilot and floor at this share of the budget's mean spp "
                    "(0: min_spp alone)")
         ->capture_default_str();
+    cmd.add_option("--steer-rounds", s.steer_rounds,
+                   "optimal: spend what the pilot leaves in this many rounds, each at "
+                   "most half of what is left (0: doubling rounds)")
+        ->capture_default_str();
     cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
         ->capture_default_str();
     cmd.add_option("--adaptive-min-samples", s.adaptive_min_samples,

@@ -200,6 +200,7 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       cap_(spp_cap(p)),
       sigma_radius_(p.sigma_radius),
       sigma_prior_(p.sigma_prior),
+      steer_rounds_(p.steer_rounds),
       cost_aware_(cost_aware) {
     min_spp_ = std::min(min_spp_, cap_);  // a floor from the budget never passes max_spp
     // optimal_counts' events, two a pixel, are allocated here, every page touched, where
@@ -420,9 +421,20 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     const double limit = cost_aware_ ? ray_budget_ : double(budget_);
     const double remaining = limit - spent;
     if (!(remaining >= 1)) return std::nullopt;
-    // Each round spends as much as all before it (at most what is left), so the estimates
-    // that steer a round rest on at least half of the render so far.
-    const double share = std::min(remaining, std::max(spent, 1.0));
+    // Each round spends at most as much as all before it (at most what is left), so the
+    // estimates that steer a round rest on at least half of the render so far. With
+    // steer_rounds k, a round also spends at most half of what is left, and the k-th
+    // after the pilot all of it: sigma is re-estimated from every merged sample before
+    // each round, so a firefly drawn in one round is answered in the next (as Cycles
+    // answers it at its next check), and the last rounds, whose fireflies are never
+    // answered, are the small ones.
+    double share = std::min(remaining, std::max(spent, 1.0));
+    if (steer_rounds_ > 0) {
+        const uint32_t steered = rounds_ > 0 ? rounds_ - 1 : 0;  // round 0 is the pilot
+        share = steered + 1 < steer_rounds_
+                    ? std::min(share, std::max(1.0, std::floor(remaining / 2)))
+                    : remaining;
+    }
 
     // Each per-pixel buffer below takes over the one it is computed from, pixel by pixel,
     // rather than take 16 MB of fresh pages at 1920x1080 (the kernel's page faults and

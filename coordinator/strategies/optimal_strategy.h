@@ -60,7 +60,7 @@ private:
 
     uint32_t width_, height_;
     uint64_t budget_;
-    uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_;
+    uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_, steer_rounds_;
     bool cost_aware_;
 
     double ray_budget_ = 0;

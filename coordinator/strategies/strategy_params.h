@@ -52,6 +52,12 @@ struct StrategyParams {
     // heavy-tailed pixels (caustics) need it, smooth noise loses little to it
     // (docs/RESULTS.md, issue 15).
     double floor_fraction = 0.5;
+    // optimal / optimal-time: k >= 1 spends what the pilot leaves in k steered rounds,
+    // each at most half of what is left (and at most all spent before it), the k-th all
+    // of it; sigma is re-estimated from all merged samples before each, so fireflies
+    // drawn late are answered (0: rounds that double, what the pilot leaves in one or
+    // two rounds at floor_fraction 0.5). 8 by default (docs/RESULTS.md, issue 15).
+    uint32_t steer_rounds = 8;
 
     // cycles (Blender Cycles' adaptive sampling, with its defaults)
     double noise_threshold = 0.01;

@@ -214,6 +214,9 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
         EXPECT_NE(message(p).find("floor_fraction"), std::string::npos) << f;
     }
     p.floor_fraction = 0.5;
+    p.steer_rounds = 65;
+    EXPECT_NE(message(p).find("steer_rounds"), std::string::npos);
+    p.steer_rounds = 64;
     EXPECT_NO_THROW(validate(p, 8, 8));
     StrategyParams read;
     from_json(nlohmann::json{{"method", "cycles"},
@@ -222,7 +225,8 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
                              {"adaptive_step", 4},
                              {"sigma_radius", 2},
                              {"sigma_prior", 16},
-                             {"floor_fraction", 0.5}},
+                             {"floor_fraction", 0.5},
+                             {"steer_rounds", 3}},
               read);
     EXPECT_EQ(read.noise_threshold, 0.05);
     EXPECT_EQ(read.adaptive_min_samples, 8u);
@@ -230,6 +234,8 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
     EXPECT_EQ(read.sigma_radius, 2u);
     EXPECT_EQ(read.sigma_prior, 16u);
     EXPECT_EQ(read.floor_fraction, 0.5);
+    EXPECT_EQ(read.steer_rounds, 3u);
+    EXPECT_EQ(StrategyParams{}.steer_rounds, 8u);  // the default, docs/RESULTS.md
 }
 
 }  // namespace
