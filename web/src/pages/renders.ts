@@ -29,12 +29,14 @@ const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string 
     { key: "sigma_prior", label: "sigma prior, samples (0: off)" },
     { key: "sigma_radius", label: "sigma pool radius (0: own pixel)" },
     { key: "floor_fraction", label: "pilot and floor, share of mean spp", step: "any" },
+    { key: "steer_rounds", label: "steered rounds after the pilot (0: doubling)" },
   ],
   "optimal-time": [
     { key: "spp", label: "budget (spp x pixels)" },
     { key: "min_spp", label: "min spp" },
     { key: "max_spp", label: "max spp (0: default)" },
     { key: "floor_fraction", label: "pilot and floor, share of mean spp", step: "any" },
+    { key: "steer_rounds", label: "steered rounds after the pilot (0: doubling)" },
   ],
   cycles: [
     { key: "noise_threshold", label: "noise threshold", step: "any" },
