@@ -64,28 +64,46 @@ size_t rows_per_band(uint32_t w) {
     return std::max<size_t>(1, kBandPixels / std::max(w, 1u));
 }
 
-std::vector<double> median3x3(const std::vector<double>& v, uint32_t w, uint32_t h) {
+// sigma_i = sqrt(max(v_i, kNeighbourhoodFactor * (v's 3x3 median around i), least)):
+// the median and the rest in one pass over rows in bands, without a buffer of medians.
+// Inside the image each row's medians are taken by the same compare-exchanges, pixel by
+// pixel, in a loop over the row that the compiler vectorises; the clipped windows at the
+// edges are selected as before.
+std::vector<double> sigma_from_neighbourhood(const std::vector<double>& v, uint32_t w,
+                                             uint32_t h, double least) {
     std::vector<double> out(v.size());
-    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
+    const auto finish = [&](size_t i, double near) {
+        out[i] = std::sqrt(std::max({v[i], kNeighbourhoodFactor * near, least}));
+    };
+    const auto clipped = [&](uint32_t x, uint32_t y) {  // a window of 4 or 6 at an edge
         double window[9];
+        int n = 0;
+        for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
+            for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
+                window[n++] = v[size_t(yy) * w + xx];
+        std::nth_element(window, window + n / 2, window + n);
+        return window[n / 2];
+    };
+    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
         for (uint32_t y = uint32_t(row0); y < row1; ++y) {
-            for (uint32_t x = 0; x < w; ++x) {
-                if (y > 0 && y + 1 < h && x > 0 && x + 1 < w) {
-                    const double* above = &v[size_t(y - 1) * w + x - 1];
-                    const double* row = above + w;
-                    const double* below = row + w;
-                    double p[9] = {above[0], above[1], above[2], row[0],  row[1],
-                                   row[2],   below[0], below[1], below[2]};
-                    out[size_t(y) * w + x] = median_of_nine(p);
-                    continue;
-                }
-                int n = 0;  // an edge: a clipped window of 4 or 6
-                for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
-                    for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
-                        window[n++] = v[size_t(yy) * w + xx];
-                std::nth_element(window, window + n / 2, window + n);
-                out[size_t(y) * w + x] = window[n / 2];
+            const size_t row = size_t(y) * w;
+            if (y == 0 || y + 1 >= h || w < 3) {
+                for (uint32_t x = 0; x < w; ++x) finish(row + x, clipped(x, y));
+                continue;
             }
+            const double* above = &v[row - w];
+            const double* mid = &v[row];
+            const double* below = &v[row + w];
+            double* near = &out[row];  // the medians first, then sigma in place
+            for (uint32_t x = 1; x + 1 < w; ++x) {
+                double p[9] = {above[x - 1], above[x], above[x + 1],
+                               mid[x - 1],   mid[x],   mid[x + 1],
+                               below[x - 1], below[x], below[x + 1]};
+                near[x] = median_of_nine(p);
+            }
+            finish(row, clipped(0, y));
+            for (uint32_t x = 1; x + 1 < w; ++x) finish(row + x, near[x]);
+            finish(row + w - 1, clipped(w - 1, y));
         }
     });
     return out;
@@ -170,20 +188,6 @@ double rays_per_sample(const Accumulator& merged) {
                : 1.0;
 }
 
-// Each pixel's measured rays per sample; pixels not yet sampled cost the mean.
-std::vector<double> pixel_costs(const Accumulator& merged) {
-    const double mean_cost = rays_per_sample(merged);
-    std::vector<double> cost(merged.pixel_count());
-    for_each_band(cost.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-            const PixelSums& p = merged.at(i);
-            cost[i] =
-                p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
-        }
-    });
-    return cost;
-}
-
 }  // namespace
 
 OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32_t height,
@@ -214,8 +218,18 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      uint32_t radius, uint32_t prior) {
+    return sigma_estimates(merged, radius, prior, nullptr);
+}
+
+std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
+                                                     uint32_t radius, uint32_t prior,
+                                                     std::vector<double>* costs) {
     const size_t n = merged.pixel_count();
     std::vector<double> var(n);
+    // optimal-time's costs are read in the same pass over the sums (pixel_costs' values):
+    // a second stream of the 80-byte sums was ~25 ms of its round end at 1920x1080.
+    const double mean_cost = costs ? rays_per_sample(merged) : 0.0;
+    if (costs) costs->resize(n);
     // Each band's largest finite variance; max is exact in any order.
     std::vector<double> band_largest(band_count(n, kBandPixels), 0.0);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
@@ -223,6 +237,11 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         for (size_t i = begin; i < end; ++i) {
             var[i] = merged.luminance_variance(i);
             if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
+            if (costs) {
+                const PixelSums& p = merged.at(i);
+                (*costs)[i] =
+                    p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
+            }
         }
         band_largest[band] = largest;
     });
@@ -234,7 +253,7 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
             if (!std::isfinite(var[i])) var[i] = largest;
     });
     const double median = median_value(var);
-    std::vector<double> sigma(n);
+    std::vector<double> sigma;
     const auto each_pixel = [&](auto&& f) {
         for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
             for (size_t i = begin; i < end; ++i) f(i);
@@ -247,6 +266,7 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         // a truly isolated noisy pixel still gets its share once it has been sampled.
         const std::vector<double> pooled =
             box_mean(var, merged.width(), merged.height(), std::max(radius, 1u));
+        sigma.resize(n);
         each_pixel([&](size_t i) {
             const double own =
                 merged.samples(i) > 1 ? double(merged.samples(i) - 1) : 0.0;
@@ -263,16 +283,14 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         // sharp edge between a noisy and a quiet region is blurred by r pixels.
         const std::vector<double> pooled =
             box_mean(var, merged.width(), merged.height(), radius);
+        sigma.resize(n);
         each_pixel([&](size_t i) {
             sigma[i] = std::sqrt(std::max(pooled[i], kImageFactor * median));
         });
         return sigma;
     }
-    const std::vector<double> near = median3x3(var, merged.width(), merged.height());
-    each_pixel([&](size_t i) {
-        sigma[i] = std::sqrt(
-            std::max({var[i], kNeighbourhoodFactor * near[i], kImageFactor * median}));
-    });
+    sigma = sigma_from_neighbourhood(var, merged.width(), merged.height(),
+                                     kImageFactor * median);
     return sigma;
 }
 
@@ -427,9 +445,9 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     // Each per-pixel buffer below takes over the one it is computed from, pixel by pixel,
     // rather than take 16 MB of fresh pages at 1920x1080 (the kernel's page faults and
     // zeroing were a large part of this round end).
-    std::vector<double> weight = sigma_estimates(merged, sigma_radius_, sigma_prior_);
-    const std::vector<double> cost =
-        cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
+    std::vector<double> cost;
+    std::vector<double> weight = sigma_estimates(merged, sigma_radius_, sigma_prior_,
+                                                 cost_aware_ ? &cost : nullptr);
     std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         bool any = false;

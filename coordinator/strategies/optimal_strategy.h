@@ -41,6 +41,12 @@ public:
                                               double total, double lo, double hi);
 
 private:
+    // As above; with `costs`, each pixel's measured rays per sample too (the mean for a
+    // pixel not yet sampled), read in the same pass over the sums.
+    static std::vector<double> sigma_estimates(const Accumulator& merged, uint32_t radius,
+                                               uint32_t prior,
+                                               std::vector<double>* costs);
+
     // One pixel's breakpoint of the allocation's piecewise-linear cost (see the .cpp).
     struct MuEvent {
         double mu, slope, constant;
