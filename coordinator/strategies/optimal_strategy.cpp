@@ -206,14 +206,6 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       sigma_prior_(p.sigma_prior),
       cost_aware_(cost_aware) {
     min_spp_ = std::min(min_spp_, cap_);  // a floor from the budget never passes max_spp
-    // optimal_counts' events, two a pixel, are allocated here, every page touched, where
-    // a render's buffers are built off the coordinator's locks, and not by the first
-    // steered round's end: their 96 MB of fresh pages at 1920x1080 were ~25 ms of that
-    // round end. Only a render that will steer (its pilot leaves budget) takes them.
-    const size_t pixels = size_t(width) * height;
-    const uint64_t pilot =
-        std::min<uint64_t>({min_spp_, budget_ / std::max<size_t>(pixels, 1), cap_});
-    if (pilot > 0 && budget_ > pilot * pixels) events_.resize(2 * pixels);
 }
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
@@ -297,14 +289,6 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
 std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
                                                     const std::vector<double>& costs,
                                                     double total, double lo, double hi) {
-    std::vector<MuEvent> events;
-    return optimal_counts(weights, costs, total, lo, hi, events);
-}
-
-std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
-                                                    const std::vector<double>& costs,
-                                                    double total, double lo, double hi,
-                                                    std::vector<MuEvent>& events) {
     const size_t n = weights.size();
     auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
     double floor_cost = 0, cap_cost = 0;
@@ -318,70 +302,62 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
     }
     if (total >= cap_cost) return std::vector<double>(n, hi);
 
-    // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising:
-    // pixel i starts rising at mu = lo / w_i (its floor gives way to c_i w_i mu) and
-    // stops at hi / w_i (its cap). In the events' order, f just before event k is
-    //     F_k = floor_cost + C_k + S_k mu_k,
-    // C_k and S_k the sums of the earlier events' constants and slopes; F_k rises with k,
-    // and the root lies in the segment before the first k with F_k >= total. That k is
-    // found by bisecting on rank with selection (nth_element), not by sorting: each step
-    // sums only the events it has not yet placed, so the work is linear in the events
-    // where a sort was n log n (at 1920x1080 the sort was a quarter of optimal's round
-    // end).
-    //
-    // The events are laid out in pixel order, as one thread would push them, by bands:
-    // each band counts its pixels of positive weight, and writes from its offset.
-    using Event = MuEvent;
+    // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising,
+    // and on each piece it is C + S mu: C sums c_i lo over the pixels at their floor and
+    // c_i hi over those at their cap, S sums c_i w_i over the others. Newton's step
+    // from mu, (total - C) / S, is the root of mu's piece, so once it stays on its piece
+    // it is the root. The steps are kept inside a bracket [below, above] with f(below)
+    // < total <= f(above), bisecting (or doubling, while there is no upper end) when a
+    // step would leave it, so the search ends on a piece whatever the weights; a few
+    // passes over the weights at 1920x1080, where sorting the pieces' 2 n breakpoints,
+    // or selecting among them, streamed 96 MB several times. C and S are summed in pixel
+    // order within bands of fixed size and the bands' sums added in band order: the
+    // same bits with one thread or many.
     const size_t bands = band_count(n, kBandPixels);
-    std::vector<size_t> offset(bands + 1, 0);
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        size_t m = 0;
-        for (size_t i = begin; i < end; ++i) m += weights[i] > 0;
-        offset[band + 1] = 2 * m;
-    });
-    for (size_t b = 0; b < bands; ++b) offset[b + 1] += offset[b];
-    events.resize(offset[bands]);  // the strategy's buffer: no new pages after round 1
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        Event* out = events.data() + offset[band];
-        for (size_t i = begin; i < end; ++i) {
-            if (!(weights[i] > 0)) continue;
-            const double cw = cost(i) * weights[i];
-            *out++ = {lo / weights[i], cw, -cost(i) * lo};
-            *out++ = {hi / weights[i], -cw, cost(i) * hi};
+    std::vector<double> band_c(bands), band_s(bands);
+    const auto piece = [&](double mu) {
+        for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            double c = 0, s = 0;
+            for (size_t i = begin; i < end; ++i) {
+                const double w = weights[i], x = w > 0 ? mu * w : lo;
+                if (x <= lo)
+                    c += cost(i) * lo;
+                else if (x >= hi)
+                    c += cost(i) * hi;
+                else
+                    s += cost(i) * w;
+            }
+            band_c[band] = c;
+            band_s[band] = s;
+        });
+        double c = 0, s = 0;
+        for (size_t b = 0; b < bands; ++b) {
+            c += band_c[b];
+            s += band_s[b];
         }
-    });
-    const auto by_mu = [](const Event& a, const Event& b) { return a.mu < b.mu; };
-    // Events [0, first) are placed below the root and summed into (constant, slope); the
-    // crossing event is in [first, last).
-    double constant = floor_cost, slope = 0;
-    size_t first = 0, last = events.size();
-    while (last - first > 32) {
-        const size_t mid = first + (last - first) / 2;
-        std::nth_element(events.begin() + first, events.begin() + mid,
-                         events.begin() + last, by_mu);
-        double c = constant, s = slope;
-        for (size_t k = first; k < mid; ++k) {
-            c += events[k].constant;
-            s += events[k].slope;
+        return std::pair{c, s};
+    };
+    double weighted = 0;  // a first guess: no pixel at its floor or cap
+    for (size_t i = 0; i < n; ++i)
+        if (weights[i] > 0) weighted += cost(i) * weights[i];
+    double below = 0, above = std::numeric_limits<double>::infinity();
+    double mu = weighted > 0 ? total / weighted : 1.0;
+    for (int step = 0; step < 4096; ++step) {
+        const auto [c, s] = piece(mu);
+        if (c + s * mu < total)
+            below = mu;
+        else
+            above = mu;
+        const double next = s > 0 ? (total - c) / s : mu;
+        if (next == mu) break;  // the root of its own piece
+        if (next > below && next < above) {
+            mu = next;
+            continue;
         }
-        if (c + s * events[mid].mu >= total) {
-            last = mid + 1;  // the crossing is at mid or before it
-        } else {
-            constant = c + events[mid].constant;  // the crossing is after mid
-            slope = s + events[mid].slope;
-            first = mid + 1;
-        }
-    }
-    std::sort(events.begin() + first, events.begin() + last, by_mu);
-    double mu = std::numeric_limits<double>::infinity();
-    for (size_t k = first; k < last; ++k) {
-        const Event& e = events[k];
-        if (slope > 0 && constant + slope * e.mu >= total) {
-            mu = (total - constant) / slope;
-            break;
-        }
-        slope += e.slope;
-        constant += e.constant;
+        const double middle =
+            std::isinf(above) ? 2 * below + 1 : below + (above - below) / 2;
+        if (!(middle > below && middle < above)) break;  // no double left between them
+        mu = middle;
     }
     std::vector<double> counts(n);
     for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
@@ -400,7 +376,6 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         std::optional<std::vector<uint32_t>> spp = steered_round(merged);
         if (!spp) {
             finished_ = true;
-            std::vector<MuEvent>().swap(events_);
             return std::nullopt;
         }
         round.spp = std::move(*spp);
@@ -464,8 +439,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
 
     // The round closes the gap between what each pixel has and its target; pixels already
     // past their target get nothing, so the gaps are scaled to the share.
-    std::vector<double> gap = optimal_counts(weight, cost, spent + share,
-                                             double(min_spp_), double(cap_), events_);
+    std::vector<double> gap =
+        optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
     std::vector<uint32_t> room(pixels);
     for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {

@@ -98,8 +98,8 @@ TEST(Optimal, OptimalCountsWithCostsSpendTheCostBudget) {
     EXPECT_NEAR(n[0], 10, 1e-9);
 }
 
-// Enough pixels that the root is found by bisecting on rank, not only by the final sweep;
-// many equal weights, so ties between events are met too.
+// Enough pixels that the pieces' sums span bands and the search takes several steps;
+// many equal weights, so many pieces' breakpoints coincide too.
 TEST(Optimal, OptimalCountsOverManyPixelsMeetTheLagrangeConditions) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> spread(-6, 6);
