@@ -337,25 +337,44 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
         }
         return std::pair{c, s};
     };
-    double weighted = 0;  // a first guess: no pixel at its floor or cap
+    double weighted = 0;        // a first guess: no pixel at its floor or cap
+    double reach = floor_cost;  // what every pixel of positive weight at its cap costs
     for (size_t i = 0; i < n; ++i)
-        if (weights[i] > 0) weighted += cost(i) * weights[i];
+        if (weights[i] > 0) {
+            weighted += cost(i) * weights[i];
+            reach += cost(i) * (hi - lo);
+        }
     double below = 0, above = std::numeric_limits<double>::infinity();
     double mu = weighted > 0 ? total / weighted : 1.0;
-    for (int step = 0; step < 4096; ++step) {
+    // Pixels of weight 0 stay at their floor: a total they leave out of reach puts every
+    // other pixel at its cap.
+    if (total >= reach) mu = above;
+    for (int step = 0; step < 4096 && mu < above; ++step) {
         const auto [c, s] = piece(mu);
         if (c + s * mu < total)
             below = mu;
         else
             above = mu;
-        const double next = s > 0 ? (total - c) / s : mu;
-        if (next == mu) break;  // the root of its own piece
-        if (next > below && next < above) {
-            mu = next;
-            continue;
+        if (s > 0) {  // on a piece that rises: Newton's step
+            const double next = (total - c) / s;
+            if (next == mu) break;  // the root of its own piece
+            if (next > below && next < above) {
+                mu = next;
+                continue;
+            }
         }
-        const double middle =
-            std::isinf(above) ? 2 * below + 1 : below + (above - below) / 2;
+        // Otherwise a step that narrows the bracket by orders of magnitude while its ends
+        // are far apart (weights may span hundreds of them), by halves once they are
+        // near.
+        double middle;
+        if (std::isinf(above))
+            middle = below > 0 ? 16 * below : 1.0;
+        else if (below == 0)
+            middle = above / 16;
+        else if (above > 4 * below)
+            middle = std::sqrt(below) * std::sqrt(above);
+        else
+            middle = below + (above - below) / 2;
         if (!(middle > below && middle < above)) break;  // no double left between them
         mu = middle;
     }
