@@ -212,6 +212,13 @@ private:
         std::chrono::steady_clock::time_point written{};
         double write_seconds = 0;
     };
+    // A bucket's place and whether it converged: a round's buckets are stored when
+    // these changed since the last stored layout.
+    struct BucketShape {
+        PixelRect rect;
+        bool converged = false;
+        bool operator==(const BucketShape&) const = default;
+    };
     // A render in memory with its own lock, which guards everything here.
     struct RenderSlot : std::enable_shared_from_this<RenderSlot> {
         std::mutex mutex;
@@ -219,7 +226,7 @@ private:
         // Its completed rounds (for rounds()): from memory for a live render; a resumed
         // one's earlier rounds are read from the store once.
         std::vector<RoundSummary> round_history;
-        std::string bucket_shape;  // the last bucket layout stored (record_round)
+        std::vector<BucketShape> bucket_shape;  // the last layout stored (record_round)
         CheckpointTiming checkpoint;
         std::shared_ptr<CheckpointCopy> checkpoint_copy;  // the backlog's while in flight
         // Guarded by the coordinator's `mutex_`, not this slot's: lease() orders renders

@@ -59,6 +59,10 @@ double RenderSession::seconds() const {
 }
 
 void RenderSession::plan_next_round() {
+    // The ended round's jobs lend their vectors to the next round's (cut_round).
+    std::vector<SampleJob> spare;
+    spare.reserve(jobs_.size());
+    for (JobSlot& slot : jobs_) spare.push_back(std::move(slot.job));
     jobs_.clear();
     pending_.clear();
     lease_to_job_.clear();
@@ -70,7 +74,7 @@ void RenderSession::plan_next_round() {
             finish(RenderState::Done);
             return;
         }
-        std::vector<SampleJob> jobs = cut_round(*round, merged_);
+        std::vector<SampleJob> jobs = cut_round(*round, merged_, 0, std::move(spare));
         if (jobs.empty()) continue;
         round_index_ = round->index;
         round_samples_ = round->total();

@@ -17,8 +17,7 @@ uint32_t job_tile_side(double mean_spp) {
 namespace {
 
 std::optional<SampleJob> job_for(const PixelRect& rect, const Round& round,
-                                 const Accumulator& merged) {
-    SampleJob job;
+                                 const Accumulator& merged, SampleJob job) {
     job.rect = rect;
     job.counts.resize(rect.size());
     job.first_sample.resize(rect.size());
@@ -38,14 +37,19 @@ std::optional<SampleJob> job_for(const PixelRect& rect, const Round& round,
 }
 
 // The jobs of `rects` that hold samples, in the rects' order; the rects are cut on the
-// band pool's threads, each into its own slot.
+// band pool's threads, each into its own slot, rect k into spare[k]'s vectors when there
+// is one.
 std::vector<SampleJob> jobs_for(const std::vector<PixelRect>& rects, const Round& round,
-                                const Accumulator& merged) {
+                                const Accumulator& merged,
+                                std::vector<SampleJob>& spare) {
     std::vector<std::optional<SampleJob>> cut(rects.size());
     // A band of 16 tiles is 16 K pixels at the smallest automatic tile.
     for_each_band(rects.size(), 16, [&](size_t, size_t begin, size_t end) {
-        for (size_t k = begin; k < end; ++k) cut[k] = job_for(rects[k], round, merged);
+        for (size_t k = begin; k < end; ++k)
+            cut[k] = job_for(rects[k], round, merged,
+                             k < spare.size() ? std::move(spare[k]) : SampleJob{});
     });
+    spare.erase(spare.begin(), spare.begin() + std::min(spare.size(), rects.size()));
     std::vector<SampleJob> jobs;
     jobs.reserve(rects.size());
     for (std::optional<SampleJob>& job : cut)
@@ -60,7 +64,7 @@ size_t tile_count(uint32_t w, uint32_t h, uint32_t tile) {
 }  // namespace
 
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
-                                 uint32_t tile) {
+                                 uint32_t tile, std::vector<SampleJob> spare) {
     const uint32_t w = merged.width(), h = merged.height();
     if (tile == 0) {
         // Mean over the pixels that get samples, so a round that refines a small area is
@@ -77,7 +81,7 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
         for (uint32_t x0 = 0; x0 < w; x0 += tile)
             tiles.push_back({x0, y0, std::min(tile, w - x0), std::min(tile, h - y0)});
 
-    std::vector<SampleJob> jobs = jobs_for(tiles, round, merged);
+    std::vector<SampleJob> jobs = jobs_for(tiles, round, merged, spare);
     if (tile < 2 * kMinAutoTile) return jobs;
 
     // A round ends when its last job does: whoever finishes early waits. Jobs are issued
@@ -100,7 +104,9 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
             quadrants.push_back(q);
         }
     }
-    for (SampleJob& job : jobs_for(quadrants, round, merged))
+    // The quadrants take over the spares left and the big jobs they replace.
+    std::move(tail.begin(), tail.end(), std::back_inserter(spare));
+    for (SampleJob& job : jobs_for(quadrants, round, merged, spare))
         jobs.push_back(std::move(job));
     return jobs;
 }

@@ -63,6 +63,28 @@ TEST(RoundCutter, SmallImagesGetEnoughJobsForSeveralWorkers) {
     EXPECT_EQ(jobs.size(), 12u + 16u);
 }
 
+// The previous round's jobs lend their vectors, larger and smaller than needed and full
+// of stale values: the jobs cut into them are the jobs cut into fresh ones.
+TEST(RoundCutter, JobsCutIntoSpareJobsAreTheJobsCutAfresh) {
+    Accumulator acc(160, 96);
+    Round round{3, std::vector<uint32_t>(160 * 96)};
+    for (size_t i = 0; i < round.spp.size(); ++i) round.spp[i] = uint32_t(i % 7);
+    std::vector<SampleJob> spare(5);
+    for (size_t k = 0; k < spare.size(); ++k) {
+        spare[k].rect = {1, 2, 3, 4};
+        spare[k].counts.assign(k % 2 ? 5000 : 3, 99);
+        spare[k].first_sample.assign(k % 2 ? 5000 : 3, 12345);
+    }
+    const std::vector<SampleJob> fresh = cut_round(round, acc, 32);
+    const std::vector<SampleJob> reused = cut_round(round, acc, 32, std::move(spare));
+    ASSERT_EQ(reused.size(), fresh.size());
+    for (size_t j = 0; j < fresh.size(); ++j) {
+        EXPECT_EQ(reused[j].rect, fresh[j].rect) << "job " << j;
+        EXPECT_EQ(reused[j].counts, fresh[j].counts) << "job " << j;
+        EXPECT_EQ(reused[j].first_sample, fresh[j].first_sample) << "job " << j;
+    }
+}
+
 TEST(RoundCutter, SparseRoundsGetLargerTilesUpTo128) {
     EXPECT_EQ(job_tile_side(1), 128u);
     EXPECT_EQ(job_tile_side(8), 64u);

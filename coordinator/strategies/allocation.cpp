@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <memory>
 #include <new>
 #include <utility>
@@ -38,95 +39,71 @@ template <typename T>
 using Scratch = std::vector<T, NoZeroFill<T>>;
 
 // The real-valued shares: item i gets min(lambda * w_i, cap_i) with one lambda for all,
-// chosen so the costs add up to `total`. The items that reach their cap are those with
-// the smallest cap_i / w_i, so walking them in that order finds lambda exactly.
-// Only the shares of the items in `order` are written, and only they are read after.
-template <typename Cost>
-Scratch<double> water_fill(const Scratch<size_t>& order,
-                           const std::vector<double>& weights,
-                           const std::vector<uint32_t>& caps, double total,
-                           const Cost& cost) {
-    Scratch<double> share(weights.size());
-    double all = 0;  // summed in order on one thread: the same bits as ever
-    for (size_t i : order) all += cost(i) * weights[i];
+// chosen so the costs add up to `total`. In the usual case no cap binds and the share is
+// first * w_i, computed where it is needed rather than kept (16 MB of fresh pages at
+// 1920x1080); otherwise each item's share is kept in `kept`.
+struct Shares {
+    const std::vector<double>* weights = nullptr;
+    double first = 0;
+    bool capped = false;
+    Scratch<double> kept;  // when capped: the shares of the items apportion considers
+    double operator()(size_t i) const { return capped ? kept[i] : first * (*weights)[i]; }
+};
+
+// The items that reach their cap are those with the smallest cap_i / w_i, so walking them
+// in that order finds lambda exactly. `keep(i)` says which items are considered.
+template <typename Keep, typename Cost>
+Shares water_fill(const std::vector<double>& weights, const std::vector<uint32_t>& caps,
+                  double total, const Keep& keep, const Cost& cost) {
+    const size_t n = weights.size();
+    Shares shares;
+    shares.weights = &weights;
+    double all = 0;  // summed in item order on one thread: the same bits as ever
+    for (size_t i = 0; i < n; ++i)
+        if (keep(i)) all += cost(i) * weights[i];
     const double first = all > 0 ? total / all : 0.0;
-    std::vector<char> band_capped(band_count(order.size(), kBandPixels), 0);
-    for_each_band(order.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+    shares.first = first;
+    std::vector<char> band_capped(band_count(n, kBandPixels), 0);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         bool capped = false;
-        for (size_t k = begin; k < end; ++k)
-            capped = capped || first * weights[order[k]] >= caps[order[k]];
+        for (size_t i = begin; i < end; ++i)
+            capped = capped || (keep(i) && first * weights[i] >= caps[i]);
         band_capped[band] = capped;
     });
-    const bool any_capped =
-        std::find(band_capped.begin(), band_capped.end(), 1) != band_capped.end();
-    if (!any_capped) {  // the usual case: no cap binds, no sorting needed
-        for_each_band(order.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
-            for (size_t k = begin; k < end; ++k)
-                share[order[k]] = first * weights[order[k]];
-        });
-        return share;
-    }
+    if (std::find(band_capped.begin(), band_capped.end(), 1) == band_capped.end())
+        return shares;  // the usual case: no cap binds, no sorting needed
+    shares.capped = true;
+    shares.kept.resize(n);
     std::vector<std::pair<double, size_t>> by_ratio;
-    by_ratio.reserve(order.size());
-    for (size_t i : order) by_ratio.emplace_back(caps[i] / weights[i], i);
+    for (size_t i = 0; i < n; ++i)
+        if (keep(i)) by_ratio.emplace_back(caps[i] / weights[i], i);
     std::sort(by_ratio.begin(), by_ratio.end());
-    Scratch<size_t> ranked(order.size());  // the items, first to reach their caps first
-    for (size_t k = 0; k < ranked.size(); ++k) ranked[k] = by_ratio[k].second;
-    std::vector<double> suffix(ranked.size() + 1, 0.0);  // sum of cost * weight from k on
-    for (size_t k = ranked.size(); k-- > 0;)
-        suffix[k] = suffix[k + 1] + cost(ranked[k]) * weights[ranked[k]];
+    std::vector<double> suffix(by_ratio.size() + 1,
+                               0.0);  // sum of cost * weight from k on
+    for (size_t k = by_ratio.size(); k-- > 0;) {
+        const size_t i = by_ratio[k].second;
+        suffix[k] = suffix[k + 1] + cost(i) * weights[i];
+    }
     double left = total;
     size_t k = 0;
-    for (; k < ranked.size(); ++k) {
-        const size_t i = ranked[k];
+    for (; k < by_ratio.size(); ++k) {
+        const size_t i = by_ratio[k].second;
         if (!(suffix[k] > 0) || left / suffix[k] * weights[i] < caps[i]) break;
-        share[i] = caps[i];
+        shares.kept[i] = caps[i];
         left -= cost(i) * caps[i];
     }
     const double lambda =
-        (k < ranked.size() && suffix[k] > 0 && left > 0) ? left / suffix[k] : 0;
-    for (; k < ranked.size(); ++k) {
-        const size_t i = ranked[k];
-        share[i] = std::min(lambda * weights[i], double(caps[i]));
+        (k < by_ratio.size() && suffix[k] > 0 && left > 0) ? left / suffix[k] : 0;
+    for (; k < by_ratio.size(); ++k) {
+        const size_t i = by_ratio[k].second;
+        shares.kept[i] = std::min(lambda * weights[i], double(caps[i]));
     }
-    return share;
-}
-
-// Order in which items receive the remainder: largest fractional part first, ties by a
-// hash of the index (so equal shares are spread over the image), then by the index.
-struct RemainderKey {
-    double fraction;
-    uint64_t hash;
-    size_t index;
-    bool operator<(const RemainderKey& o) const {
-        if (fraction != o.fraction) return fraction > o.fraction;
-        return hash != o.hash ? hash < o.hash : index < o.index;
-    }
-};
-
-// The indices i < n with keep(i), ascending; found in bands.
-template <typename Keep>
-Scratch<size_t> in_order(size_t n, const Keep& keep) {
-    const size_t bands = band_count(n, kBandPixels);
-    std::vector<size_t> offset(bands + 1, 0);
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        size_t m = 0;
-        for (size_t i = begin; i < end; ++i) m += keep(i) ? 1 : 0;
-        offset[band + 1] = m;
-    });
-    for (size_t b = 0; b < bands; ++b) offset[b + 1] += offset[b];
-    Scratch<size_t> order(offset[bands]);
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        size_t k = offset[band];
-        for (size_t i = begin; i < end; ++i)
-            if (keep(i)) order[k++] = i;
-    });
-    return order;
+    return shares;
 }
 
 // A remainder fraction's bucket: floor(fraction * kFractionBuckets), which never falls
 // as the fraction rises, so the buckets are in the fractions' order. Fractions lie in
-// [0, 1) and spread evenly over it, so each bucket holds about as many keys (~120 at
+// [0, 1) and spread evenly over it, so each bucket holds about as many items (~120 at
 // 1920x1080); bucketing by the top bits of their bit patterns put half of them, those
 // in [0.5, 1), into 16 buckets, whose sorts were most of optimal-time's round end.
 constexpr size_t kFractionBuckets = size_t(1) << 14;
@@ -137,129 +114,131 @@ size_t fraction_bucket(double fraction) {
                         : 0;
 }
 
-// For each band of keys, how many of its keys fall in each of `buckets` buckets.
-template <typename Count>
-std::vector<std::vector<Count>> bucket_counts(const Scratch<RemainderKey>& keys,
-                                              size_t buckets) {
-    std::vector<std::vector<Count>> counts(band_count(keys.size(), kBandPixels));
-    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        std::vector<Count>& h = counts[band];
-        h.assign(buckets, 0);
-        for (size_t k = begin; k < end; ++k) ++h[fraction_bucket(keys[k].fraction)];
-    });
-    return counts;
+uint64_t bits_of(double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
 }
 
-// Gives one more unit to each of the n first keys in RemainderKey's order (below its
-// cap) and returns how many it gave. The order is total (the index breaks ties), so
-// those n are one set, however they are found: here, a histogram of the fractions'
-// buckets (fraction_bucket), counted in bands, finds the bucket the n-th key falls in;
-// every key in a larger bucket is taken, and selection runs only on that bucket
-// (nth_element on all the keys was most of apportion's time). The keys are left in
-// some other order: no caller depends on theirs, and reordering them in place spares a
-// copy of the bucket, which for a method whose shares are all alike (adaptive's flat
-// buckets) is nearly all of them: 48 MB of fresh pages at 1920x1080.
-size_t give_one_each(Scratch<RemainderKey>& keys, size_t n, std::vector<uint32_t>& count,
-                     const std::vector<uint32_t>& caps) {
-    if (n == 0) return 0;
-    if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
-        std::nth_element(keys.begin(), keys.begin() + n, keys.end());
-        size_t given = 0;
-        for (size_t k = 0; k < n; ++k)
-            if (count[keys[k].index] < caps[keys[k].index]) {
-                ++count[keys[k].index];
-                ++given;
-            }
-        return given;
+// The order in which items receive the remainder: largest fractional part first, ties
+// by a hash of the index (so that equal shares are spread over the image), then by the
+// index. It is total, so the first n items in it are one set however they are found.
+// Fractions are >= 0, whose bit patterns sort as their values do.
+struct RemainderOrder {
+    const Shares& share;
+    double fraction(size_t i) const {
+        const double s = share(i);
+        return s - std::floor(s);
     }
-    constexpr size_t kBuckets = kFractionBuckets;
-    const std::vector<std::vector<uint32_t>> histogram =
-        bucket_counts<uint32_t>(keys, kBuckets);
-    const size_t bands = histogram.size();
-    // Largest fractions first: the bucket holding the n-th key, and how many of it.
-    size_t bucket = kBuckets, wanted = n;
-    while (bucket-- > 0) {
-        size_t in_bucket = 0;
-        for (const std::vector<uint32_t>& h : histogram) in_bucket += h[bucket];
-        if (wanted <= in_bucket) break;
-        wanted -= in_bucket;
+    bool operator()(size_t a, size_t b) const {
+        const double fa = fraction(a), fb = fraction(b);
+        if (fa != fb) return fa > fb;
+        const uint64_t ha = mix64(a), hb = mix64(b);
+        return ha != hb ? ha < hb : a < b;
     }
-    std::vector<size_t> offset(bands + 1, 0);
-    for (size_t b = 0; b < bands; ++b) offset[b + 1] = offset[b] + histogram[b][bucket];
-    // A small bucket is copied out in bands; a large one is gathered at the front of the
-    // keys in place (one serial pass, but no new pages).
-    const bool in_place = offset[bands] > keys.size() / 8;
-    Scratch<RemainderKey> copied(in_place ? 0 : offset[bands]);
-    std::vector<size_t> given(bands, 0);
-    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        size_t t = offset[band], g = 0;
-        for (size_t k = begin; k < end; ++k) {
-            const size_t b = fraction_bucket(keys[k].fraction);
-            if (b == bucket) {
-                if (!in_place) copied[t++] = keys[k];
-            } else if (b > bucket && count[keys[k].index] < caps[keys[k].index]) {
-                ++count[keys[k].index];
-                ++g;
-            }
-        }
-        given[band] = g;
-    });
-    RemainderKey* tied = copied.data();
-    if (in_place) {
-        std::partition(keys.begin(), keys.end(), [&](const RemainderKey& key) {
-            return fraction_bucket(key.fraction) == bucket;
-        });
-        tied = keys.data();
+};
+
+// Items still tied with the n-th: their indices, in item order, and the range of their
+// fractions' and hashes' bit patterns (which says where they still differ).
+struct Tied {
+    Scratch<size_t> items;
+    uint64_t fraction_lo = ~uint64_t(0), fraction_hi = 0;
+    uint64_t hash_lo = ~uint64_t(0), hash_hi = 0;
+    void note(uint64_t f, uint64_t h) {
+        fraction_lo = std::min(fraction_lo, f), fraction_hi = std::max(fraction_hi, f);
+        hash_lo = std::min(hash_lo, h), hash_hi = std::max(hash_hi, h);
     }
-    std::nth_element(tied, tied + (wanted - 1), tied + offset[bands]);
-    size_t total = 0;
-    for (size_t g : given) total += g;
-    for (size_t k = 0; k < wanted; ++k)
-        if (count[tied[k].index] < caps[tied[k].index]) {
-            ++count[tied[k].index];
-            ++total;
-        }
-    return total;
+    void note(const Tied& o) {
+        fraction_lo = std::min(fraction_lo, o.fraction_lo);
+        fraction_hi = std::max(fraction_hi, o.fraction_hi);
+        hash_lo = std::min(hash_lo, o.hash_lo), hash_hi = std::max(hash_hi, o.hash_hi);
+    }
+};
+
+// Gives one more unit to item i unless it is at its cap; returns whether it did.
+inline bool give(size_t i, std::vector<uint32_t>& count,
+                 const std::vector<uint32_t>& caps) {
+    if (count[i] >= caps[i]) return false;
+    ++count[i];
+    return true;
 }
 
-// Sorts keys into RemainderKey's order, which is total, so the result is the one
-// std::sort gives. The keys are first spread over their fractions' buckets
-// (fraction_bucket; largest first), counted and scattered in bands, and each bucket is
-// then sorted alone, buckets shared among the pool's threads. std::sort of all of them
-// was the largest part of optimal-time's round end at 1920x1080.
-void sort_keys(Scratch<RemainderKey>& keys) {
-    if (keys.size() <= kBandPixels) {  // one band: a histogram would cost more
-        std::sort(keys.begin(), keys.end());
-        return;
-    }
-    constexpr size_t kBuckets = kFractionBuckets;
-    // at[band][bucket]: first the band's count of that bucket, then where the band's next
-    // key of that bucket goes.
-    std::vector<std::vector<size_t>> at = bucket_counts<size_t>(keys, kBuckets);
-    const size_t bands = at.size();
-    std::vector<size_t> start(kBuckets + 1, 0);  // bucket b's first place, largest first
-    size_t place = 0;
-    for (size_t b = kBuckets; b-- > 0;) {
-        start[b] = place;
-        for (size_t band = 0; band < bands; ++band) {
-            const size_t n = at[band][b];
-            at[band][b] = place;
-            place += n;
+// Of `tied`, all tied with each other in RemainderOrder as far as the digits looked at so
+// far, gives one more unit to the `wanted` first (below their caps); returns how many it
+// gave. Each step takes the next 12 bits where the tied items still differ, first of
+// their fractions (largest first) and, once those are all equal, of their hashes
+// (smallest first), counts the items by them in bands, gives to every item of a better
+// digit than the one holding the wanted-th, and keeps those of that digit. A few are
+// left when selection finishes; no full keys are ever stored.
+size_t give_to_first(Tied tied, size_t wanted, const RemainderOrder& order,
+                     std::vector<uint32_t>& count, const std::vector<uint32_t>& caps) {
+    size_t given = 0;
+    constexpr int kDigitBits = 12;
+    constexpr size_t kDigits = size_t(1) << kDigitBits;
+    while (wanted > 0) {
+        Scratch<size_t>& items = tied.items;
+        if (items.size() <= 4096 ||
+            (tied.fraction_lo == tied.fraction_hi && tied.hash_lo == tied.hash_hi)) {
+            const size_t n = std::min(wanted, items.size());
+            std::nth_element(items.begin(), items.begin() + (n - 1), items.end(), order);
+            for (size_t k = 0; k < n; ++k) given += give(items[k], count, caps);
+            return given;
         }
-    }
-    Scratch<RemainderKey> sorted(keys.size());
-    for_each_band(keys.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        std::vector<size_t>& next = at[band];
-        for (size_t k = begin; k < end; ++k)
-            sorted[next[fraction_bucket(keys[k].fraction)]++] = keys[k];
-    });
-    for_each_band(kBuckets, 256, [&](size_t, size_t begin, size_t end) {
-        for (size_t b = begin; b < end; ++b) {
-            const size_t first = start[b], last = b ? start[b - 1] : keys.size();
-            std::sort(sorted.begin() + first, sorted.begin() + last);
+        const bool by_fraction = tied.fraction_lo != tied.fraction_hi;
+        const uint64_t lo = by_fraction ? tied.fraction_lo : tied.hash_lo;
+        const uint64_t hi = by_fraction ? tied.fraction_hi : tied.hash_hi;
+        // The tied items share every bit above the highest where lo and hi differ: the
+        // next digit is the kDigitBits from there down, in the same order as the values.
+        const int top = 63 - __builtin_clzll(lo ^ hi);
+        const int shift = std::max(0, top + 1 - kDigitBits);
+        const auto digit = [&](size_t i) {
+            const uint64_t key = by_fraction ? bits_of(order.fraction(i)) : mix64(i);
+            const size_t d = size_t((key >> shift) & (kDigits - 1));
+            return by_fraction ? kDigits - 1 - d : d;  // first in the order: digit 0
+        };
+        const size_t bands = band_count(items.size(), kBandPixels);
+        std::vector<std::vector<uint32_t>> histogram(bands);
+        for_each_band(items.size(), kBandPixels,
+                      [&](size_t band, size_t begin, size_t end) {
+                          std::vector<uint32_t>& h = histogram[band];
+                          h.assign(kDigits, 0);
+                          for (size_t k = begin; k < end; ++k) ++h[digit(items[k])];
+                      });
+        size_t d = 0;
+        for (;; ++d) {
+            size_t in_digit = 0;
+            for (const std::vector<uint32_t>& h : histogram) in_digit += h[d];
+            if (wanted <= in_digit) break;
+            wanted -= in_digit;
         }
-    });
-    keys.swap(sorted);
+        std::vector<size_t> offset(bands + 1, 0);
+        for (size_t b = 0; b < bands; ++b) offset[b + 1] = offset[b] + histogram[b][d];
+        std::vector<Tied> band_tied(bands);
+        std::vector<size_t> band_given(bands, 0);
+        Tied next;
+        next.items.resize(offset[bands]);
+        for_each_band(items.size(), kBandPixels,
+                      [&](size_t band, size_t begin, size_t end) {
+                          size_t t = offset[band], g = 0;
+                          Tied& range = band_tied[band];
+                          for (size_t k = begin; k < end; ++k) {
+                              const size_t i = items[k], di = digit(i);
+                              if (di < d) {
+                                  g += give(i, count, caps);
+                              } else if (di == d) {
+                                  next.items[t++] = i;
+                                  range.note(bits_of(order.fraction(i)), mix64(i));
+                              }
+                          }
+                          band_given[band] = g;
+                      });
+        for (size_t b = 0; b < bands; ++b) {
+            given += band_given[b];
+            next.note(band_tied[b]);
+        }
+        tied = std::move(next);
+    }
+    return given;
 }
 
 }  // namespace
@@ -270,29 +249,96 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     const bool unit = costs.empty();
     auto cost = [&](size_t i) { return unit ? 1.0 : costs[i]; };
     if (unit) total = std::floor(total);
-    std::vector<uint32_t> count(weights.size(), 0);
+    const size_t n = weights.size();
+    std::vector<uint32_t> count(n, 0);
     if (!(total > 0)) return count;
+    const auto keep = [&](size_t i) { return weights[i] > 0 && caps[i] > 0; };
 
     // The passes over every item run in bands on the pool's threads (bands.h); what is
-    // summed in floating point is summed in order on this one, so the counts are the
-    // same whatever the threads.
-    const Scratch<size_t> order =
-        in_order(weights.size(), [&](size_t i) { return weights[i] > 0 && caps[i] > 0; });
-    const Scratch<double> share = water_fill(order, weights, caps, total, cost);
+    // summed in floating point is summed in item order on this one, so the counts are
+    // the same whatever the threads. Nothing per item is stored but the counts (and the
+    // shares when a cap binds): fractions, hashes and bucket numbers are computed again
+    // where they are needed, which at 1920x1080 is cheaper than the ~100 MB of fresh
+    // pages that keys, orders and shares took.
+    const Shares share = water_fill(weights, caps, total, keep, cost);
+    const RemainderOrder order{share};
 
-    const size_t bands = band_count(order.size(), kBandPixels);
+    // Floors, and how many items' fractions fall in each bucket (fraction_bucket), by
+    // band.
+    const size_t bands = band_count(n, kBandPixels);
+    const bool one_band = bands <= 1;  // then a histogram would cost more than it saves
     std::vector<uint64_t> band_floors(bands, 0);
-    Scratch<RemainderKey> keys(order.size());
-    for_each_band(order.size(), kBandPixels, [&](size_t band, size_t begin, size_t end) {
+    std::vector<size_t> band_kept(bands, 0);
+    std::vector<std::vector<uint32_t>> histogram(bands);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         uint64_t floors = 0;
-        for (size_t k = begin; k < end; ++k) {
-            const size_t i = order[k];
-            count[i] = uint32_t(std::min(std::floor(share[i]), double(caps[i])));
+        size_t kept = 0;
+        std::vector<uint32_t>& h = histogram[band];
+        if (!one_band) h.assign(kFractionBuckets, 0);
+        for (size_t i = begin; i < end; ++i) {
+            if (!keep(i)) continue;
+            const double s = share(i), whole = std::floor(s);
+            count[i] = uint32_t(std::min(whole, double(caps[i])));
             floors += count[i];
-            keys[k] = {share[i] - std::floor(share[i]), mix64(i), i};
+            ++kept;
+            if (!one_band) ++h[fraction_bucket(s - whole)];
         }
         band_floors[band] = floors;
+        band_kept[band] = kept;
     });
+    size_t kept = 0;
+    for (size_t k : band_kept) kept += k;
+    const auto in_bucket = [&](size_t bucket) {
+        size_t m = 0;
+        for (const std::vector<uint32_t>& h : histogram) m += h[bucket];
+        return m;
+    };
+    // The kept items whose fractions fall in `bucket`, in item order, with the ranges
+    // of their fractions and hashes; the others in a bucket above it (larger fractions)
+    // are passed to `above`.
+    const auto gather = [&](size_t bucket, const auto& above) {
+        std::vector<size_t> offset(bands + 1, 0);
+        for (size_t b = 0; b < bands; ++b)
+            offset[b + 1] = offset[b] + histogram[b][bucket];
+        Tied tied;
+        tied.items.resize(offset[bands]);
+        std::vector<Tied> band_tied(bands);
+        for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            size_t t = offset[band];
+            for (size_t i = begin; i < end; ++i) {
+                if (!keep(i)) continue;
+                const double f = order.fraction(i);
+                const size_t b = fraction_bucket(f);
+                if (b == bucket) {
+                    tied.items[t++] = i;
+                    band_tied[band].note(bits_of(f), mix64(i));
+                } else if (b > bucket) {
+                    above(band, i);
+                }
+            }
+        });
+        for (const Tied& t : band_tied) tied.note(t);
+        return tied;
+    };
+    // The first `wanted` kept items in RemainderOrder get one more unit each (below their
+    // caps): the bucket holding the wanted-th is found from the histogram, every item of
+    // a larger bucket gets its unit, and only that bucket's items are looked at further.
+    const auto give_to_first_of_all = [&](size_t wanted) {
+        size_t bucket = kFractionBuckets;
+        while (bucket-- > 0) {
+            const size_t m = in_bucket(bucket);
+            if (wanted <= m) break;
+            wanted -= m;
+        }
+        std::vector<size_t> band_given(bands, 0);
+        Tied tied = gather(bucket, [&](size_t band, size_t i) {
+            band_given[band] += give(i, count, caps);
+        });
+        size_t given = give_to_first(std::move(tied), wanted, order, count, caps);
+        for (size_t g : band_given) given += g;
+        return given;
+    };
+
     double left = total;
     if (unit) {
         // Whole numbers far below 2^53: the difference is exact, as the running
@@ -301,20 +347,123 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         for (uint64_t f : band_floors) floors += f;
         left = total - double(floors);
     } else {
-        for (size_t i : order) left -= cost(i) * count[i];
+        for (size_t i = 0; i < n; ++i)
+            if (keep(i)) left -= cost(i) * count[i];
     }
-    if (unit && left >= 0 && left < double(keys.size())) {
-        // The usual case: one more unit each for the `left` largest fractional parts.
-        // None of them is at its cap (a capped item has fraction 0 and sorts last among
-        // them).
-        left -= double(give_one_each(keys, size_t(left), count, caps));
+    if (unit && left > 0 && left < double(kept)) {
+        // The usual case: one more unit each for the `left` first items in
+        // RemainderOrder (none of them is at its cap: a capped item has fraction 0 and
+        // comes last among them). The bucket holding the left-th is found from the
+        // histogram; every item of a larger bucket gets its unit, and only that bucket's
+        // items are looked at further.
+        size_t given = 0;
+        if (one_band) {
+            std::vector<size_t> items;
+            items.reserve(kept);
+            for (size_t i = 0; i < n; ++i)
+                if (keep(i)) items.push_back(i);
+            const size_t wanted = size_t(left);
+            std::nth_element(items.begin(), items.begin() + (wanted - 1), items.end(),
+                             order);
+            for (size_t k = 0; k < wanted; ++k) given += give(items[k], count, caps);
+        } else {
+            given = give_to_first_of_all(size_t(left));
+        }
+        left -= double(given);
     }
     if (left == 0) return count;
-    sort_keys(keys);
+
+    // Every kept item in RemainderOrder, with its fraction beside it so that sorting
+    // reads no weights: scattered by bucket (largest fractions first) in bands, each
+    // bucket then sorted alone on the pool's threads. A full sort of all of them was the
+    // largest part of optimal-time's round end at 1920x1080.
+    struct Key {
+        double fraction;
+        size_t index;
+        bool operator<(const Key& o) const {
+            if (fraction != o.fraction) return fraction > o.fraction;
+            const uint64_t h = mix64(index), oh = mix64(o.index);
+            return h != oh ? h < oh : index < o.index;
+        }
+    };
+    Scratch<Key> sorted(kept);
+    if (one_band) {
+        for (size_t i = 0, k = 0; i < n; ++i)
+            if (keep(i)) sorted[k++] = {order.fraction(i), i};
+        std::sort(sorted.begin(), sorted.end());
+    } else {
+        // A key's rank: the top 21 bits of its fraction, reversed (largest first). Its
+        // top 8 bits pick one of 256 runs, which the keys are scattered into in bands
+        // (a scatter into the 16384 buckets of the histogram was slower than all the
+        // rest); each run (~8 K keys at 1920x1080) is then counted out by the other 13
+        // bits in cache, which leaves it nearly sorted, and an insertion sort finishes
+        // it, in RemainderOrder's exact order. Runs are shared among the pool's threads.
+        constexpr int kRankBits = 21, kFineBits = 13;
+        constexpr size_t kRuns = size_t(1) << (kRankBits - kFineBits);
+        constexpr size_t kFine = size_t(1) << kFineBits;
+        static_assert((size_t(1) << kRankBits) == kFractionBuckets * 128);
+        const auto rank = [](double f) {
+            constexpr size_t kTop = (size_t(1) << kRankBits) - 1;
+            const size_t d =
+                f > 0 ? std::min(kTop, size_t(f * double(size_t(1) << kRankBits))) : 0;
+            return kTop - d;
+        };
+        // The histogram's buckets are ranks' top 14 bits (fraction_bucket), so a run
+        // holds 64 of them: run r = kRuns - 1 - bucket / 64.
+        std::vector<size_t> start(kRuns + 1, 0);
+        std::vector<std::vector<size_t>> at(bands, std::vector<size_t>(kRuns, 0));
+        for (size_t band = 0; band < bands; ++band)
+            for (size_t b = 0; b < kFractionBuckets; ++b)
+                at[band][kRuns - 1 - b / (kFractionBuckets / kRuns)] +=
+                    histogram[band][b];
+        size_t place = 0;
+        for (size_t r = 0; r < kRuns; ++r) {
+            start[r] = place;
+            for (size_t band = 0; band < bands; ++band) {
+                const size_t m = at[band][r];
+                at[band][r] = place;
+                place += m;
+            }
+        }
+        start[kRuns] = place;
+        for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            std::vector<size_t>& next = at[band];
+            for (size_t i = begin; i < end; ++i) {
+                if (!keep(i)) continue;
+                const double f = order.fraction(i);
+                sorted[next[rank(f) >> kFineBits]++] = {f, i};
+            }
+        });
+        for_each_band(kRuns, 4, [&](size_t, size_t begin, size_t end) {
+            std::vector<Key> spread;
+            std::vector<uint32_t> at_fine(kFine + 1);
+            for (size_t r = begin; r < end; ++r) {
+                Key* const first = sorted.data() + start[r];
+                Key* const last = sorted.data() + start[r + 1];
+                const size_t m = size_t(last - first);
+                if (m > 64) {
+                    std::fill(at_fine.begin(), at_fine.end(), 0);
+                    for (const Key* k = first; k != last; ++k)
+                        ++at_fine[(rank(k->fraction) & (kFine - 1)) + 1];
+                    for (size_t j = 0; j < kFine; ++j) at_fine[j + 1] += at_fine[j];
+                    spread.resize(m);
+                    for (const Key* k = first; k != last; ++k)
+                        spread[at_fine[rank(k->fraction) & (kFine - 1)]++] = *k;
+                    std::copy(spread.begin(), spread.end(), first);
+                }
+                for (Key* k = first + 1; k < last; ++k) {  // insertion sort
+                    const Key key = *k;
+                    Key* j = k;
+                    for (; j != first && key < j[-1]; --j) *j = j[-1];
+                    *j = key;
+                }
+            }
+        });
+    }
     // Rounding can leave the floors a unit over the total: take it back from the smallest
     // fractional parts.
-    for (size_t k = keys.size(); left < 0 && k-- > 0;) {
-        const size_t i = keys[k].index;
+    for (size_t k = sorted.size(); left < 0 && k-- > 0;) {
+        const size_t i = sorted[k].index;
         if (count[i] > 0) {
             --count[i];
             left += cost(i);
@@ -322,8 +471,16 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     }
     for (bool gave = true; gave && left > 0;) {
         gave = false;
-        for (const RemainderKey& key : keys) {
-            const size_t i = key.index;
+        for (size_t k = 0; k < sorted.size(); ++k) {
+            // Items come in no order of their own: their counts, caps and costs are
+            // fetched ahead (this loop was memory-bound).
+            if (k + 16 < sorted.size()) {
+                const size_t ahead = sorted[k + 16].index;
+                __builtin_prefetch(&count[ahead]);
+                __builtin_prefetch(&caps[ahead]);
+                if (!unit) __builtin_prefetch(&costs[ahead]);
+            }
+            const size_t i = sorted[k].index;
             if (count[i] < caps[i] && cost(i) <= left) {
                 ++count[i];
                 left -= cost(i);

@@ -72,6 +72,69 @@ TEST(Apportion, BlocksOfEqualSharesGoToTheSameItemsAsAFullSort) {
     EXPECT_EQ(apportion(weights, total, no_caps(n)), reference(weights, total));
 }
 
+// apportion with costs and caps that never bind, the plain way: floors, then the items
+// in the order of their fractional parts (ties by the index's hash, then the index),
+// found by sorting every item, each given one more unit while its cost fits what is left,
+// and again until none fits.
+std::vector<uint32_t> reference_with_costs(const std::vector<double>& weights,
+                                           const std::vector<double>& costs,
+                                           double total) {
+    double all = 0;
+    for (size_t i = 0; i < weights.size(); ++i)
+        if (weights[i] > 0) all += costs[i] * weights[i];
+    const double first = total / all;
+    std::vector<uint32_t> count(weights.size());
+    std::vector<std::tuple<double, uint64_t, size_t>> keys;  // -fraction: largest first
+    for (size_t i = 0; i < weights.size(); ++i) {
+        if (!(weights[i] > 0)) continue;
+        const double share = first * weights[i];
+        count[i] = uint32_t(std::floor(share));
+        keys.emplace_back(-(share - std::floor(share)), mix64(i), i);
+    }
+    double left = total;
+    for (size_t i = 0; i < weights.size(); ++i)
+        if (weights[i] > 0) left -= costs[i] * count[i];
+    std::sort(keys.begin(), keys.end());
+    for (size_t k = keys.size(); left < 0 && k-- > 0;) {
+        const size_t i = std::get<2>(keys[k]);
+        if (count[i] > 0) {
+            --count[i];
+            left += costs[i];
+        }
+    }
+    for (bool gave = true; gave && left > 0;) {
+        gave = false;
+        for (const auto& key : keys) {
+            const size_t i = std::get<2>(key);
+            if (costs[i] <= left) {
+                ++count[i];
+                left -= costs[i];
+                gave = true;
+                if (!(left > 0)) break;
+            }
+        }
+    }
+    return count;
+}
+
+// optimal-time's case: every item sorted by its fractional part, in runs counted out by
+// their bits and finished by insertion; some shares alike, so ties are broken as well.
+TEST(Apportion, WithCostsOverManyBandsGivesWhatAFullSortGives) {
+    const size_t n = 3 * kBandPixels + 999;
+    std::vector<double> weights(n), costs(n);
+    for (size_t i = 0; i < n; ++i) {
+        weights[i] = i % 5 == 0 ? 1.0 : 0.25 + double(mix64(i) % 100000) / 7919.0;
+        costs[i] = 1.0 + double(mix64(i + n) % 9) / 4.0;
+    }
+    weights[5] = 0;  // gets nothing
+    double cost_of_all = 0;
+    for (size_t i = 0; i < n; ++i) cost_of_all += costs[i];
+    const double total = 3.3 * cost_of_all;
+    const std::vector<uint32_t> got = apportion(weights, total, no_caps(n), costs);
+    EXPECT_EQ(got, reference_with_costs(weights, costs, total));
+    EXPECT_EQ(got[5], 0u);
+}
+
 TEST(Apportion, WithinOneBandGoesToTheSameItemsAsAFullSort) {
     const size_t n = 1000;
     std::vector<double> weights(n, 2.0);

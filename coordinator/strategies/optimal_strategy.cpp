@@ -64,28 +64,46 @@ size_t rows_per_band(uint32_t w) {
     return std::max<size_t>(1, kBandPixels / std::max(w, 1u));
 }
 
-std::vector<double> median3x3(const std::vector<double>& v, uint32_t w, uint32_t h) {
+// sigma_i = sqrt(max(v_i, kNeighbourhoodFactor * (v's 3x3 median around i), least)):
+// the median and the rest in one pass over rows in bands, without a buffer of medians.
+// Inside the image each row's medians are taken by the same compare-exchanges, pixel by
+// pixel, in a loop over the row that the compiler vectorises; the clipped windows at the
+// edges are selected as before.
+std::vector<double> sigma_from_neighbourhood(const std::vector<double>& v, uint32_t w,
+                                             uint32_t h, double least) {
     std::vector<double> out(v.size());
-    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
+    const auto finish = [&](size_t i, double near) {
+        out[i] = std::sqrt(std::max({v[i], kNeighbourhoodFactor * near, least}));
+    };
+    const auto clipped = [&](uint32_t x, uint32_t y) {  // a window of 4 or 6 at an edge
         double window[9];
+        int n = 0;
+        for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
+            for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
+                window[n++] = v[size_t(yy) * w + xx];
+        std::nth_element(window, window + n / 2, window + n);
+        return window[n / 2];
+    };
+    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
         for (uint32_t y = uint32_t(row0); y < row1; ++y) {
-            for (uint32_t x = 0; x < w; ++x) {
-                if (y > 0 && y + 1 < h && x > 0 && x + 1 < w) {
-                    const double* above = &v[size_t(y - 1) * w + x - 1];
-                    const double* row = above + w;
-                    const double* below = row + w;
-                    double p[9] = {above[0], above[1], above[2], row[0],  row[1],
-                                   row[2],   below[0], below[1], below[2]};
-                    out[size_t(y) * w + x] = median_of_nine(p);
-                    continue;
-                }
-                int n = 0;  // an edge: a clipped window of 4 or 6
-                for (uint32_t yy = y ? y - 1 : 0; yy <= std::min(y + 1, h - 1); ++yy)
-                    for (uint32_t xx = x ? x - 1 : 0; xx <= std::min(x + 1, w - 1); ++xx)
-                        window[n++] = v[size_t(yy) * w + xx];
-                std::nth_element(window, window + n / 2, window + n);
-                out[size_t(y) * w + x] = window[n / 2];
+            const size_t row = size_t(y) * w;
+            if (y == 0 || y + 1 >= h || w < 3) {
+                for (uint32_t x = 0; x < w; ++x) finish(row + x, clipped(x, y));
+                continue;
             }
+            const double* above = &v[row - w];
+            const double* mid = &v[row];
+            const double* below = &v[row + w];
+            double* near = &out[row];  // the medians first, then sigma in place
+            for (uint32_t x = 1; x + 1 < w; ++x) {
+                double p[9] = {above[x - 1], above[x], above[x + 1],
+                               mid[x - 1],   mid[x],   mid[x + 1],
+                               below[x - 1], below[x], below[x + 1]};
+                near[x] = median_of_nine(p);
+            }
+            finish(row, clipped(0, y));
+            for (uint32_t x = 1; x + 1 < w; ++x) finish(row + x, near[x]);
+            finish(row + w - 1, clipped(w - 1, y));
         }
     });
     return out;
@@ -170,20 +188,6 @@ double rays_per_sample(const Accumulator& merged) {
                : 1.0;
 }
 
-// Each pixel's measured rays per sample; pixels not yet sampled cost the mean.
-std::vector<double> pixel_costs(const Accumulator& merged) {
-    const double mean_cost = rays_per_sample(merged);
-    std::vector<double> cost(merged.pixel_count());
-    for_each_band(cost.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-            const PixelSums& p = merged.at(i);
-            cost[i] =
-                p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
-        }
-    });
-    return cost;
-}
-
 }  // namespace
 
 OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32_t height,
@@ -203,20 +207,22 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       steer_rounds_(p.steer_rounds),
       cost_aware_(cost_aware) {
     min_spp_ = std::min(min_spp_, cap_);  // a floor from the budget never passes max_spp
-    // optimal_counts' events, two a pixel, are allocated here, every page touched, where
-    // a render's buffers are built off the coordinator's locks, and not by the first
-    // steered round's end: their 96 MB of fresh pages at 1920x1080 were ~25 ms of that
-    // round end. Only a render that will steer (its pilot leaves budget) takes them.
-    const size_t pixels = size_t(width) * height;
-    const uint64_t pilot =
-        std::min<uint64_t>({min_spp_, budget_ / std::max<size_t>(pixels, 1), cap_});
-    if (pilot > 0 && budget_ > pilot * pixels) events_.resize(2 * pixels);
 }
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      uint32_t radius, uint32_t prior) {
+    return sigma_estimates(merged, radius, prior, nullptr);
+}
+
+std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
+                                                     uint32_t radius, uint32_t prior,
+                                                     std::vector<double>* costs) {
     const size_t n = merged.pixel_count();
     std::vector<double> var(n);
+    // optimal-time's costs are read in the same pass over the sums (pixel_costs' values):
+    // a second stream of the 80-byte sums was ~25 ms of its round end at 1920x1080.
+    const double mean_cost = costs ? rays_per_sample(merged) : 0.0;
+    if (costs) costs->resize(n);
     // Each band's largest finite variance; max is exact in any order.
     std::vector<double> band_largest(band_count(n, kBandPixels), 0.0);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
@@ -224,6 +230,11 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         for (size_t i = begin; i < end; ++i) {
             var[i] = merged.luminance_variance(i);
             if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
+            if (costs) {
+                const PixelSums& p = merged.at(i);
+                (*costs)[i] =
+                    p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
+            }
         }
         band_largest[band] = largest;
     });
@@ -235,7 +246,7 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
             if (!std::isfinite(var[i])) var[i] = largest;
     });
     const double median = median_value(var);
-    std::vector<double> sigma(n);
+    std::vector<double> sigma;
     const auto each_pixel = [&](auto&& f) {
         for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
             for (size_t i = begin; i < end; ++i) f(i);
@@ -248,6 +259,7 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         // a truly isolated noisy pixel still gets its share once it has been sampled.
         const std::vector<double> pooled =
             box_mean(var, merged.width(), merged.height(), std::max(radius, 1u));
+        sigma.resize(n);
         each_pixel([&](size_t i) {
             const double own =
                 merged.samples(i) > 1 ? double(merged.samples(i) - 1) : 0.0;
@@ -264,30 +276,20 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         // sharp edge between a noisy and a quiet region is blurred by r pixels.
         const std::vector<double> pooled =
             box_mean(var, merged.width(), merged.height(), radius);
+        sigma.resize(n);
         each_pixel([&](size_t i) {
             sigma[i] = std::sqrt(std::max(pooled[i], kImageFactor * median));
         });
         return sigma;
     }
-    const std::vector<double> near = median3x3(var, merged.width(), merged.height());
-    each_pixel([&](size_t i) {
-        sigma[i] = std::sqrt(
-            std::max({var[i], kNeighbourhoodFactor * near[i], kImageFactor * median}));
-    });
+    sigma = sigma_from_neighbourhood(var, merged.width(), merged.height(),
+                                     kImageFactor * median);
     return sigma;
 }
 
 std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
                                                     const std::vector<double>& costs,
                                                     double total, double lo, double hi) {
-    std::vector<MuEvent> events;
-    return optimal_counts(weights, costs, total, lo, hi, events);
-}
-
-std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
-                                                    const std::vector<double>& costs,
-                                                    double total, double lo, double hi,
-                                                    std::vector<MuEvent>& events) {
     const size_t n = weights.size();
     auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
     double floor_cost = 0, cap_cost = 0;
@@ -301,70 +303,81 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
     }
     if (total >= cap_cost) return std::vector<double>(n, hi);
 
-    // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising:
-    // pixel i starts rising at mu = lo / w_i (its floor gives way to c_i w_i mu) and
-    // stops at hi / w_i (its cap). In the events' order, f just before event k is
-    //     F_k = floor_cost + C_k + S_k mu_k,
-    // C_k and S_k the sums of the earlier events' constants and slopes; F_k rises with k,
-    // and the root lies in the segment before the first k with F_k >= total. That k is
-    // found by bisecting on rank with selection (nth_element), not by sorting: each step
-    // sums only the events it has not yet placed, so the work is linear in the events
-    // where a sort was n log n (at 1920x1080 the sort was a quarter of optimal's round
-    // end).
-    //
-    // The events are laid out in pixel order, as one thread would push them, by bands:
-    // each band counts its pixels of positive weight, and writes from its offset.
-    using Event = MuEvent;
+    // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising,
+    // and on each piece it is C + S mu: C sums c_i lo over the pixels at their floor and
+    // c_i hi over those at their cap, S sums c_i w_i over the others. Newton's step
+    // from mu, (total - C) / S, is the root of mu's piece, so once it stays on its piece
+    // it is the root. The steps are kept inside a bracket [below, above] with f(below)
+    // < total <= f(above), bisecting (or doubling, while there is no upper end) when a
+    // step would leave it, so the search ends on a piece whatever the weights; a few
+    // passes over the weights at 1920x1080, where sorting the pieces' 2 n breakpoints,
+    // or selecting among them, streamed 96 MB several times. C and S are summed in pixel
+    // order within bands of fixed size and the bands' sums added in band order: the
+    // same bits with one thread or many.
     const size_t bands = band_count(n, kBandPixels);
-    std::vector<size_t> offset(bands + 1, 0);
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        size_t m = 0;
-        for (size_t i = begin; i < end; ++i) m += weights[i] > 0;
-        offset[band + 1] = 2 * m;
-    });
-    for (size_t b = 0; b < bands; ++b) offset[b + 1] += offset[b];
-    events.resize(offset[bands]);  // the strategy's buffer: no new pages after round 1
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        Event* out = events.data() + offset[band];
-        for (size_t i = begin; i < end; ++i) {
-            if (!(weights[i] > 0)) continue;
-            const double cw = cost(i) * weights[i];
-            *out++ = {lo / weights[i], cw, -cost(i) * lo};
-            *out++ = {hi / weights[i], -cw, cost(i) * hi};
+    std::vector<double> band_c(bands), band_s(bands);
+    const auto piece = [&](double mu) {
+        for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            double c = 0, s = 0;
+            for (size_t i = begin; i < end; ++i) {
+                const double w = weights[i], x = w > 0 ? mu * w : lo;
+                if (x <= lo)
+                    c += cost(i) * lo;
+                else if (x >= hi)
+                    c += cost(i) * hi;
+                else
+                    s += cost(i) * w;
+            }
+            band_c[band] = c;
+            band_s[band] = s;
+        });
+        double c = 0, s = 0;
+        for (size_t b = 0; b < bands; ++b) {
+            c += band_c[b];
+            s += band_s[b];
         }
-    });
-    const auto by_mu = [](const Event& a, const Event& b) { return a.mu < b.mu; };
-    // Events [0, first) are placed below the root and summed into (constant, slope); the
-    // crossing event is in [first, last).
-    double constant = floor_cost, slope = 0;
-    size_t first = 0, last = events.size();
-    while (last - first > 32) {
-        const size_t mid = first + (last - first) / 2;
-        std::nth_element(events.begin() + first, events.begin() + mid,
-                         events.begin() + last, by_mu);
-        double c = constant, s = slope;
-        for (size_t k = first; k < mid; ++k) {
-            c += events[k].constant;
-            s += events[k].slope;
+        return std::pair{c, s};
+    };
+    double weighted = 0;        // a first guess: no pixel at its floor or cap
+    double reach = floor_cost;  // what every pixel of positive weight at its cap costs
+    for (size_t i = 0; i < n; ++i)
+        if (weights[i] > 0) {
+            weighted += cost(i) * weights[i];
+            reach += cost(i) * (hi - lo);
         }
-        if (c + s * events[mid].mu >= total) {
-            last = mid + 1;  // the crossing is at mid or before it
-        } else {
-            constant = c + events[mid].constant;  // the crossing is after mid
-            slope = s + events[mid].slope;
-            first = mid + 1;
+    double below = 0, above = std::numeric_limits<double>::infinity();
+    double mu = weighted > 0 ? total / weighted : 1.0;
+    // Pixels of weight 0 stay at their floor: a total they leave out of reach puts every
+    // other pixel at its cap.
+    if (total >= reach) mu = above;
+    for (int step = 0; step < 4096 && mu < above; ++step) {
+        const auto [c, s] = piece(mu);
+        if (c + s * mu < total)
+            below = mu;
+        else
+            above = mu;
+        if (s > 0) {  // on a piece that rises: Newton's step
+            const double next = (total - c) / s;
+            if (next == mu) break;  // the root of its own piece
+            if (next > below && next < above) {
+                mu = next;
+                continue;
+            }
         }
-    }
-    std::sort(events.begin() + first, events.begin() + last, by_mu);
-    double mu = std::numeric_limits<double>::infinity();
-    for (size_t k = first; k < last; ++k) {
-        const Event& e = events[k];
-        if (slope > 0 && constant + slope * e.mu >= total) {
-            mu = (total - constant) / slope;
-            break;
-        }
-        slope += e.slope;
-        constant += e.constant;
+        // Otherwise a step that narrows the bracket by orders of magnitude while its ends
+        // are far apart (weights may span hundreds of them), by halves once they are
+        // near.
+        double middle;
+        if (std::isinf(above))
+            middle = below > 0 ? 16 * below : 1.0;
+        else if (below == 0)
+            middle = above / 16;
+        else if (above > 4 * below)
+            middle = std::sqrt(below) * std::sqrt(above);
+        else
+            middle = below + (above - below) / 2;
+        if (!(middle > below && middle < above)) break;  // no double left between them
+        mu = middle;
     }
     std::vector<double> counts(n);
     for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
@@ -383,7 +396,6 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         std::optional<std::vector<uint32_t>> spp = steered_round(merged);
         if (!spp) {
             finished_ = true;
-            std::vector<MuEvent>().swap(events_);
             return std::nullopt;
         }
         round.spp = std::move(*spp);
@@ -439,9 +451,9 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     // Each per-pixel buffer below takes over the one it is computed from, pixel by pixel,
     // rather than take 16 MB of fresh pages at 1920x1080 (the kernel's page faults and
     // zeroing were a large part of this round end).
-    std::vector<double> weight = sigma_estimates(merged, sigma_radius_, sigma_prior_);
-    const std::vector<double> cost =
-        cost_aware_ ? pixel_costs(merged) : std::vector<double>{};
+    std::vector<double> cost;
+    std::vector<double> weight = sigma_estimates(merged, sigma_radius_, sigma_prior_,
+                                                 cost_aware_ ? &cost : nullptr);
     std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         bool any = false;
@@ -458,8 +470,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
 
     // The round closes the gap between what each pixel has and its target; pixels already
     // past their target get nothing, so the gaps are scaled to the share.
-    std::vector<double> gap = optimal_counts(weight, cost, spent + share,
-                                             double(min_spp_), double(cap_), events_);
+    std::vector<double> gap =
+        optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
     std::vector<uint32_t> room(pixels);
     for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {

@@ -41,17 +41,11 @@ public:
                                               double total, double lo, double hi);
 
 private:
-    // One pixel's breakpoint of the allocation's piecewise-linear cost (see the .cpp).
-    struct MuEvent {
-        double mu, slope, constant;
-    };
-
-    // As above, with the events laid out in `events` (a buffer kept between rounds: at
-    // 1920x1080 it is 96 MB, and fresh pages each round cost as much as filling them).
-    static std::vector<double> optimal_counts(const std::vector<double>& weights,
-                                              const std::vector<double>& costs,
-                                              double total, double lo, double hi,
-                                              std::vector<MuEvent>& events);
+    // As above; with `costs`, each pixel's measured rays per sample too (the mean for a
+    // pixel not yet sampled), read in the same pass over the sums.
+    static std::vector<double> sigma_estimates(const Accumulator& merged, uint32_t radius,
+                                               uint32_t prior,
+                                               std::vector<double>* costs);
 
     // The first round: min_spp everywhere, the estimates' foundation.
     std::vector<uint32_t> pilot_round();
@@ -68,8 +62,6 @@ private:
     uint64_t issued_ = 0;  // samples handed out in all rounds
     bool piloted_ = false;
     bool finished_ = false;
-    // optimal_counts' buffer, from construction (see there); freed when the render ends.
-    std::vector<MuEvent> events_;
 };
 
 }  // namespace aliquot

@@ -91,6 +91,24 @@ TEST(Optimal, OptimalCountsMeetTheLagrangeConditions) {
         EXPECT_NEAR(n[i], std::clamp(mu * w[i], 4.0, 60.0), 1e-9);
 }
 
+// Pixels of weight 0 stay at their floor; a total beyond what the others can take at
+// their caps puts them all there, at once rather than after a long search.
+TEST(Optimal, OptimalCountsCapEveryWeightedPixelWhenTheTotalIsOutOfReach) {
+    const auto n = OptimalStrategy::optimal_counts({0, 1, 2}, {}, 25, 1, 10);
+    EXPECT_EQ(n, (std::vector<double>{1, 10, 10}));
+}
+
+// Weights hundreds of orders of magnitude apart: the search narrows its bracket by
+// orders of magnitude and still lands on the root's piece.
+TEST(Optimal, OptimalCountsFindTheRootOverWeightsOfEveryMagnitude) {
+    const std::vector<double> w = {1e-300, 1e-150, 1, 1e150, 1e300};
+    const auto n = OptimalStrategy::optimal_counts(w, {}, 250, 0, 100);
+    EXPECT_NEAR(n[0] + n[1] + n[2] + n[3] + n[4], 250, 1e-9);
+    EXPECT_NEAR(n[2], 50, 1e-9);
+    EXPECT_EQ(n[3], 100);
+    EXPECT_EQ(n[4], 100);
+}
+
 TEST(Optimal, OptimalCountsWithCostsSpendTheCostBudget) {
     const std::vector<double> w = {1, 1, 1}, c = {1, 2, 4};
     const auto n = OptimalStrategy::optimal_counts(w, c, 70, 0, 1e9);
@@ -98,8 +116,8 @@ TEST(Optimal, OptimalCountsWithCostsSpendTheCostBudget) {
     EXPECT_NEAR(n[0], 10, 1e-9);
 }
 
-// Enough pixels that the root is found by bisecting on rank, not only by the final sweep;
-// many equal weights, so ties between events are met too.
+// Enough pixels that the pieces' sums span bands and the search takes several steps;
+// many equal weights, so many pieces' breakpoints coincide too.
 TEST(Optimal, OptimalCountsOverManyPixelsMeetTheLagrangeConditions) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> spread(-6, 6);
