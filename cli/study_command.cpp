@@ -56,7 +56,7 @@ std::string find_python(const fs::path& script) {
 struct StudyCommand {
     std::string file;
     std::string scale = "small";
-    EndpointOptions coordinator{""};  // no address: embedded
+    EndpointOptions coordinator;  // no address: embedded
     std::string out;
     int threads = 0;
     bool no_report = false;
