@@ -7,9 +7,7 @@ namespace aliquot {
 Courier::Courier() : thread_([this](std::stop_token stop) { run(stop); }) {}
 
 Courier::~Courier() {
-    wait();
-    thread_.request_stop();
-    changed_.notify_all();
+    wait();  // then the jthread's own destructor stops run() and joins it
 }
 
 void Courier::send(Call call) {

@@ -210,7 +210,9 @@ void WorkerLoop::thread_main() {
     std::optional<LeaseGrant> grant;  // the lease this thread traces next
     while (!stopping_) {
         beat();
-        if (!grant) grant = courier.busy() ? courier.wait() : next_lease(retries);
+        // The courier is idle here whenever there is no grant: a call it was sent with a
+        // job in hand left that job as the next grant.
+        if (!grant) grant = next_lease(retries);
         if (!grant) continue;
         hold(grant->lease_id);
         // Asked without waiting: a long-poll here could wait for the end of the round
