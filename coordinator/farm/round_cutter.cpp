@@ -9,9 +9,10 @@
 namespace aliquot {
 
 uint32_t job_tile_side(double mean_spp) {
-    if (mean_spp >= 32) return 32;
-    if (mean_spp >= 8) return 64;
-    return 128;
+    uint32_t side = 128;
+    while (side > kMinAutoTile && double(side) * side * mean_spp > double(kJobSamples))
+        side /= 2;
+    return side;
 }
 
 namespace {

@@ -16,6 +16,7 @@ namespace aliquot {
 // jobs.
 inline constexpr uint32_t kMinAutoTile = 16;
 inline constexpr size_t kMinJobsPerRound = 16;
+inline constexpr uint64_t kJobSamples = uint64_t(1) << 18;
 
 // `spare`: jobs no longer needed (the previous round's), whose vectors the new jobs take
 // over: their pages are already the process's, where fresh ones (freed at the round's
@@ -24,10 +25,13 @@ inline constexpr size_t kMinJobsPerRound = 16;
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
                                  uint32_t tile = 0, std::vector<SampleJob> spare = {});
 
-// Tile side for a round of `mean_spp` samples per pixel: jobs of roughly 8k-32k samples,
-// so a job's fixed cost (a lease and a result message) stays small beside its tracing,
-// and at most 128x128 pixels, so a result message stays near 1 MiB, far below gRPC's 4
-// MiB.
+// Tile side for a round of `mean_spp` samples per pixel: the largest power of two whose
+// tile holds at most kJobSamples (about 0.1 s of one worker thread on the Cornell box),
+// so a job's fixed cost (a lease, a result message and its merge: about a millisecond of
+// CPU, coordinator and worker together, docs/PERFORMANCE.md) stays near 1 % of its
+// tracing; at least kMinAutoTile;
+// at most 128x128 pixels, so a result message stays near 1 MiB, far below gRPC's 4 MiB.
+// Which jobs a pixel's samples travel in never changes their bytes.
 uint32_t job_tile_side(double mean_spp);
 
 }  // namespace aliquot

@@ -85,10 +85,15 @@ TEST(RoundCutter, JobsCutIntoSpareJobsAreTheJobsCutAfresh) {
     }
 }
 
-TEST(RoundCutter, SparseRoundsGetLargerTilesUpTo128) {
+// The largest power-of-two side up to 128 whose tile holds at most kJobSamples (2^18).
+TEST(RoundCutter, TilesHoldAboutAQuarterMillionSamplesUpTo128) {
     EXPECT_EQ(job_tile_side(1), 128u);
-    EXPECT_EQ(job_tile_side(8), 64u);
-    EXPECT_EQ(job_tile_side(1000), 32u);
+    EXPECT_EQ(job_tile_side(16), 128u);  // exactly 2^18
+    EXPECT_EQ(job_tile_side(17), 64u);
+    EXPECT_EQ(job_tile_side(64), 64u);
+    EXPECT_EQ(job_tile_side(128), 32u);
+    EXPECT_EQ(job_tile_side(1000), 16u);
+    EXPECT_EQ(job_tile_side(1e6), 16u);  // never below kMinAutoTile
 }
 
 }  // namespace
