@@ -12,6 +12,7 @@
 // Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
 //        (defaults: 1920x1080 10 1,16,64,256
 //        uniform,dammertz,adaptive,optimal,optimal-time)
+// A method written `optimal:K` (or `optimal-time:K`) runs with steer_rounds K.
 #include <unistd.h>
 
 #include <algorithm>
@@ -78,7 +79,10 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         spec.scene_json = self_contained_scene_json("cornell-box");
         spec.width = width;
         spec.height = height;
-        spec.strategy.method = method;
+        const size_t colon = method.find(':');
+        spec.strategy.method = method.substr(0, colon);
+        if (colon != std::string::npos)
+            spec.strategy.steer_rounds = uint32_t(std::stoul(method.substr(colon + 1)));
         spec.strategy.budget = uint64_t(64) * width * height;  // 64 spp on average
         spec.strategy.max_variance = 1e-4;  // dammertz: keep splitting past a few rounds
         const std::string id = coordinator.submit(spec);
