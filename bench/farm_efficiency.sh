@@ -5,6 +5,11 @@
 # (merged samples / render wall time). A one-second render moves ±10 % from run to run on
 # a shared machine, so the two alternate (which goes first alternates too) REPEATS times,
 # and the ratio of the median rates is the headline; every pair's ratio is printed too.
+# The CPU each side spent a render is printed beside them (the embedded process; the
+# coordinator and both workers across a submission), since on a shared machine the rates
+# move more from minute to minute than the farm's own cost does. Both include writing
+# the EXR (the farm twice: its render directory and `--out`); the embedded process also
+# builds the scene's BVH each time, which the workers keep between renders.
 # Usage: bench/farm_efficiency.sh [aliquot] [resolution] [spp] [repeats]
 set -euo pipefail
 aliquot=${1:-build/bin/aliquot}
@@ -28,14 +33,27 @@ for w in a b; do
 done
 sleep 0.5  # both workers registered and polling before the clock starts
 
-embedded() { "$aliquot" render "${render[@]}" --threads 2 --out "$tmp/embedded.exr" --json >>"$tmp/embedded.jsonl"; }
+cpu_of() {  # user + system seconds of the given processes so far
+    local total=0 p
+    for p in "$@"; do total=$(awk -v t="$total" '{print t + ($14 + $15) / 100}' "/proc/$p/stat"); done
+    echo "$total"
+}
+embedded() {
+    local TIMEFORMAT='%U %S'
+    { time "$aliquot" render "${render[@]}" --threads 2 --out "$tmp/embedded.exr" --json >>"$tmp/embedded.jsonl"; } 2>&1 |
+        awk '{print $1 + $2}' >>"$tmp/embedded.cpu"
+}
 farm() {
+    local before
+    before=$(cpu_of "${pids[@]}")
     "$aliquot" submit --coordinator "127.0.0.1:$port" "${client_token[@]}" "${render[@]}" \
         --out "$tmp/farm.exr" --json >>"$tmp/farm.jsonl"
+    awk -v a="$before" -v b="$(cpu_of "${pids[@]}")" 'BEGIN {print b - a}' >>"$tmp/farm.cpu"
     cmp -s "$tmp/embedded.exr" "$tmp/farm.exr" && echo true >>"$tmp/identical" || echo false >>"$tmp/identical"
 }
 embedded  # the reference image the first farm render is compared with
 : >"$tmp/embedded.jsonl"
+: >"$tmp/embedded.cpu"
 for i in $(seq "$repeats"); do
     if ((i % 2)); then embedded; farm; else farm; embedded; fi
 done
@@ -54,6 +72,10 @@ print(json.dumps({
     "farm_samples_per_second": fs,
     "pair_efficiency": [round(b / a, 3) for a, b in zip(es, fs)],
     "farm_efficiency": statistics.median(fs) / statistics.median(es),
+    "embedded_cpu_seconds": [float(l) for l in open(f"{tmp}/embedded.cpu")],
+    "farm_cpu_seconds": [float(l) for l in open(f"{tmp}/farm.cpu")],
+    "cpu_ratio": statistics.median(float(l) for l in open(f"{tmp}/embedded.cpu"))
+    / statistics.median(float(l) for l in open(f"{tmp}/farm.cpu")),
     "identical_output": all(identical),
 }, indent=2))
 PY
