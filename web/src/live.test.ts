@@ -35,6 +35,20 @@ describe("throttle", () => {
     expect(fetched.length).toBe(2);
     expect(fetched[1] - fetched[0]).toBeGreaterThanOrEqual(1000);
   });
+
+  it("counts a run that throws, so a failing call is not repeated faster than the interval", () => {
+    vi.useFakeTimers({ toFake: ["setTimeout", "clearTimeout", "Date", "performance"] });
+    let runs = 0;
+    const t = throttle(() => {
+      runs++;
+      throw new Error("failed");
+    }, 1000);
+    expect(() => t()).toThrow("failed");
+    t();
+    expect(runs).toBe(1);
+    vi.advanceTimersByTime(999);
+    expect(runs).toBe(1);
+  });
 });
 
 class FakeSource implements EventSourceLike {

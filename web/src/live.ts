@@ -133,11 +133,15 @@ export function throttle(fn: () => void, ms: number): { (): void; cancel(): void
   let timer: ReturnType<typeof setTimeout> | null = null;
   const run = () => {
     timer = null;
-    fn();
     // Timed after `fn`'s synchronous part, which makes its fetch calls: timed before it,
     // a slow first call (four fetches on a loaded page) could put the next run's fetches
-    // less than `ms` after this run's last one.
-    last = performance.now();
+    // less than `ms` after this run's last one. `finally`, so a run that throws still
+    // counts and a failing `fn` is not called faster than once per `ms`.
+    try {
+      fn();
+    } finally {
+      last = performance.now();
+    }
   };
   const call = () => {
     if (timer) return;
