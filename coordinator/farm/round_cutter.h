@@ -29,9 +29,9 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
 // tile holds at most kJobSamples (about 0.1 s of one worker thread on the Cornell box),
 // so a job's fixed cost (a lease, a result message and its merge: about a millisecond of
 // CPU, coordinator and worker together, docs/PERFORMANCE.md) stays near 1 % of its
-// tracing; at least kMinAutoTile;
-// at most 128x128 pixels, so a result message stays near 1 MiB, far below gRPC's 4 MiB.
-// Which jobs a pixel's samples travel in never changes their bytes.
+// tracing; at least kMinAutoTile; at most 128x128 pixels, so a result message stays near
+// 1 MiB, far below gRPC's 4 MiB. Which job a pixel's samples travel in never changes
+// their bytes.
 uint32_t job_tile_side(double mean_spp);
 
 }  // namespace aliquot
