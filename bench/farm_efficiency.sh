@@ -62,6 +62,8 @@ python3 - "$tmp" <<'PY'
 import json, statistics, sys
 tmp = sys.argv[1]
 e = [json.loads(l) for l in open(f"{tmp}/embedded.jsonl")]
+ecpu = [float(l) for l in open(f"{tmp}/embedded.cpu")]
+fcpu = [float(l) for l in open(f"{tmp}/farm.cpu")]
 f = [json.loads(l) for l in open(f"{tmp}/farm.jsonl")]
 identical = [l.strip() == "true" for l in open(f"{tmp}/identical")]
 es = [r["samples_per_second"] for r in e]
@@ -72,10 +74,9 @@ print(json.dumps({
     "farm_samples_per_second": fs,
     "pair_efficiency": [round(b / a, 3) for a, b in zip(es, fs)],
     "farm_efficiency": statistics.median(fs) / statistics.median(es),
-    "embedded_cpu_seconds": [float(l) for l in open(f"{tmp}/embedded.cpu")],
-    "farm_cpu_seconds": [float(l) for l in open(f"{tmp}/farm.cpu")],
-    "cpu_ratio": statistics.median(float(l) for l in open(f"{tmp}/embedded.cpu"))
-    / statistics.median(float(l) for l in open(f"{tmp}/farm.cpu")),
+    "embedded_cpu_seconds": ecpu,
+    "farm_cpu_seconds": fcpu,
+    "cpu_ratio": statistics.median(ecpu) / statistics.median(fcpu),
     "identical_output": all(identical),
 }, indent=2))
 PY
