@@ -28,7 +28,8 @@ Accumulator::Accumulator(uint32_t width, uint32_t height)
       height_(height),
       pixels_(size_t(width) * height),
       samples_(pixels_.size(), 0),
-      half_difference_(pixels_.size(), -1.0) {}
+      half_difference_(pixels_.size(), -1.0),
+      luminance_variance_(pixels_.size(), 0.0) {}
 
 void Accumulator::merge(const SampleJobResult& result) {
     const PixelRect& r = result.rect;
@@ -54,6 +55,7 @@ void Accumulator::merge(const SampleJobResult& result) {
             const size_t i = size_t(&dst - pixels_.data());
             samples_[i] = dst.samples;
             half_difference_[i] = compute_half_difference(i);
+            luminance_variance_[i] = compute_luminance_variance(i);
             total_samples_ += src.samples;
             total_rays_ += src.rays;
             total_nonfinite_ += src.nonfinite;
@@ -96,6 +98,7 @@ void Accumulator::copy_from(const Accumulator& other) {
     pixels_.resize(other.pixels_.size());
     samples_.resize(other.samples_.size());
     half_difference_.resize(other.half_difference_.size());
+    luminance_variance_.resize(other.luminance_variance_.size());
     for_each_band(pixels_.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
         std::copy(other.pixels_.begin() + begin, other.pixels_.begin() + end,
                   pixels_.begin() + begin);
@@ -103,6 +106,9 @@ void Accumulator::copy_from(const Accumulator& other) {
                   samples_.begin() + begin);
         std::copy(other.half_difference_.begin() + begin,
                   other.half_difference_.begin() + end, half_difference_.begin() + begin);
+        std::copy(other.luminance_variance_.begin() + begin,
+                  other.luminance_variance_.begin() + end,
+                  luminance_variance_.begin() + begin);
     });
 }
 
@@ -126,7 +132,7 @@ double Accumulator::compute_half_difference(size_t i) const {
            3.0;
 }
 
-double Accumulator::luminance_variance(size_t i) const {
+double Accumulator::compute_luminance_variance(size_t i) const {
     const PixelSums& p = pixels_[i];
     if (p.samples < 2) return 0.0;
     const double n = double(p.samples);

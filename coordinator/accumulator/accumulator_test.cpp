@@ -49,6 +49,14 @@ TEST(Accumulator, LuminanceVarianceIsTheUnbiasedSampleVariance) {
     Accumulator acc(1, 1);
     acc.merge(one_pixel(0, 0, 1.0, 3.0, 2, 1.0 + 9.0));
     EXPECT_NEAR(acc.luminance_variance(0), 2.0, 1e-5);
+    // Kept as results merge: two more samples (luminance 2 and 2) give the variance of
+    // {1, 3, 2, 2}, 2/3; one sample alone has none.
+    acc.merge(one_pixel(0, 0, 2.0, 2.0, 2, 4.0 + 4.0));
+    EXPECT_NEAR(acc.luminance_variance(0), 2.0 / 3.0, 1e-12);
+    Accumulator lone(2, 1);
+    lone.merge(one_pixel(1, 0, 5.0, 0.0, 1, 25.0));
+    EXPECT_EQ(lone.luminance_variance(0), 0.0);
+    EXPECT_EQ(lone.luminance_variance(1), 0.0);
 }
 
 TEST(Accumulator, AovsGiveSppAndVarianceOfTheMean) {
@@ -115,6 +123,7 @@ TEST(Accumulator, CopyFromMakesAnEqualCopyOverAnyPreviousContents) {
         ASSERT_EQ(std::memcmp(&copy.at(i), &source.at(i), sizeof(PixelSums)), 0) << i;
         ASSERT_EQ(copy.samples(i), source.samples(i)) << i;
         ASSERT_EQ(copy.half_difference(i), source.half_difference(i)) << i;
+        ASSERT_EQ(copy.luminance_variance(i), source.luminance_variance(i)) << i;
     }
 }
 
