@@ -1305,6 +1305,7 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + 12                           // a round's jobs: counts, first indices
         + 16                           // the round's spp; a strategy's per pixel
         + 48                           // optimal's planning: sigma, weights, gaps, costs
+        + 24                           // optimal's weights kept, with their sigma, cost
         + 20;                          // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest

@@ -454,13 +454,34 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     std::vector<double> cost;
     std::vector<double> weight = sigma_estimates(merged, sigma_radius_, sigma_prior_,
                                                  cost_aware_ ? &cost : nullptr);
+    if (weight_.size() != pixels) {  // NaN: no sigma is equal to it
+        weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
+        weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
+        weight_.assign(pixels, 0.0);
+    }
     std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         bool any = false;
+        // The pixels held up by the image's floor share one sigma, which moves every
+        // round: the band's last computed weight answers them.
+        double last_sigma = std::numeric_limits<double>::quiet_NaN(), last_cost = 0,
+               last_weight = 0;
         for (size_t i = begin; i < end; ++i) {
-            const double sigma = weight[i];
-            weight[i] =
-                std::cbrt(cost_aware_ ? std::pow(sigma / cost[i], 2.0) : sigma * sigma);
+            const double sigma = weight[i], c = cost_aware_ ? cost[i] : 0.0;
+            const bool same_cost = !cost_aware_ || weight_cost_[i] == c;
+            if (sigma == weight_sigma_[i] && same_cost) {
+                weight[i] = weight_[i];
+            } else {
+                if (!(sigma == last_sigma && c == last_cost)) {
+                    last_sigma = sigma;
+                    last_cost = c;
+                    last_weight =
+                        std::cbrt(cost_aware_ ? std::pow(sigma / c, 2.0) : sigma * sigma);
+                }
+                weight[i] = weight_[i] = last_weight;
+                weight_sigma_[i] = sigma;
+                if (cost_aware_) weight_cost_[i] = c;
+            }
             any = any || weight[i] > 0;
         }
         band_any[band] = any;

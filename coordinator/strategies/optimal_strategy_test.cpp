@@ -417,23 +417,53 @@ TEST(OptimalTime, BeatsOptimalOnExpectedErrorForTheSameRays) {
 }
 
 TEST(Optimal, RestoredStateMakesTheSameDecisions) {
+    // The resumed strategy computes every weight afresh, the whole one reuses those
+    // whose sigma (and cost) did not change: the same rounds either way.
     const SyntheticImage image = banded_image();
-    OptimalStrategy whole(optimal(4096 * 40), 64, 64, false);
-    Accumulator a(64, 64);
-    std::vector<std::vector<uint32_t>> rounds;
-    run_synthetic(whole, image, a, 100,
-                  [&](const Round& r, const Accumulator&) { rounds.push_back(r.spp); });
-    OptimalStrategy first(optimal(4096 * 40), 64, 64, false);
-    Accumulator b(64, 64);
-    run_synthetic(first, image, b, 2);
-    OptimalStrategy resumed(optimal(4096 * 40), 64, 64, false);
-    resumed.restore_state(nlohmann::json::parse(first.save_state().dump()));
-    size_t r = 2;
-    run_synthetic(resumed, image, b, 100, [&](const Round& round, const Accumulator&) {
-        ASSERT_LT(r, rounds.size());
-        EXPECT_EQ(round.spp, rounds[r++]);
-    });
-    EXPECT_EQ(r, rounds.size());
+    for (const bool cost_aware : {false, true}) {
+        SCOPED_TRACE(cost_aware ? "optimal-time" : "optimal");
+        OptimalStrategy whole(optimal(4096 * 40), 64, 64, cost_aware);
+        Accumulator a(64, 64);
+        std::vector<std::vector<uint32_t>> rounds;
+        run_synthetic(whole, image, a, 100, [&](const Round& r, const Accumulator&) {
+            rounds.push_back(r.spp);
+        });
+        ASSERT_GT(rounds.size(), 4u);
+        OptimalStrategy first(optimal(4096 * 40), 64, 64, cost_aware);
+        Accumulator b(64, 64);
+        run_synthetic(first, image, b, 2);
+        OptimalStrategy resumed(optimal(4096 * 40), 64, 64, cost_aware);
+        resumed.restore_state(nlohmann::json::parse(first.save_state().dump()));
+        size_t r = 2;
+        run_synthetic(resumed, image, b, 100,
+                      [&](const Round& round, const Accumulator&) {
+                          ASSERT_LT(r, rounds.size());
+                          EXPECT_EQ(round.spp, rounds[r++]);
+                      });
+        EXPECT_EQ(r, rounds.size());
+    }
+}
+
+TEST(OptimalTime, AWeightIsComputedAgainWhenOnlyItsCostChanged) {
+    // A merge that changes a pixel's rays but not its samples leaves its sigma alone:
+    // the weight kept from the last round end must not be reused.
+    SyntheticImage image(32, 32, 4, {0.5, 0.3});
+    OptimalStrategy kept(optimal(1024 * 64), 32, 32, true);
+    Accumulator merged(32, 32);
+    run_synthetic(kept, image, merged, 2);
+    const nlohmann::json before = kept.save_state();
+    ASSERT_TRUE(kept.next_round(merged));  // keeps every weight at today's sigma
+    kept.restore_state(before);            // as if that round had not been planned
+    SampleJobResult rays_only;
+    rays_only.rect = {0, 0, 32, 32};
+    rays_only.pixels.resize(1024);
+    for (size_t i = 0; i < 1024; i += 2) rays_only.pixels[i].rays = 20;
+    merged.merge(rays_only);
+    OptimalStrategy fresh(optimal(1024 * 64), 32, 32, true);
+    fresh.restore_state(before);
+    const std::optional<Round> a = kept.next_round(merged), b = fresh.next_round(merged);
+    ASSERT_TRUE(a && b);
+    EXPECT_EQ(a->spp, b->spp);
 }
 
 }  // namespace
