@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <mutex>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -81,8 +82,14 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         spec.height = height;
         const size_t colon = method.find(':');
         spec.strategy.method = method.substr(0, colon);
-        if (colon != std::string::npos)
-            spec.strategy.steer_rounds = uint32_t(std::stoul(method.substr(colon + 1)));
+        if (colon != std::string::npos) {
+            const std::string k = method.substr(colon + 1);
+            if (k.empty() || k.size() > 2 ||
+                k.find_first_not_of("0123456789") != std::string::npos)
+                throw std::invalid_argument("in " + method +
+                                            ", K (steer_rounds) must be 0 to 99");
+            spec.strategy.steer_rounds = uint32_t(std::stoul(k));
+        }
         spec.strategy.budget = uint64_t(64) * width * height;  // 64 spp on average
         spec.strategy.max_variance = 1e-4;  // dammertz: keep splitting past a few rounds
         const std::string id = coordinator.submit(spec);
@@ -139,7 +146,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
     const Resolution size = parse_resolution(argc > 1 ? argv[1] : "1920x1080");
     const double seconds = argc > 2 ? std::atof(argv[2]) : 10;
     std::vector<int> counts;
@@ -167,4 +174,10 @@ int main(int argc, char** argv) {
                 r.rounds ? 1e3 * r.round_end_cpu_seconds / r.rounds : 0.0);
             std::fflush(stdout);
         }
+} catch (const std::exception& e) {
+    std::fprintf(stderr,
+                 "farm_scale: %s\nusage: farm_scale [WxH] [seconds] [workers,...] "
+                 "[method[:K],...]\n",
+                 e.what());
+    return 2;
 }
