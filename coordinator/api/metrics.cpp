@@ -68,6 +68,22 @@ std::vector<MetricFamily> farm_state(Coordinator& c) {
                "Samples merged into renders since the coordinator started.",
                MetricType::Counter, double(c.samples_merged()));
 
+    // A round end holds up the render's workers (none of its jobs is out meanwhile), so
+    // these against the render time say how much of it the coordinator costs: the
+    // share issue 14 bounds (bench/round_end_share.sh).
+    add_single(out, "aliquot_rounds_ended_total",
+               "Rounds ended across renders since the coordinator started.",
+               MetricType::Counter, double(c.rounds_ended()));
+    add_single(
+        out, "aliquot_round_end_seconds_total",
+        "Wall seconds of the calls that ended a round (the last merge, the record, "
+        "planning and cutting the next round), while none of the render's jobs "
+        "was out.",
+        MetricType::Counter, c.round_end_seconds());
+    add_single(out, "aliquot_round_end_cpu_seconds_total",
+               "CPU seconds of those calls, the band pool's threads included.",
+               MetricType::Counter, c.round_end_cpu_seconds());
+
     // The states are WorkerStatus's three; a state outside them is not reported rather
     // than becoming a new label value.
     std::map<std::string, uint64_t> by_state = {{"idle", 0}, {"busy", 0}, {"lost", 0}};

@@ -54,6 +54,9 @@ TEST(FarmMetrics, AnIdleFarmReportsEveryMetricAtZero) {
     EXPECT_EQ(s.at("aliquot_lease_seconds_count{outcome=\"granted\"}"), 0);
     EXPECT_EQ(s.at("aliquot_lease_seconds_count{outcome=\"none\"}"), 0);
     EXPECT_EQ(s.at("aliquot_merge_seconds_count"), 0);
+    EXPECT_EQ(s.at("aliquot_rounds_ended_total"), 0);
+    EXPECT_EQ(s.at("aliquot_round_end_seconds_total"), 0);
+    EXPECT_EQ(s.at("aliquot_round_end_cpu_seconds_total"), 0);
     EXPECT_NE(text.find("# TYPE aliquot_samples_merged_total counter"),
               std::string::npos);
     EXPECT_NE(text.find("# TYPE aliquot_merge_seconds histogram"), std::string::npos);
@@ -96,6 +99,11 @@ TEST(FarmMetrics, ValuesFollowTheFarm) {
     EXPECT_EQ(s.at("aliquot_merge_seconds_count"), 1);
     EXPECT_DOUBLE_EQ(s.at("aliquot_merge_seconds_sum"), 0.0003);
     EXPECT_EQ(s.at("aliquot_lease_seconds_count{outcome=\"none\"}"), 1);
+    // That merge ended the render's one round (2 spp over 16 pixels is one job).
+    EXPECT_EQ(s.at("aliquot_rounds_ended_total"), 1);
+    EXPECT_EQ(s.at("aliquot_round_end_seconds_total"), c.round_end_seconds());
+    EXPECT_GT(s.at("aliquot_round_end_seconds_total"), 0);
+    EXPECT_EQ(s.at("aliquot_round_end_cpu_seconds_total"), c.round_end_cpu_seconds());
     c.stop();
 }
 

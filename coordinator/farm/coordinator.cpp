@@ -889,6 +889,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     // render's lock alone.
     CompleteOutcome outcome;
     double round_end = 0, round_end_cpu = 0;
+    bool ended_round = false;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
@@ -901,6 +902,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
         outcome = s.complete(lease_id, worker, result, *alive, options_.failure_policy);
         if (s.rounds_done() != rounds_before) {  // this result ended a round
+            ended_round = true;
             round_end =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
                     .count();
@@ -911,6 +913,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     std::lock_guard lock(mutex_);
     round_end_seconds_ += round_end;
     round_end_cpu_seconds_ += round_end_cpu;
+    if (ended_round) ++rounds_ended_;
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
         samples_merged_ += result.total_samples();
@@ -1051,6 +1054,11 @@ double Coordinator::round_end_seconds() {
 double Coordinator::round_end_cpu_seconds() {
     std::lock_guard lock(mutex_);
     return round_end_cpu_seconds_;
+}
+
+uint64_t Coordinator::rounds_ended() {
+    std::lock_guard lock(mutex_);
+    return rounds_ended_;
 }
 
 size_t Coordinator::worker_sessions() {

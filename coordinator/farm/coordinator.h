@@ -174,6 +174,8 @@ public:
     // The same calls' CPU time on their threads: what they cost whatever the load (on a
     // busy machine the wall time also counts waiting for a core).
     double round_end_cpu_seconds();
+    // Rounds ended, over all renders (each ended by one of those calls).
+    uint64_t rounds_ended();
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -342,6 +344,7 @@ private:
     int ticks_ = 0;
     std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
     double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0;
+    uint64_t rounds_ended_ = 0;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
     bool stopping_ = false;
     std::thread ticker_;

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# The coordinator's share of a real farm's render, issue 14 item 4 measured rather than
+# extrapolated: a coordinator and WORKERS workers of one thread each render the Cornell box
+# at RESOLUTION and SPP (budget = SPP x pixels) with each method in turn, and the
+# coordinator's own counters (`aliquot_round_end_seconds_total`, `..._cpu_seconds_total`,
+# `aliquot_rounds_ended_total` on /metrics) are read before and after each render. A round
+# end holds up the render's workers (none of its jobs is out meanwhile), so
+# share = round-end wall seconds ÷ the render's seconds is the time the farm waited on the
+# coordinator. On one machine the coordinator and the workers share its cores, so a round
+# end's CPU is also taken from the tracing: this is the farm this machine can run, not a
+# farm of many machines (bench/farm_scale.cpp extrapolates to those).
+# A method written `optimal:K` (or `optimal-time:K`) runs with --steer-rounds K.
+# Usage: bench/round_end_share.sh [aliquot] [resolution] [spp] [methods] [workers]
+set -euo pipefail
+aliquot=${1:-build/bin/aliquot}
+resolution=${2:-1920x1080}
+spp=${3:-64}
+methods=${4:-uniform,dammertz,adaptive,optimal,optimal-time,cycles}
+workers=${5:-2}
+tmp=$(mktemp -d)
+free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+grpc=$(free_port)
+http=$(free_port)
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 2>/dev/null; rm -rf "$tmp"; }
+trap cleanup EXIT
+
+"$aliquot" coordinator --grpc "127.0.0.1:$grpc" --http "127.0.0.1:$http" --data "$tmp/data" \
+    2>"$tmp/coordinator.log" &
+pids+=($!)
+token=(--token-file "$tmp/data/client.token")  # made by the coordinator at start
+for _ in $(seq 100); do "$aliquot" status --coordinator "127.0.0.1:$grpc" "${token[@]}" >/dev/null 2>&1 && break; sleep 0.1; done
+for w in $(seq "$workers"); do
+    "$aliquot" worker --coordinator "127.0.0.1:$grpc" --threads 1 --name "w$w" \
+        --token-file "$tmp/data/worker.token" 2>"$tmp/worker-$w.log" &
+    pids+=($!)
+done
+sleep 0.5
+
+scrape() {  # the three counters, as "rounds seconds cpu_seconds"
+    python3 - "$http" "$tmp/data/client.token" <<'PY'
+import sys, urllib.request
+port, token_file = sys.argv[1], sys.argv[2]
+token = open(token_file).read().strip()
+req = urllib.request.Request(f"http://127.0.0.1:{port}/metrics",
+                             headers={"Authorization": f"Bearer {token}"})
+values = {}
+for line in urllib.request.urlopen(req, timeout=10).read().decode().splitlines():
+    if line and not line.startswith("#"):
+        name, value = line.rsplit(" ", 1)
+        values[name] = float(value)
+print(values["aliquot_rounds_ended_total"], values["aliquot_round_end_seconds_total"],
+      values["aliquot_round_end_cpu_seconds_total"])
+PY
+}
+
+for method in ${methods//,/ }; do
+    args=(--method "${method%%:*}")
+    [[ $method == *:* ]] && args+=(--steer-rounds "${method#*:}")
+    before=$(scrape)
+    result=$("$aliquot" submit --coordinator "127.0.0.1:$grpc" "${token[@]}" --scene cornell-box \
+        --resolution "$resolution" --budget "$(python3 -c "w,h='$resolution'.split('x'); print(int(w)*int(h)*$spp)")" \
+        --seed 1 "${args[@]}" --wait --json)
+    after=$(scrape)
+    python3 - "$method" "$before" "$after" "$result" <<'PY'
+import json, sys
+method, before, after, result = sys.argv[1], sys.argv[2].split(), sys.argv[3].split(), sys.argv[4]
+r = json.loads(result.strip().splitlines()[-1])
+rounds, wall, cpu = (float(a) - float(b) for a, b in zip(after, before))
+seconds = float(r["seconds"])
+print(json.dumps({
+    "method": method, "image": f"{r['width']}x{r['height']}", "state": r["state"],
+    "samples": r["samples_done"], "rounds": int(rounds), "render_seconds": seconds,
+    "round_end_seconds": round(wall, 4), "round_end_cpu_seconds": round(cpu, 4),
+    "round_end_ms_each": round(1e3 * wall / max(rounds, 1), 1),
+    "share": round(wall / seconds, 4) if seconds > 0 else None,
+}))
+PY
+done
