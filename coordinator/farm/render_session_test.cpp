@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "scene_loader.h"
 
 namespace aliquot {
@@ -91,6 +93,50 @@ TEST_F(RenderSessionTest, AResultThatWouldOverflowTheSumsIsRejectedAndTheJobReis
     ASSERT_TRUE(again);
     EXPECT_EQ(again->rect, job->rect);
     EXPECT_EQ(s.complete(2, "w", fake_result(*again)).status, CompleteStatus::Merged);
+}
+
+TEST_F(RenderSessionTest, APixelWithoutSamplesMustComeBackEmpty) {
+    // A steered round gives some pixels of a job's tile no samples; a worker that returns
+    // light, rays or variance there changes the image where nothing was traced.
+    spec.strategy.method = "optimal";
+    spec.strategy.spp = 0;
+    spec.strategy.budget = 40 * 40 * 16;
+    RenderSession s("r", spec, 0);
+    s.start();
+    const FailurePolicy patient{100, 100};  // the render outlives the rejections below
+    uint64_t lease = 0;
+    // The next job that has a pixel of no samples, completing the others as they come.
+    const auto job_with_an_empty_pixel = [&]() -> std::pair<SampleJob, size_t> {
+        while (true) {
+            auto job = s.issue(++lease, "w", far, {}, patient);
+            if (!job) return {};
+            const auto it = std::find(job->counts.begin(), job->counts.end(), 0u);
+            if (s.rounds_done() > 0 && it != job->counts.end())
+                return {*job, size_t(it - job->counts.begin())};
+            EXPECT_EQ(s.complete(lease, "w", fake_result(*job), {}, patient).status,
+                      CompleteStatus::Merged);
+        }
+    };
+    for (int field = 0; field < 3; ++field) {
+        const auto [job, empty] = job_with_an_empty_pixel();
+        ASSERT_FALSE(job.counts.empty()) << "no steered job left a pixel empty";
+        const uint64_t before = s.merged().total_samples();
+        SampleJobResult r = fake_result(job);
+        if (field == 0) r.pixels[empty].even[1] = 0.25;
+        if (field == 1) r.pixels[empty].rays = 7;
+        if (field == 2) r.pixels[empty].sum_sq_luminance = 1;
+        const CompleteOutcome out = s.complete(lease, "w", r, {}, patient);
+        EXPECT_EQ(out.status, CompleteStatus::Rejected) << field;
+        EXPECT_NE(out.message.find("no samples but non-zero sums"), std::string::npos)
+            << out.message;
+        EXPECT_EQ(s.merged().total_samples(), before);
+    }
+    // The same jobs, returned empty where they should be, finish the render.
+    while (auto job = s.issue(++lease, "w", far, {}, patient))
+        ASSERT_EQ(s.complete(lease, "w", fake_result(*job), {}, patient).status,
+                  CompleteStatus::Merged);
+    EXPECT_EQ(s.state(), RenderState::Done);
+    EXPECT_EQ(s.merged().total_samples(), 40u * 40 * 16);
 }
 
 TEST_F(RenderSessionTest, RenewKeepsALeaseAliveOnlyForItsOwner) {
