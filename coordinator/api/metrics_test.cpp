@@ -101,9 +101,11 @@ TEST(FarmMetrics, ValuesFollowTheFarm) {
     EXPECT_EQ(s.at("aliquot_lease_seconds_count{outcome=\"none\"}"), 1);
     // That merge ended the render's one round (2 spp over 16 pixels is one job).
     EXPECT_EQ(s.at("aliquot_rounds_ended_total"), 1);
-    EXPECT_EQ(s.at("aliquot_round_end_seconds_total"), c.round_end_seconds());
+    // The text keeps 16 significant digits.
+    EXPECT_DOUBLE_EQ(s.at("aliquot_round_end_seconds_total"), c.round_end_seconds());
     EXPECT_GT(s.at("aliquot_round_end_seconds_total"), 0);
-    EXPECT_EQ(s.at("aliquot_round_end_cpu_seconds_total"), c.round_end_cpu_seconds());
+    EXPECT_DOUBLE_EQ(s.at("aliquot_round_end_cpu_seconds_total"),
+                     c.round_end_cpu_seconds());
     c.stop();
 }
 
