@@ -146,9 +146,7 @@ std::string RenderSession::check_result(const JobSlot& slot,
         if (p.nonfinite > p.samples) return "more non-finite samples than samples";
         // A pixel the job gave no samples is not the worker's to change: its sums would
         // put light (or rays, or variance) where nothing was traced.
-        if (p.samples == 0 && !(p.rays == 0 && p.sum_sq_luminance == 0 &&
-                                p.even[0] == 0 && p.even[1] == 0 && p.even[2] == 0 &&
-                                p.odd[0] == 0 && p.odd[1] == 0 && p.odd[2] == 0))
+        if (p.samples == 0 && p != PixelSums{})
             return "pixel " + std::to_string(i) + " has no samples but non-zero sums";
         for (int c = 0; c < 3; ++c)
             if (!std::isfinite(p.even[c]) || !std::isfinite(p.odd[c]))

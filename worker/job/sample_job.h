@@ -35,6 +35,8 @@ struct PixelSums {
     // Samples whose radiance was NaN or infinite: counted in `samples` as zero radiance,
     // so a broken sample costs its share of the budget but never poisons a sum.
     uint64_t nonfinite = 0;
+
+    bool operator==(const PixelSums&) const = default;
 };
 
 struct SampleJobResult {
