@@ -448,12 +448,13 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
                     : remaining;
     }
 
-    // Each per-pixel buffer below takes over the one it is computed from, pixel by pixel,
-    // rather than take 16 MB of fresh pages at 1920x1080 (the kernel's page faults and
-    // zeroing were a large part of this round end).
+    // The weights live in weight_ between rounds (see the header); the buffers below
+    // take over the one they are computed from, pixel by pixel, rather than take 16 MB
+    // of fresh pages at 1920x1080 (the kernel's page faults and zeroing were a large part
+    // of this round end).
     std::vector<double> cost;
-    std::vector<double> weight = sigma_estimates(merged, sigma_radius_, sigma_prior_,
-                                                 cost_aware_ ? &cost : nullptr);
+    const std::vector<double> sigma = sigma_estimates(merged, sigma_radius_, sigma_prior_,
+                                                      cost_aware_ ? &cost : nullptr);
     if (weight_.size() != pixels) {  // NaN: no sigma is equal to it
         weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
         weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
@@ -463,36 +464,37 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         bool any = false;
         // The pixels held up by the image's floor share one sigma, which moves every
-        // round: the band's last computed weight answers them.
+        // round: the band's last computed weight answers them (on cornell-box about
+        // half of the pixels whose sigma changed).
         double last_sigma = std::numeric_limits<double>::quiet_NaN(), last_cost = 0,
                last_weight = 0;
         for (size_t i = begin; i < end; ++i) {
-            const double sigma = weight[i], c = cost_aware_ ? cost[i] : 0.0;
-            const bool same_cost = !cost_aware_ || weight_cost_[i] == c;
-            if (sigma == weight_sigma_[i] && same_cost) {
-                weight[i] = weight_[i];
-            } else {
-                if (!(sigma == last_sigma && c == last_cost)) {
-                    last_sigma = sigma;
+            const double c = cost_aware_ ? cost[i] : 0.0;
+            if (sigma[i] != weight_sigma_[i] || (cost_aware_ && weight_cost_[i] != c)) {
+                if (!(sigma[i] == last_sigma && c == last_cost)) {
+                    last_sigma = sigma[i];
                     last_cost = c;
-                    last_weight =
-                        std::cbrt(cost_aware_ ? std::pow(sigma / c, 2.0) : sigma * sigma);
+                    last_weight = std::cbrt(cost_aware_ ? std::pow(sigma[i] / c, 2.0)
+                                                        : sigma[i] * sigma[i]);
                 }
-                weight[i] = weight_[i] = last_weight;
-                weight_sigma_[i] = sigma;
+                weight_[i] = last_weight;
+                weight_sigma_[i] = sigma[i];
                 if (cost_aware_) weight_cost_[i] = c;
             }
-            any = any || weight[i] > 0;
+            any = any || weight_[i] > 0;
         }
         band_any[band] = any;
     });
-    if (std::find(band_any.begin(), band_any.end(), 1) == band_any.end())
-        std::fill(weight.begin(), weight.end(), 1.0);  // no noise seen anywhere
+    const bool noise_seen =
+        std::find(band_any.begin(), band_any.end(), 1) != band_any.end();
 
     // The round closes the gap between what each pixel has and its target; pixels already
     // past their target get nothing, so the gaps are scaled to the share.
+    // With no noise seen anywhere every pixel weighs the same (weight_ is left as
+    // computed, so that what it keeps stays a function of sigma and cost).
     std::vector<double> gap =
-        optimal_counts(weight, cost, spent + share, double(min_spp_), double(cap_));
+        optimal_counts(noise_seen ? weight_ : std::vector<double>(pixels, 1.0), cost,
+                       spent + share, double(min_spp_), double(cap_));
     std::vector<uint32_t> room(pixels);
     for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {
