@@ -28,6 +28,7 @@ Accumulator::Accumulator(uint32_t width, uint32_t height)
       height_(height),
       pixels_(size_t(width) * height),
       samples_(pixels_.size(), 0),
+      rays_(pixels_.size(), 0),
       half_difference_(pixels_.size(), -1.0),
       luminance_variance_(pixels_.size(), 0.0) {}
 
@@ -54,6 +55,7 @@ void Accumulator::merge(const SampleJobResult& result) {
             dst.nonfinite += src.nonfinite;
             const size_t i = size_t(&dst - pixels_.data());
             samples_[i] = dst.samples;
+            rays_[i] = dst.rays;
             half_difference_[i] = compute_half_difference(i);
             luminance_variance_[i] = compute_luminance_variance(i);
             total_samples_ += src.samples;
@@ -97,6 +99,7 @@ void Accumulator::copy_from(const Accumulator& other) {
     total_nonfinite_ = other.total_nonfinite_;
     pixels_.resize(other.pixels_.size());
     samples_.resize(other.samples_.size());
+    rays_.resize(other.rays_.size());
     half_difference_.resize(other.half_difference_.size());
     luminance_variance_.resize(other.luminance_variance_.size());
     for_each_band(pixels_.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
@@ -104,6 +107,8 @@ void Accumulator::copy_from(const Accumulator& other) {
                   pixels_.begin() + begin);
         std::copy(other.samples_.begin() + begin, other.samples_.begin() + end,
                   samples_.begin() + begin);
+        std::copy(other.rays_.begin() + begin, other.rays_.begin() + end,
+                  rays_.begin() + begin);
         std::copy(other.half_difference_.begin() + begin,
                   other.half_difference_.begin() + end, half_difference_.begin() + begin);
         std::copy(other.luminance_variance_.begin() + begin,

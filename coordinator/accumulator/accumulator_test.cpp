@@ -122,12 +122,13 @@ TEST(Accumulator, CopyFromMakesAnEqualCopyOverAnyPreviousContents) {
     for (size_t i = 0; i < source.pixel_count(); ++i) {
         ASSERT_EQ(std::memcmp(&copy.at(i), &source.at(i), sizeof(PixelSums)), 0) << i;
         ASSERT_EQ(copy.samples(i), source.samples(i)) << i;
+        ASSERT_EQ(copy.rays(i), source.rays(i)) << i;
         ASSERT_EQ(copy.half_difference(i), source.half_difference(i)) << i;
         ASSERT_EQ(copy.luminance_variance(i), source.luminance_variance(i)) << i;
     }
 }
 
-TEST(Accumulator, SampleCountsFollowEveryMerge) {
+TEST(Accumulator, SampleAndRayCountsFollowEveryMerge) {
     Accumulator acc(3, 1);
     acc.merge(one_pixel(1, 0, 1.0, 1.0, 4, 0));
     acc.merge(one_pixel(1, 0, 1.0, 1.0, 3, 0));
@@ -135,7 +136,13 @@ TEST(Accumulator, SampleCountsFollowEveryMerge) {
     EXPECT_EQ(acc.samples(0), 0u);
     EXPECT_EQ(acc.samples(1), 7u);
     EXPECT_EQ(acc.samples(2), 1u);
-    for (size_t i = 0; i < 3; ++i) EXPECT_EQ(acc.samples(i), acc.at(i).samples);
+    EXPECT_EQ(acc.rays(0), 0u);
+    EXPECT_EQ(acc.rays(1), 21u);  // one_pixel traces 3 rays a sample
+    EXPECT_EQ(acc.rays(2), 3u);
+    for (size_t i = 0; i < 3; ++i) {
+        EXPECT_EQ(acc.samples(i), acc.at(i).samples);
+        EXPECT_EQ(acc.rays(i), acc.at(i).rays);
+    }
 }
 
 TEST(Accumulator, HalfDifferenceIsTheHalvesMeanGapOverRgbFromTwoSamples) {

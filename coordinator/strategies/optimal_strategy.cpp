@@ -219,8 +219,9 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      std::vector<double>* costs) {
     const size_t n = merged.pixel_count();
     std::vector<double> var(n);
-    // optimal-time's costs are read in the same pass over the sums (pixel_costs' values):
-    // a second stream of the 80-byte sums was ~25 ms of its round end at 1920x1080.
+    // optimal-time's costs (a pixel's rays per sample, or the image's mean where it has
+    // none) are made in the same pass, from the counts the accumulator keeps beside its
+    // sums.
     const double mean_cost = costs ? rays_per_sample(merged) : 0.0;
     if (costs) costs->resize(n);
     // Each band's largest finite variance; max is exact in any order.
@@ -231,9 +232,9 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
             var[i] = merged.luminance_variance(i);
             if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
             if (costs) {
-                const PixelSums& p = merged.at(i);
+                const uint64_t samples = merged.samples(i), rays = merged.rays(i);
                 (*costs)[i] =
-                    p.samples && p.rays ? double(p.rays) / double(p.samples) : mean_cost;
+                    samples && rays ? double(rays) / double(samples) : mean_cost;
             }
         }
         band_largest[band] = largest;
