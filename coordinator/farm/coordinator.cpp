@@ -1312,7 +1312,7 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + Accumulator::kBytesPerPixel  // the copy a checkpoint is written from
         + 12                           // a round's jobs: counts, first indices
         + 16                           // the round's spp; a strategy's per pixel
-        + 48                           // optimal's planning: sigma, weights, gaps, costs
+        + 56                           // optimal's planning buffers, kept between rounds
         + 24                           // optimal's weights kept, with their sigma, cost
         + 20;                          // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it

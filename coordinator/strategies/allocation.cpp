@@ -245,7 +245,8 @@ size_t give_to_first(Tied tied, size_t wanted, const RemainderOrder& order,
 
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
                                 const std::vector<uint32_t>& caps,
-                                const std::vector<double>& costs) {
+                                const std::vector<double>& costs,
+                                ApportionScratch* scratch) {
     const bool unit = costs.empty();
     auto cost = [&](size_t i) { return unit ? 1.0 : costs[i]; };
     if (unit) total = std::floor(total);
@@ -377,20 +378,19 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // reads no weights: scattered by bucket (largest fractions first) in bands, each
     // bucket then sorted alone on the pool's threads. A full sort of all of them was the
     // largest part of optimal-time's round end at 1920x1080.
-    struct Key {
-        double fraction;
-        size_t index;
-        bool operator<(const Key& o) const {
-            if (fraction != o.fraction) return fraction > o.fraction;
-            const uint64_t h = mix64(index), oh = mix64(o.index);
-            return h != oh ? h < oh : index < o.index;
-        }
+    using Key = RemainderKey;
+    const auto before = [](const Key& a, const Key& b) {
+        if (a.fraction != b.fraction) return a.fraction > b.fraction;
+        const uint64_t ha = mix64(a.index), hb = mix64(b.index);
+        return ha != hb ? ha < hb : a.index < b.index;
     };
-    Scratch<Key> sorted(kept);
+    ApportionScratch local;
+    std::vector<Key>& sorted = (scratch ? *scratch : local).keys;
+    sorted.resize(kept);
     if (one_band) {
         for (size_t i = 0, k = 0; i < n; ++i)
             if (keep(i)) sorted[k++] = {order.fraction(i), i};
-        std::sort(sorted.begin(), sorted.end());
+        std::sort(sorted.begin(), sorted.end(), before);
     } else {
         // A key's rank: the top 21 bits of its fraction, reversed (largest first). Its
         // top 8 bits pick one of 256 runs, which the keys are scattered into in bands
@@ -454,7 +454,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
                 for (Key* k = first + 1; k < last; ++k) {  // insertion sort
                     const Key key = *k;
                     Key* j = k;
-                    for (; j != first && key < j[-1]; --j) *j = j[-1];
+                    for (; j != first && before(key, j[-1]); --j) *j = j[-1];
                     *j = key;
                 }
             }

@@ -18,9 +18,20 @@ namespace aliquot {
 // rows. With unit costs it spends exactly `total` unless the caps cannot hold it; with
 // costs it spends as much as fits without exceeding `total`. Items of weight 0 get
 // nothing.
+// With `scratch`, the buffers it orders the remainder in are kept there for the next
+// call: a strategy that plans rounds of one image again and again (optimal-time's round
+// ends at 1920x1080 sorted 32 MB of keys) takes no fresh pages for them.
+struct RemainderKey {
+    double fraction;  // of the item's real-valued share
+    size_t index;
+};
+struct ApportionScratch {
+    std::vector<RemainderKey> keys;
+};
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
                                 const std::vector<uint32_t>& caps,
-                                const std::vector<double>& costs = {});
+                                const std::vector<double>& costs = {},
+                                ApportionScratch* scratch = nullptr);
 
 // The samples a budgeted method may spend: `budget`, or spp * pixels when only spp is
 // given, and never more than `max_samples` when that is set. Assumes validate() passed.

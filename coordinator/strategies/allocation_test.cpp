@@ -135,6 +135,23 @@ TEST(Apportion, WithCostsOverManyBandsGivesWhatAFullSortGives) {
     EXPECT_EQ(got[5], 0u);
 }
 
+// A strategy keeps the order's buffer from one round end to the next: what it held
+// before, of another size, changes nothing.
+TEST(Apportion, AKeptScratchGivesWhatAFreshOneGives) {
+    ApportionScratch kept;
+    for (const size_t n : {3 * kBandPixels + 5, kBandPixels / 2, 5 * kBandPixels + 1}) {
+        std::vector<double> weights(n), costs(n);
+        for (size_t i = 0; i < n; ++i) {
+            weights[i] = 0.1 + double(mix64(i * 3 + n) % 77777) / 3333.0;
+            costs[i] = 1.0 + double(mix64(i + n) % 13) / 3.0;
+        }
+        const double total = 2.6 * double(n);
+        EXPECT_EQ(apportion(weights, total, no_caps(n), costs, &kept),
+                  apportion(weights, total, no_caps(n), costs))
+            << n;
+    }
+}
+
 TEST(Apportion, WithinOneBandGoesToTheSameItemsAsAFullSort) {
     const size_t n = 1000;
     std::vector<double> weights(n, 2.0);

@@ -68,10 +68,10 @@ size_t rows_per_band(uint32_t w) {
 // the median and the rest in one pass over rows in bands, without a buffer of medians.
 // Inside the image each row's medians are taken by the same compare-exchanges, pixel by
 // pixel, in a loop over the row that the compiler vectorises; the clipped windows at the
-// edges are selected as before.
-std::vector<double> sigma_from_neighbourhood(const std::vector<double>& v, uint32_t w,
-                                             uint32_t h, double least) {
-    std::vector<double> out(v.size());
+// edges are selected as before. Written into `out`.
+void sigma_from_neighbourhood(const std::vector<double>& v, uint32_t w, uint32_t h,
+                              double least, std::vector<double>& out) {
+    out.resize(v.size());
     const auto finish = [&](size_t i, double near) {
         out[i] = std::sqrt(std::max({v[i], kNeighbourhoodFactor * near, least}));
     };
@@ -106,7 +106,6 @@ std::vector<double> sigma_from_neighbourhood(const std::vector<double>& v, uint3
             finish(row + w - 1, clipped(w - 1, y));
         }
     });
-    return out;
 }
 
 // The mean of v over the (2r+1)^2 window around each pixel (clipped at the image's
@@ -211,14 +210,17 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      uint32_t radius, uint32_t prior) {
-    return sigma_estimates(merged, radius, prior, nullptr);
+    std::vector<double> variance, sigma;
+    sigma_estimates(merged, radius, prior, variance, nullptr, sigma);
+    return sigma;
 }
 
-std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
-                                                     uint32_t radius, uint32_t prior,
-                                                     std::vector<double>* costs) {
+void OptimalStrategy::sigma_estimates(const Accumulator& merged, uint32_t radius,
+                                      uint32_t prior, std::vector<double>& var,
+                                      std::vector<double>* costs,
+                                      std::vector<double>& sigma) {
     const size_t n = merged.pixel_count();
-    std::vector<double> var(n);
+    var.resize(n);
     // optimal-time's costs (a pixel's rays per sample, or the image's mean where it has
     // none) are made in the same pass, from the counts the accumulator keeps beside its
     // sums.
@@ -247,7 +249,6 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
             if (!std::isfinite(var[i])) var[i] = largest;
     });
     const double median = median_value(var);
-    std::vector<double> sigma;
     const auto each_pixel = [&](auto&& f) {
         for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
             for (size_t i = begin; i < end; ++i) f(i);
@@ -267,7 +268,7 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
             const double v = (own * var[i] + prior * pooled[i]) / (own + prior);
             sigma[i] = std::sqrt(std::max(v, kImageFactor * median));
         });
-        return sigma;
+        return;
     }
     if (radius > 0) {
         // Pooled: each pixel's variance is the plain mean of its window's sample
@@ -281,16 +282,23 @@ std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
         each_pixel([&](size_t i) {
             sigma[i] = std::sqrt(std::max(pooled[i], kImageFactor * median));
         });
-        return sigma;
+        return;
     }
-    sigma = sigma_from_neighbourhood(var, merged.width(), merged.height(),
-                                     kImageFactor * median);
-    return sigma;
+    sigma_from_neighbourhood(var, merged.width(), merged.height(), kImageFactor * median,
+                             sigma);
 }
 
 std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
                                                     const std::vector<double>& costs,
                                                     double total, double lo, double hi) {
+    std::vector<double> counts;
+    optimal_counts(weights, costs, total, lo, hi, counts);
+    return counts;
+}
+
+void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
+                                     const std::vector<double>& costs, double total,
+                                     double lo, double hi, std::vector<double>& counts) {
     const size_t n = weights.size();
     auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
     double floor_cost = 0, cap_cost = 0;
@@ -300,9 +308,13 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
     }
     if (total <= floor_cost) {
         const double scale = floor_cost > 0 ? total / floor_cost : 0.0;
-        return std::vector<double>(n, lo * scale);
+        counts.assign(n, lo * scale);
+        return;
     }
-    if (total >= cap_cost) return std::vector<double>(n, hi);
+    if (total >= cap_cost) {
+        counts.assign(n, hi);
+        return;
+    }
 
     // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising,
     // and on each piece it is C + S mu: C sums c_i lo over the pixels at their floor and
@@ -380,12 +392,11 @@ std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& w
         if (!(middle > below && middle < above)) break;  // no double left between them
         mu = middle;
     }
-    std::vector<double> counts(n);
+    counts.resize(n);
     for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i)
             counts[i] = weights[i] > 0 ? std::clamp(mu * weights[i], lo, hi) : lo;
     });
-    return counts;
 }
 
 std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
@@ -449,13 +460,13 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
                     : remaining;
     }
 
-    // The weights live in weight_ between rounds (see the header); the buffers below
-    // take over the one they are computed from, pixel by pixel, rather than take 16 MB
-    // of fresh pages at 1920x1080 (the kernel's page faults and zeroing were a large part
-    // of this round end).
-    std::vector<double> cost;
-    const std::vector<double> sigma = sigma_estimates(merged, sigma_radius_, sigma_prior_,
-                                                      cost_aware_ ? &cost : nullptr);
+    // The weights live in weight_ between rounds (see the header), the buffers they are
+    // planned with in planning_.
+    Planning& b = planning_;
+    std::vector<double>& cost = b.cost;  // empty for optimal: every sample costs 1
+    const std::vector<double>& sigma = b.sigma;
+    sigma_estimates(merged, sigma_radius_, sigma_prior_, b.variance,
+                    cost_aware_ ? &cost : nullptr, b.sigma);
     if (weight_.size() != pixels) {  // NaN: no sigma is equal to it
         weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
         weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
@@ -493,10 +504,11 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     // past their target get nothing, so the gaps are scaled to the share.
     // With no noise seen anywhere every pixel weighs the same (weight_ is left as
     // computed, so that what it keeps stays a function of sigma and cost).
-    std::vector<double> gap =
-        optimal_counts(noise_seen ? weight_ : std::vector<double>(pixels, 1.0), cost,
-                       spent + share, double(min_spp_), double(cap_));
-    std::vector<uint32_t> room(pixels);
+    std::vector<double>& gap = b.gap;
+    optimal_counts(noise_seen ? weight_ : std::vector<double>(pixels, 1.0), cost,
+                   spent + share, double(min_spp_), double(cap_), gap);
+    std::vector<uint32_t>& room = b.room;
+    room.resize(pixels);
     for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {
             const uint64_t have = merged.samples(i);
@@ -504,7 +516,7 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
             room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
         }
     });
-    return apportion(gap, share, room, cost);
+    return apportion(gap, share, room, cost, &b.apportion);
 }
 
 nlohmann::json OptimalStrategy::outcome() const {

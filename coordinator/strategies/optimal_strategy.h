@@ -4,6 +4,7 @@
 // sample, minimising the error for a fixed time (rays) instead of a fixed sample count.
 #pragma once
 
+#include "allocation.h"
 #include "strategy.h"
 #include "strategy_params.h"
 
@@ -41,11 +42,16 @@ public:
                                               double total, double lo, double hi);
 
 private:
-    // As above; with `costs`, each pixel's measured rays per sample too (the mean for a
-    // pixel not yet sampled), read in the same pass over the sums.
-    static std::vector<double> sigma_estimates(const Accumulator& merged, uint32_t radius,
-                                               uint32_t prior,
-                                               std::vector<double>* costs);
+    // As above, into `sigma`, with `variance` to work in; with `costs`, each pixel's
+    // measured rays per sample too (the mean for a pixel not yet sampled), made in the
+    // same pass.
+    static void sigma_estimates(const Accumulator& merged, uint32_t radius,
+                                uint32_t prior, std::vector<double>& variance,
+                                std::vector<double>* costs, std::vector<double>& sigma);
+    // As above, into `counts`.
+    static void optimal_counts(const std::vector<double>& weights,
+                               const std::vector<double>& costs, double total, double lo,
+                               double hi, std::vector<double>& counts);
 
     // The first round: min_spp everywhere, the estimates' foundation.
     std::vector<uint32_t> pilot_round();
@@ -69,6 +75,17 @@ private:
     // `cbrt` (and `pow`) is not taken again. The same bits as computing every weight;
     // nothing of it is saved with the render.
     std::vector<double> weight_sigma_, weight_cost_, weight_;
+
+    // The buffers a round end plans in, kept for the next: at 1920x1080 each is 8-32 MB,
+    // and taking them fresh every round end cost the kernel's page faults and zeroing
+    // (~25 ms of optimal-time's). Each round end writes every element before reading it,
+    // so nothing carries from one round to the next; nothing of it is saved.
+    struct Planning {
+        std::vector<double> variance, sigma, cost, gap;
+        std::vector<uint32_t> room;
+        ApportionScratch apportion;
+    };
+    Planning planning_;
 };
 
 }  // namespace aliquot
