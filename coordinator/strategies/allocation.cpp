@@ -114,6 +114,24 @@ size_t fraction_bucket(double fraction) {
                         : 0;
 }
 
+// The remainder order is sorted in runs (see apportion): a key's rank is the top 21
+// bits of its fraction, reversed (largest first); its top 8 bits pick its run, so a run
+// holds 64 of the histogram's buckets.
+constexpr int kRankBits = 21, kFineBits = 13;
+constexpr size_t kRuns = size_t(1) << (kRankBits - kFineBits);
+constexpr size_t kFine = size_t(1) << kFineBits;
+static_assert((size_t(1) << kRankBits) == kFractionBuckets * 128);
+size_t rank(double fraction) {
+    constexpr size_t kTop = (size_t(1) << kRankBits) - 1;
+    const size_t d =
+        fraction > 0 ? std::min(kTop, size_t(fraction * double(size_t(1) << kRankBits)))
+                     : 0;
+    return kTop - d;
+}
+size_t run_of_bucket(size_t bucket) {
+    return kRuns - 1 - bucket / (kFractionBuckets / kRuns);
+}
+
 uint64_t bits_of(double v) {
     uint64_t b;
     std::memcpy(&b, &v, sizeof b);
@@ -271,11 +289,22 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     std::vector<uint64_t> band_floors(bands, 0);
     std::vector<size_t> band_kept(bands, 0);
     std::vector<std::vector<uint32_t>> histogram(bands);
+    // With costs, each band's cheapest kept item, and what its items of each run of the
+    // remainder order cost (that order is sorted only as far as these say it will be
+    // read).
+    std::vector<double> band_cheapest(bands, unit ? 1.0 : HUGE_VAL);
+    std::vector<std::vector<double>> run_cost(unit || one_band ? 0 : bands);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         uint64_t floors = 0;
         size_t kept = 0;
         std::vector<uint32_t>& h = histogram[band];
         if (!one_band) h.assign(kFractionBuckets, 0);
+        double* spend = nullptr;
+        if (!run_cost.empty()) {
+            run_cost[band].assign(kRuns, 0.0);
+            spend = run_cost[band].data();
+        }
+        double cheapest = band_cheapest[band];
         for (size_t i = begin; i < end; ++i) {
             if (!keep(i)) continue;
             const double s = share(i), whole = std::floor(s);
@@ -283,12 +312,19 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             floors += count[i];
             ++kept;
             if (!one_band) ++h[fraction_bucket(s - whole)];
+            if (!unit) {
+                cheapest = std::min(cheapest, cost(i));
+                if (spend) spend[run_of_bucket(fraction_bucket(s - whole))] += cost(i);
+            }
         }
         band_floors[band] = floors;
         band_kept[band] = kept;
+        band_cheapest[band] = cheapest;
     });
     size_t kept = 0;
     for (size_t k : band_kept) kept += k;
+    double cheapest = HUGE_VAL;  // no item costs less: a smaller `left` buys nothing
+    for (double c : band_cheapest) cheapest = std::min(cheapest, c);
     const auto in_bucket = [&](size_t bucket) {
         size_t m = 0;
         for (const std::vector<uint32_t>& h : histogram) m += h[bucket];
@@ -375,9 +411,11 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     if (left == 0) return count;
 
     // Every kept item in RemainderOrder, with its fraction beside it so that sorting
-    // reads no weights: scattered by bucket (largest fractions first) in bands, each
-    // bucket then sorted alone on the pool's threads. A full sort of all of them was the
-    // largest part of optimal-time's round end at 1920x1080.
+    // reads no weights. The order is read from its start, and with costs the reading
+    // ends once `left` buys nothing, about halfway: so it is built in runs (largest
+    // fractions first), and a run is put in place and sorted only when the reading may
+    // reach it. A full sort of all of them was the largest part of optimal-time's round
+    // end at 1920x1080.
     using Key = RemainderKey;
     const auto before = [](const Key& a, const Key& b) {
         if (a.fraction != b.fraction) return a.fraction > b.fraction;
@@ -387,57 +425,31 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     ApportionScratch local;
     std::vector<Key>& sorted = (scratch ? *scratch : local).keys;
     sorted.resize(kept);
-    if (one_band) {
-        for (size_t i = 0, k = 0; i < n; ++i)
-            if (keep(i)) sorted[k++] = {order.fraction(i), i};
-        std::sort(sorted.begin(), sorted.end(), before);
-    } else {
-        // A key's rank: the top 21 bits of its fraction, reversed (largest first). Its
-        // top 8 bits pick one of 256 runs, which the keys are scattered into in bands
-        // (a scatter into the 16384 buckets of the histogram was slower than all the
-        // rest); each run (~8 K keys at 1920x1080) is then counted out by the other 13
-        // bits in cache, which leaves it nearly sorted, and an insertion sort finishes
-        // it, in RemainderOrder's exact order. Runs are shared among the pool's threads.
-        constexpr int kRankBits = 21, kFineBits = 13;
-        constexpr size_t kRuns = size_t(1) << (kRankBits - kFineBits);
-        constexpr size_t kFine = size_t(1) << kFineBits;
-        static_assert((size_t(1) << kRankBits) == kFractionBuckets * 128);
-        const auto rank = [](double f) {
-            constexpr size_t kTop = (size_t(1) << kRankBits) - 1;
-            const size_t d =
-                f > 0 ? std::min(kTop, size_t(f * double(size_t(1) << kRankBits))) : 0;
-            return kTop - d;
-        };
-        // The histogram's buckets are ranks' top 14 bits (fraction_bucket), so a run
-        // holds 64 of them: run r = kRuns - 1 - bucket / 64.
-        std::vector<size_t> start(kRuns + 1, 0);
-        std::vector<std::vector<size_t>> at(bands, std::vector<size_t>(kRuns, 0));
-        for (size_t band = 0; band < bands; ++band)
-            for (size_t b = 0; b < kFractionBuckets; ++b)
-                at[band][kRuns - 1 - b / (kFractionBuckets / kRuns)] +=
-                    histogram[band][b];
-        size_t place = 0;
-        for (size_t r = 0; r < kRuns; ++r) {
-            start[r] = place;
-            for (size_t band = 0; band < bands; ++band) {
-                const size_t m = at[band][r];
-                at[band][r] = place;
-                place += m;
-            }
-        }
-        start[kRuns] = place;
+    size_t ready = kept;  // positions [0, ready) hold their keys in order
+    std::vector<size_t> start(kRuns + 1, 0);
+    std::vector<std::vector<size_t>> at;
+    size_t runs_ready = kRuns;
+    // Puts runs [runs_ready, upto) in place: scattered in bands, each run (~8 K keys at
+    // 1920x1080) then counted out by the other 13 bits of its rank in cache, which leaves
+    // it nearly sorted, and an insertion sort finishes it, in RemainderOrder's exact
+    // order. Runs are shared among the pool's threads. (A scatter into the 16384
+    // buckets of the histogram was slower than all the rest.)
+    const auto prepare = [&](size_t upto) {
+        const size_t from = runs_ready;
+        if (upto <= from) return;
         for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
             std::vector<size_t>& next = at[band];
             for (size_t i = begin; i < end; ++i) {
                 if (!keep(i)) continue;
                 const double f = order.fraction(i);
-                sorted[next[rank(f) >> kFineBits]++] = {f, i};
+                const size_t r = rank(f) >> kFineBits;
+                if (r >= from && r < upto) sorted[next[r]++] = {f, i};
             }
         });
-        for_each_band(kRuns, 4, [&](size_t, size_t begin, size_t end) {
+        for_each_band(upto - from, 4, [&](size_t, size_t begin, size_t end) {
             std::vector<Key> spread;
             std::vector<uint32_t> at_fine(kFine + 1);
-            for (size_t r = begin; r < end; ++r) {
+            for (size_t r = from + begin; r < from + end; ++r) {
                 Key* const first = sorted.data() + start[r];
                 Key* const last = sorted.data() + start[r + 1];
                 const size_t m = size_t(last - first);
@@ -459,9 +471,50 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
                 }
             }
         });
+        runs_ready = upto;
+        ready = start[upto];
+    };
+    if (one_band) {
+        for (size_t i = 0, k = 0; i < n; ++i)
+            if (keep(i)) sorted[k++] = {order.fraction(i), i};
+        std::sort(sorted.begin(), sorted.end(), before);
+    } else {
+        at.assign(bands, std::vector<size_t>(kRuns, 0));
+        for (size_t band = 0; band < bands; ++band)
+            for (size_t b = 0; b < kFractionBuckets; ++b)
+                at[band][run_of_bucket(b)] += histogram[band][b];
+        size_t place = 0;
+        for (size_t r = 0; r < kRuns; ++r) {
+            start[r] = place;
+            for (size_t band = 0; band < bands; ++band) {
+                const size_t m = at[band][r];
+                at[band][r] = place;
+                place += m;
+            }
+        }
+        start[kRuns] = place;
+        runs_ready = 0;
+        ready = 0;
+        // How far the first pass below will read, from what each run costs, and a run
+        // more (items at their cap take nothing); if it reads further, the rest is put
+        // in place then. This decides only how much is sorted, never what is given.
+        size_t reach = kRuns;
+        if (!unit && left > 0) {
+            double spend = 0;
+            for (size_t r = 0; r < kRuns; ++r) {
+                for (size_t band = 0; band < bands; ++band) spend += run_cost[band][r];
+                if (spend >= left) {
+                    reach = std::min(kRuns, r + 2);
+                    break;
+                }
+            }
+        }
+        prepare(reach);
     }
+    const auto all_ready = [&] { prepare(kRuns); };
     // Rounding can leave the floors a unit over the total: take it back from the smallest
     // fractional parts.
+    if (left < 0) all_ready();
     for (size_t k = sorted.size(); left < 0 && k-- > 0;) {
         const size_t i = sorted[k].index;
         if (count[i] > 0) {
@@ -469,12 +522,16 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             left += cost(i);
         }
     }
-    for (bool gave = true; gave && left > 0;) {
+    // Once `left` is below every item's cost nothing more can be given: reading on (or
+    // another pass) would change no count, so the reading stops there.
+    const auto spent = [&] { return !(left > 0) || left < cheapest; };
+    for (bool gave = true; gave && !spent();) {
         gave = false;
         for (size_t k = 0; k < sorted.size(); ++k) {
+            if (k == ready) all_ready();
             // Items come in no order of their own: their counts, caps and costs are
             // fetched ahead (this loop was memory-bound).
-            if (k + 16 < sorted.size()) {
+            if (k + 16 < ready) {
                 const size_t ahead = sorted[k + 16].index;
                 __builtin_prefetch(&count[ahead]);
                 __builtin_prefetch(&caps[ahead]);
@@ -485,7 +542,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
                 ++count[i];
                 left -= cost(i);
                 gave = true;
-                if (!(left > 0)) break;
+                if (spent()) break;
             }
         }
     }

@@ -135,6 +135,25 @@ TEST(Apportion, WithCostsOverManyBandsGivesWhatAFullSortGives) {
     EXPECT_EQ(got[5], 0u);
 }
 
+// The order is sorted only as far as the runs' costs say the reading will go. Here the
+// dear items hold the large fractions: the reading gives to them until they no longer
+// fit, which the runs' costs foresee, and then goes on, far beyond, to the cheap items,
+// whose fractions are all small.
+TEST(Apportion, ReadingBeyondWhatTheRunsForesawGivesWhatAFullSortGives) {
+    const size_t n = 4 * kBandPixels + 17;
+    std::vector<double> weights(n), costs(n);
+    double total = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const double u = double(mix64(i) % 100000) / 100000.0;
+        const bool dear = mix64(i + n) % 3 == 0;
+        costs[i] = dear ? 1000.0 : 1.0;
+        weights[i] = double(2 + i % 5) + (dear ? 0.85 + 0.1 * u : 0.1 * u);  // the share
+        total += costs[i] * weights[i];
+    }
+    EXPECT_EQ(apportion(weights, total, no_caps(n), costs),
+              reference_with_costs(weights, costs, total));
+}
+
 // A strategy keeps the order's buffer from one round end to the next: what it held
 // before, of another size, changes nothing.
 TEST(Apportion, AKeptScratchGivesWhatAFreshOneGives) {
