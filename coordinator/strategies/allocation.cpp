@@ -58,9 +58,15 @@ Shares water_fill(const std::vector<double>& weights, const std::vector<uint32_t
     const size_t n = weights.size();
     Shares shares;
     shares.weights = &weights;
-    double all = 0;  // summed in item order on one thread: the same bits as ever
-    for (size_t i = 0; i < n; ++i)
-        if (keep(i)) all += cost(i) * weights[i];
+    std::vector<double> band_all(band_count(n, kBandPixels), 0.0);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        double all = 0;
+        for (size_t i = begin; i < end; ++i)
+            if (keep(i)) all += cost(i) * weights[i];
+        band_all[band] = all;
+    });
+    double all = 0;
+    for (double a : band_all) all += a;
     const double first = all > 0 ? total / all : 0.0;
     shares.first = first;
     std::vector<char> band_capped(band_count(n, kBandPixels), 0);
@@ -274,11 +280,11 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     const auto keep = [&](size_t i) { return weights[i] > 0 && caps[i] > 0; };
 
     // The passes over every item run in bands on the pool's threads (bands.h); what is
-    // summed in floating point is summed in item order on this one, so the counts are
-    // the same whatever the threads. Nothing per item is stored but the counts (and the
-    // shares when a cap binds): fractions, hashes and bucket numbers are computed again
-    // where they are needed, which at 1920x1080 is cheaper than the ~100 MB of fresh
-    // pages that keys, orders and shares took.
+    // summed in floating point is summed in item order within each band and the bands'
+    // sums in band order, so the counts are the same whatever the threads. Nothing per
+    // item is stored but the counts (and the shares when a cap binds): fractions, hashes
+    // and bucket numbers are computed again where they are needed, which at 1920x1080 is
+    // cheaper than the ~100 MB of fresh pages that keys, orders and shares took.
     const Shares share = water_fill(weights, caps, total, keep, cost);
     const RemainderOrder order{share};
 
@@ -293,6 +299,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // remainder order cost (that order is sorted only as far as these say it will be
     // read).
     std::vector<double> band_cheapest(bands, unit ? 1.0 : HUGE_VAL);
+    std::vector<double> band_spent(bands, 0.0);  // with costs: what the floors cost
     std::vector<std::vector<double>> run_cost(unit || one_band ? 0 : bands);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         uint64_t floors = 0;
@@ -304,7 +311,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             run_cost[band].assign(kRuns, 0.0);
             spend = run_cost[band].data();
         }
-        double cheapest = band_cheapest[band];
+        double cheapest = band_cheapest[band], spent = 0;
         for (size_t i = begin; i < end; ++i) {
             if (!keep(i)) continue;
             const double s = share(i), whole = std::floor(s);
@@ -314,12 +321,14 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             if (!one_band) ++h[fraction_bucket(s - whole)];
             if (!unit) {
                 cheapest = std::min(cheapest, cost(i));
+                spent += cost(i) * count[i];
                 if (spend) spend[run_of_bucket(fraction_bucket(s - whole))] += cost(i);
             }
         }
         band_floors[band] = floors;
         band_kept[band] = kept;
         band_cheapest[band] = cheapest;
+        band_spent[band] = spent;
     });
     size_t kept = 0;
     for (size_t k : band_kept) kept += k;
@@ -384,8 +393,9 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         for (uint64_t f : band_floors) floors += f;
         left = total - double(floors);
     } else {
-        for (size_t i = 0; i < n; ++i)
-            if (keep(i)) left -= cost(i) * count[i];
+        double spent = 0;
+        for (double s : band_spent) spent += s;
+        left = total - spent;
     }
     if (unit && left > 0 && left < double(kept)) {
         // The usual case: one more unit each for the `left` first items in

@@ -12,13 +12,26 @@
 namespace aliquot {
 namespace {
 
+// A sum as apportion takes it: in item order within bands of kBandPixels, the bands'
+// sums in band order.
+template <typename Term>
+double banded_sum(size_t n, const Term& term) {
+    double all = 0;
+    for (size_t begin = 0; begin < n; begin += kBandPixels) {
+        double band = 0;
+        for (size_t i = begin; i < std::min(n, begin + kBandPixels); ++i) band += term(i);
+        all += band;
+    }
+    return all;
+}
+
 // apportion with unit costs and caps that never bind, the plain way: shares by one
-// multiplier (summed in item order, as apportion does), floors, and one more each for
+// multiplier (summed in bands, as apportion does), floors, and one more each for
 // the `left` largest fractional parts, ties by the index's hash and then the index,
 // found by sorting every item.
 std::vector<uint32_t> reference(const std::vector<double>& weights, double total) {
-    double all = 0;
-    for (double w : weights) all += w;
+    const double all = banded_sum(
+        weights.size(), [&](size_t i) { return weights[i] > 0 ? weights[i] : 0.0; });
     const double first = total / all;
     std::vector<uint32_t> count(weights.size());
     std::vector<std::tuple<double, uint64_t, size_t>> keys;  // -fraction: largest first
@@ -79,9 +92,9 @@ TEST(Apportion, BlocksOfEqualSharesGoToTheSameItemsAsAFullSort) {
 std::vector<uint32_t> reference_with_costs(const std::vector<double>& weights,
                                            const std::vector<double>& costs,
                                            double total) {
-    double all = 0;
-    for (size_t i = 0; i < weights.size(); ++i)
-        if (weights[i] > 0) all += costs[i] * weights[i];
+    const size_t n = weights.size();
+    const double all = banded_sum(
+        n, [&](size_t i) { return weights[i] > 0 ? costs[i] * weights[i] : 0.0; });
     const double first = total / all;
     std::vector<uint32_t> count(weights.size());
     std::vector<std::tuple<double, uint64_t, size_t>> keys;  // -fraction: largest first
@@ -91,9 +104,9 @@ std::vector<uint32_t> reference_with_costs(const std::vector<double>& weights,
         count[i] = uint32_t(std::floor(share));
         keys.emplace_back(-(share - std::floor(share)), mix64(i), i);
     }
-    double left = total;
-    for (size_t i = 0; i < weights.size(); ++i)
-        if (weights[i] > 0) left -= costs[i] * count[i];
+    double left = total - banded_sum(n, [&](size_t i) {
+                      return weights[i] > 0 ? costs[i] * count[i] : 0.0;
+                  });
     std::sort(keys.begin(), keys.end());
     for (size_t k = keys.size(); left < 0 && k-- > 0;) {
         const size_t i = std::get<2>(keys[k]);

@@ -301,11 +301,35 @@ void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
                                      double lo, double hi, std::vector<double>& counts) {
     const size_t n = weights.size();
     auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
-    double floor_cost = 0, cap_cost = 0;
-    for (size_t i = 0; i < n; ++i) {
-        floor_cost += cost(i) * lo;
-        cap_cost += cost(i) * hi;
+    // Every sum here is summed in pixel order within bands of fixed size and the bands'
+    // sums added in band order: the same bits with one thread or many.
+    const size_t bands = band_count(n, kBandPixels);
+    struct Totals {
+        double floor = 0, cap = 0;  // every pixel at its floor, at its cap
+        double weighted = 0;  // sum c_i w_i: a first guess, no pixel at floor or cap
+        double rise = 0;      // what the pixels of positive weight add at their caps
+    };
+    std::vector<Totals> band_totals(bands);
+    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        Totals t;
+        for (size_t i = begin; i < end; ++i) {
+            t.floor += cost(i) * lo;
+            t.cap += cost(i) * hi;
+            if (weights[i] > 0) {
+                t.weighted += cost(i) * weights[i];
+                t.rise += cost(i) * (hi - lo);
+            }
+        }
+        band_totals[band] = t;
+    });
+    Totals all;
+    for (const Totals& t : band_totals) {
+        all.floor += t.floor;
+        all.cap += t.cap;
+        all.weighted += t.weighted;
+        all.rise += t.rise;
     }
+    const double floor_cost = all.floor, cap_cost = all.cap;
     if (total <= floor_cost) {
         const double scale = floor_cost > 0 ? total / floor_cost : 0.0;
         counts.assign(n, lo * scale);
@@ -324,10 +348,7 @@ void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
     // < total <= f(above), bisecting (or doubling, while there is no upper end) when a
     // step would leave it, so the search ends on a piece whatever the weights; a few
     // passes over the weights at 1920x1080, where sorting the pieces' 2 n breakpoints,
-    // or selecting among them, streamed 96 MB several times. C and S are summed in pixel
-    // order within bands of fixed size and the bands' sums added in band order: the
-    // same bits with one thread or many.
-    const size_t bands = band_count(n, kBandPixels);
+    // or selecting among them, streamed 96 MB several times.
     std::vector<double> band_c(bands), band_s(bands);
     const auto piece = [&](double mu) {
         for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
@@ -351,13 +372,8 @@ void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
         }
         return std::pair{c, s};
     };
-    double weighted = 0;        // a first guess: no pixel at its floor or cap
-    double reach = floor_cost;  // what every pixel of positive weight at its cap costs
-    for (size_t i = 0; i < n; ++i)
-        if (weights[i] > 0) {
-            weighted += cost(i) * weights[i];
-            reach += cost(i) * (hi - lo);
-        }
+    const double weighted = all.weighted;
+    const double reach = floor_cost + all.rise;  // every pixel of positive weight capped
     double below = 0, above = std::numeric_limits<double>::infinity();
     double mu = weighted > 0 ? total / weighted : 1.0;
     // Pixels of weight 0 stay at their floor: a total they leave out of reach puts every
@@ -486,8 +502,8 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
                 if (!(sigma[i] == last_sigma && c == last_cost)) {
                     last_sigma = sigma[i];
                     last_cost = c;
-                    last_weight = std::cbrt(cost_aware_ ? std::pow(sigma[i] / c, 2.0)
-                                                        : sigma[i] * sigma[i]);
+                    const double r = cost_aware_ ? sigma[i] / c : sigma[i];
+                    last_weight = std::cbrt(r * r);
                 }
                 weight_[i] = last_weight;
                 weight_sigma_[i] = sigma[i];
