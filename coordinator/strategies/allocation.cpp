@@ -50,11 +50,11 @@ struct Shares {
     double operator()(size_t i) const { return capped ? kept[i] : first * (*weights)[i]; }
 };
 
-// The items that reach their cap are those with the smallest cap_i / w_i, so walking them
-// in that order finds lambda exactly. `keep(i)` says which items are considered.
+// The shares while no cap binds: first * w_i, with the costs adding up to `total`.
+// `keep(i)` says which items are considered.
 template <typename Keep, typename Cost>
-Shares water_fill(const std::vector<double>& weights, const std::vector<uint32_t>& caps,
-                  double total, const Keep& keep, const Cost& cost) {
+Shares proportional_shares(const std::vector<double>& weights, double total,
+                           const Keep& keep, const Cost& cost) {
     const size_t n = weights.size();
     Shares shares;
     shares.weights = &weights;
@@ -67,17 +67,18 @@ Shares water_fill(const std::vector<double>& weights, const std::vector<uint32_t
     });
     double all = 0;
     for (double a : band_all) all += a;
-    const double first = all > 0 ? total / all : 0.0;
-    shares.first = first;
-    std::vector<char> band_capped(band_count(n, kBandPixels), 0);
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        bool capped = false;
-        for (size_t i = begin; i < end; ++i)
-            capped = capped || (keep(i) && first * weights[i] >= caps[i]);
-        band_capped[band] = capped;
-    });
-    if (std::find(band_capped.begin(), band_capped.end(), 1) == band_capped.end())
-        return shares;  // the usual case: no cap binds, no sorting needed
+    shares.first = all > 0 ? total / all : 0.0;
+    return shares;
+}
+
+// When some proportional share reaches its cap (water-filling): the items that reach it
+// are those with the smallest cap_i / w_i, so walking them in that order finds lambda
+// exactly.
+template <typename Keep, typename Cost>
+void bind_caps(Shares& shares, const std::vector<uint32_t>& caps, double total,
+               const Keep& keep, const Cost& cost) {
+    const std::vector<double>& weights = *shares.weights;
+    const size_t n = weights.size();
     shares.capped = true;
     shares.kept.resize(n);
     std::vector<std::pair<double, size_t>> by_ratio;
@@ -104,7 +105,6 @@ Shares water_fill(const std::vector<double>& weights, const std::vector<uint32_t
         const size_t i = by_ratio[k].second;
         shares.kept[i] = std::min(lambda * weights[i], double(caps[i]));
     }
-    return shares;
 }
 
 // A remainder fraction's bucket: floor(fraction * kFractionBuckets), which never falls
@@ -285,11 +285,13 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // item is stored but the counts (and the shares when a cap binds): fractions, hashes
     // and bucket numbers are computed again where they are needed, which at 1920x1080 is
     // cheaper than the ~100 MB of fresh pages that keys, orders and shares took.
-    const Shares share = water_fill(weights, caps, total, keep, cost);
+    Shares share = proportional_shares(weights, total, keep, cost);
     const RemainderOrder order{share};
 
     // Floors, and how many items' fractions fall in each bucket (fraction_bucket), by
-    // band.
+    // band; in the first pass, whether any proportional share reaches its cap too, in
+    // which case the caps are bound and the pass is made again with the shares they
+    // leave (the usual case is that none does).
     const size_t bands = band_count(n, kBandPixels);
     const bool one_band = bands <= 1;  // then a histogram would cost more than it saves
     std::vector<uint64_t> band_floors(bands, 0);
@@ -301,35 +303,47 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     std::vector<double> band_cheapest(bands, unit ? 1.0 : HUGE_VAL);
     std::vector<double> band_spent(bands, 0.0);  // with costs: what the floors cost
     std::vector<std::vector<double>> run_cost(unit || one_band ? 0 : bands);
-    for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        uint64_t floors = 0;
-        size_t kept = 0;
-        std::vector<uint32_t>& h = histogram[band];
-        if (!one_band) h.assign(kFractionBuckets, 0);
-        double* spend = nullptr;
-        if (!run_cost.empty()) {
-            run_cost[band].assign(kRuns, 0.0);
-            spend = run_cost[band].data();
-        }
-        double cheapest = band_cheapest[band], spent = 0;
-        for (size_t i = begin; i < end; ++i) {
-            if (!keep(i)) continue;
-            const double s = share(i), whole = std::floor(s);
-            count[i] = uint32_t(std::min(whole, double(caps[i])));
-            floors += count[i];
-            ++kept;
-            if (!one_band) ++h[fraction_bucket(s - whole)];
-            if (!unit) {
-                cheapest = std::min(cheapest, cost(i));
-                spent += cost(i) * count[i];
-                if (spend) spend[run_of_bucket(fraction_bucket(s - whole))] += cost(i);
+    std::vector<char> band_capped(bands, 0);
+    const auto floors_pass = [&](bool check_caps) {
+        for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            uint64_t floors = 0;
+            size_t kept = 0;
+            std::vector<uint32_t>& h = histogram[band];
+            if (!one_band) h.assign(kFractionBuckets, 0);
+            double* spend = nullptr;
+            if (!run_cost.empty()) {
+                run_cost[band].assign(kRuns, 0.0);
+                spend = run_cost[band].data();
             }
-        }
-        band_floors[band] = floors;
-        band_kept[band] = kept;
-        band_cheapest[band] = cheapest;
-        band_spent[band] = spent;
-    });
+            double cheapest = unit ? 1.0 : HUGE_VAL, spent = 0;
+            bool capped = false;
+            for (size_t i = begin; i < end; ++i) {
+                if (!keep(i)) continue;
+                const double s = share(i), whole = std::floor(s);
+                if (check_caps) capped = capped || s >= caps[i];
+                count[i] = uint32_t(std::min(whole, double(caps[i])));
+                floors += count[i];
+                ++kept;
+                if (!one_band) ++h[fraction_bucket(s - whole)];
+                if (!unit) {
+                    cheapest = std::min(cheapest, cost(i));
+                    spent += cost(i) * count[i];
+                    if (spend)
+                        spend[run_of_bucket(fraction_bucket(s - whole))] += cost(i);
+                }
+            }
+            band_floors[band] = floors;
+            band_kept[band] = kept;
+            band_cheapest[band] = cheapest;
+            band_spent[band] = spent;
+            band_capped[band] = capped;
+        });
+    };
+    floors_pass(true);
+    if (std::find(band_capped.begin(), band_capped.end(), 1) != band_capped.end()) {
+        bind_caps(share, caps, total, keep, cost);
+        floors_pass(false);
+    }
     size_t kept = 0;
     for (size_t k : band_kept) kept += k;
     double cheapest = HUGE_VAL;  // no item costs less: a smaller `left` buys nothing
@@ -423,9 +437,10 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // Every kept item in RemainderOrder, with its fraction beside it so that sorting
     // reads no weights. The order is read from its start, and with costs the reading
     // ends once `left` buys nothing, about halfway: so it is built in runs (largest
-    // fractions first), and a run is put in place and sorted only when the reading may
-    // reach it. A full sort of all of them was the largest part of optimal-time's round
-    // end at 1920x1080.
+    // fractions first); the runs the reading would pass whole give their items a unit
+    // each without being ordered, and a run is put in place and sorted only when the
+    // reading may reach it. A full sort of all of them was the largest part of
+    // optimal-time's round end at 1920x1080.
     using Key = RemainderKey;
     const auto before = [](const Key& a, const Key& b) {
         if (a.fraction != b.fraction) return a.fraction > b.fraction;
@@ -435,25 +450,26 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     ApportionScratch local;
     std::vector<Key>& sorted = (scratch ? *scratch : local).keys;
     sorted.resize(kept);
-    size_t ready = kept;  // positions [0, ready) hold their keys in order
-    std::vector<size_t> start(kRuns + 1, 0);
-    std::vector<std::vector<size_t>> at;
-    size_t runs_ready = kRuns;
-    // Puts runs [runs_ready, upto) in place: scattered in bands, each run (~8 K keys at
+    std::vector<size_t> start(kRuns + 1, 0);  // where each run's keys go
+    std::vector<std::vector<size_t>> at;      // where each band's next key of a run goes
+    // Puts runs [from, upto) in place: scattered in bands, each run (~8 K keys at
     // 1920x1080) then counted out by the other 13 bits of its rank in cache, which leaves
     // it nearly sorted, and an insertion sort finishes it, in RemainderOrder's exact
     // order. Runs are shared among the pool's threads. (A scatter into the 16384
-    // buckets of the histogram was slower than all the rest.)
-    const auto prepare = [&](size_t upto) {
-        const size_t from = runs_ready;
-        if (upto <= from) return;
+    // buckets of the histogram was slower than all the rest.) With `give_below`, the
+    // items of the runs before it get one more unit in the same pass.
+    const auto put_in_place = [&](size_t from, size_t upto, size_t give_below = 0) {
+        if (upto <= from && give_below == 0) return;
         for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
             std::vector<size_t>& next = at[band];
             for (size_t i = begin; i < end; ++i) {
                 if (!keep(i)) continue;
                 const double f = order.fraction(i);
                 const size_t r = rank(f) >> kFineBits;
-                if (r >= from && r < upto) sorted[next[r]++] = {f, i};
+                if (r < give_below)
+                    ++count[i];
+                else if (r >= from && r < upto)
+                    sorted[next[r]++] = {f, i};
             }
         });
         for_each_band(upto - from, 4, [&](size_t, size_t begin, size_t end) {
@@ -481,8 +497,14 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
                 }
             }
         });
-        runs_ready = upto;
-        ready = start[upto];
+    };
+    // The reading starts at run first_run (those before it had their units given
+    // whole) and may read up to position `ready`, where run runs_ready begins.
+    size_t first_run = 0, runs_ready = kRuns, ready = kept;
+    const auto prepare = [&](size_t upto) {
+        put_in_place(runs_ready, upto);
+        runs_ready = std::max(runs_ready, upto);
+        ready = start[runs_ready];
     };
     if (one_band) {
         for (size_t i = 0, k = 0; i < n; ++i)
@@ -503,23 +525,30 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             }
         }
         start[kRuns] = place;
-        runs_ready = 0;
-        ready = 0;
-        // How far the first pass below will read, from what each run costs, and a run
-        // more (items at their cap take nothing); if it reads further, the rest is put
-        // in place then. This decides only how much is sorted, never what is given.
         size_t reach = kRuns;
-        if (!unit && left > 0) {
+        if (!unit && left > 0 && !share.capped) {
+            // The reading below gives a unit to each item it meets while the item's cost
+            // fits in what is left, and no uncapped share's floor is at its cap. So while
+            // what the runs cost so far fits, every item of them would get its unit: they
+            // get it here, in one pass in bands, unordered, and `left` pays what those
+            // runs cost (summed in band order, then run order). The reading starts at the
+            // first run that does not fit whole; it is put in place with the next (items
+            // of that run that do not fit leave room for later ones), and the rest only
+            // if the reading goes further.
             double spend = 0;
-            for (size_t r = 0; r < kRuns; ++r) {
-                for (size_t band = 0; band < bands; ++band) spend += run_cost[band][r];
-                if (spend >= left) {
-                    reach = std::min(kRuns, r + 2);
-                    break;
-                }
+            for (; first_run < kRuns; ++first_run) {
+                double run = 0;
+                for (size_t band = 0; band < bands; ++band)
+                    run += run_cost[band][first_run];
+                if (spend + run > left) break;
+                spend += run;
             }
+            left -= spend;
+            reach = std::min(kRuns, first_run + 2);
         }
-        prepare(reach);
+        put_in_place(first_run, reach, first_run);
+        runs_ready = reach;
+        ready = start[reach];
     }
     const auto all_ready = [&] { prepare(kRuns); };
     // Rounding can leave the floors a unit over the total: take it back from the smallest
@@ -535,9 +564,16 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // Once `left` is below every item's cost nothing more can be given: reading on (or
     // another pass) would change no count, so the reading stops there.
     const auto spent = [&] { return !(left > 0) || left < cheapest; };
-    for (bool gave = true; gave && !spent();) {
-        gave = false;
-        for (size_t k = 0; k < sorted.size(); ++k) {
+    // The first pass reads on from the runs given whole (which count as given in it).
+    size_t from = start[first_run];
+    for (bool gave = first_run > 0, first_pass = true; (first_pass || gave) && !spent();
+         first_pass = false) {
+        if (!first_pass && from > 0) {  // another pass reads the whole order
+            put_in_place(0, first_run);
+            from = 0;
+        }
+        if (!first_pass) gave = false;
+        for (size_t k = from; k < sorted.size(); ++k) {
             if (k == ready) all_ready();
             // Items come in no order of their own: their counts, caps and costs are
             // fetched ahead (this loop was memory-bound).
