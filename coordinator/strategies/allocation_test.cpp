@@ -184,6 +184,60 @@ TEST(Apportion, AKeptScratchGivesWhatAFreshOneGives) {
     }
 }
 
+// Caps that bind, with costs: checked against what water-filling means rather than
+// against a second copy of it. Every count within its cap; nothing spent beyond the total
+// and nothing left that would still buy a unit of any item below its cap; one multiplier
+// lambda for all, with the items below their cap within a unit of lambda * w_i and those
+// at it having a share that reached it; and the same counts on one thread as on many.
+TEST(Apportion, BindingCapsWithCostsFillToOneMultiplier) {
+    const size_t n = 2 * kBandPixels + 321;
+    std::vector<double> weights(n), costs(n);
+    std::vector<uint32_t> caps(n);
+    for (size_t i = 0; i < n; ++i) {
+        weights[i] = i % 11 == 0 ? 0.0 : 1.0 + double(mix64(i) % 1000) / 100.0;  // 1-11
+        costs[i] = 1.0 + double(mix64(i + n) % 7) / 3.0;
+        caps[i] = mix64(i + 2 * n) % 4 == 0 ? 3u : 1000u;  // a quarter capped low
+    }
+    double cost_of_all = 0;
+    for (size_t i = 0; i < n; ++i) cost_of_all += costs[i];
+    const double total = 20.0 * cost_of_all;  // lambda ~4: the caps of 3 bind
+    const std::vector<uint32_t> got = apportion(weights, total, caps, costs);
+
+    double spent = 0;
+    for (size_t i = 0; i < n; ++i) {
+        ASSERT_LE(got[i], caps[i]) << i;
+        if (weights[i] == 0) ASSERT_EQ(got[i], 0u) << i;
+        spent += costs[i] * got[i];
+    }
+    EXPECT_LE(spent, total * (1 + 1e-12));
+    for (size_t i = 0; i < n; ++i)
+        if (weights[i] > 0 && got[i] < caps[i])
+            ASSERT_GT(costs[i], total - spent) << i << ": a unit of it still fits";
+
+    // lambda from the items below their cap: count = floor or ceil of lambda * w_i.
+    double lo = 0, hi = HUGE_VAL;
+    size_t at_cap = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (!(weights[i] > 0)) continue;
+        if (got[i] < caps[i]) {
+            lo = std::max(lo, (double(got[i]) - 1) / weights[i]);
+            hi = std::min(hi, (double(got[i]) + 1) / weights[i]);
+        } else {
+            ++at_cap;
+        }
+    }
+    EXPECT_LE(lo, hi) << "no one multiplier fits every item below its cap";
+    EXPECT_GT(at_cap, n / 8);  // the low caps did bind
+    for (size_t i = 0; i < n; ++i)
+        if (weights[i] > 0 && got[i] == caps[i])
+            ASSERT_GE(hi * weights[i], double(caps[i]) - 1) << i << ": capped too early";
+
+    const unsigned threads = band_threads();
+    set_band_threads(1);
+    EXPECT_EQ(apportion(weights, total, caps, costs), got);
+    set_band_threads(threads);
+}
+
 TEST(Apportion, WithinOneBandGoesToTheSameItemsAsAFullSort) {
     const size_t n = 1000;
     std::vector<double> weights(n, 2.0);
