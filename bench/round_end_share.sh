@@ -8,7 +8,9 @@
 # share = round-end wall seconds ÷ the render's seconds is the time the farm waited on the
 # coordinator. On one machine the coordinator and the workers share its cores, so a round
 # end's CPU is also taken from the tracing: this is the farm this machine can run, not a
-# farm of many machines (bench/farm_scale.cpp extrapolates to those).
+# farm of many machines (bench/farm_scale.cpp extrapolates to those). Per round, the
+# rounds' own seconds (from /api/renders/ID/rounds) against a round end's mean give
+# largest_round_share: the round that waited on the coordinator the most.
 # A method written `optimal:K` (or `optimal-time:K`) runs with --steer-rounds K.
 # Usage: bench/round_end_share.sh [aliquot] [resolution] [spp] [methods] [workers]
 set -euo pipefail
@@ -62,18 +64,30 @@ for method in ${methods//,/ }; do
         --resolution "$resolution" --budget "$(python3 -c "w,h='$resolution'.split('x'); print(int(w)*int(h)*$spp)")" \
         --seed 1 "${args[@]}" --wait --json)
     after=$(scrape)
-    python3 - "$method" "$before" "$after" "$result" <<'PY'
-import json, sys
+    python3 - "$method" "$before" "$after" "$result" "$http" "$tmp/data/client.token" <<'PY'
+import json, sys, urllib.request
 method, before, after, result = sys.argv[1], sys.argv[2].split(), sys.argv[3].split(), sys.argv[4]
+port, token = sys.argv[5], open(sys.argv[6]).read().strip()
 r = json.loads(result.strip().splitlines()[-1])
 rounds, wall, cpu = (float(a) - float(b) for a, b in zip(after, before))
 seconds = float(r["seconds"])
+each = wall / max(rounds, 1)
+# Per round: a round's seconds (from the render's time at the end of the round before to
+# its own, so the round end that planned it included) against one round end's mean.
+# The counters give no single round end's time; the pilot's successor costs more than the
+# mean and the last fewer, so this is the shape, not each round's exact share.
+req = urllib.request.Request(f"http://127.0.0.1:{port}/api/renders/{r['id']}/rounds",
+                             headers={"Authorization": f"Bearer {token}"})
+ends = [row[3] for row in json.loads(urllib.request.urlopen(req, timeout=10).read())["rows"]]
+per_round = [each / (b - a) for a, b in zip(ends, ends[1:]) if b > a]
 print(json.dumps({
     "method": method, "image": f"{r['width']}x{r['height']}", "state": r["state"],
     "samples": r["samples_done"], "rounds": int(rounds), "render_seconds": seconds,
     "round_end_seconds": round(wall, 4), "round_end_cpu_seconds": round(cpu, 4),
-    "round_end_ms_each": round(1e3 * wall / max(rounds, 1), 1),
+    "round_end_ms_each": round(1e3 * each, 1),
     "share": round(wall / seconds, 4) if seconds > 0 else None,
+    "round_seconds": [round(b - a, 3) for a, b in zip(ends, ends[1:])],
+    "largest_round_share": round(max(per_round), 4) if per_round else None,
 }))
 PY
 done
