@@ -72,8 +72,8 @@ private:
     // Each pixel's weight as the last round end computed it, with the sigma (and cost) it
     // was computed from: a weight is a function of those alone, so where they have not
     // changed (most pixels of a late steered round, which gives samples to few) the
-    // `cbrt` (and `pow`) is not taken again. The same bits as computing every weight;
-    // nothing of it is saved with the render.
+    // `cbrt` is not taken again. The same bits as computing every weight; nothing of it
+    // is saved with the render.
     std::vector<double> weight_sigma_, weight_cost_, weight_;
 
     // The buffers a round end plans in, kept for the next: at 1920x1080 each is 8-32 MB,
