@@ -531,16 +531,18 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             // fits in what is left, and no uncapped share's floor is at its cap. So while
             // what the runs cost so far fits, every item of them would get its unit: they
             // get it here, in one pass in bands, unordered, and `left` pays what those
-            // runs cost (summed in band order, then run order). The reading starts at the
-            // first run that does not fit whole; it is put in place with the next (items
-            // of that run that do not fit leave room for later ones), and the rest only
-            // if the reading goes further.
+            // runs cost (summed in band order, then run order). A run fits only while
+            // something is left after it: the reading stops where `left` reaches 0, so an
+            // item costing nothing after that point gets no unit. The reading starts at
+            // the first run that does not fit whole; it is put in place with the next
+            // (items of that run that do not fit leave room for later ones), and the rest
+            // only if the reading goes further.
             double spend = 0;
             for (; first_run < kRuns; ++first_run) {
                 double run = 0;
                 for (size_t band = 0; band < bands; ++band)
                     run += run_cost[band][first_run];
-                if (spend + run > left) break;
+                if (!(spend + run < left)) break;
                 spend += run;
             }
             left -= spend;

@@ -167,6 +167,22 @@ TEST(Apportion, ReadingBeyondWhatTheRunsForesawGivesWhatAFullSortGives) {
               reference_with_costs(weights, costs, total));
 }
 
+// The reading stops where what is left reaches 0, so an item that costs nothing, met
+// after that point, gets no unit; giving whole runs at once must stop there too. Item 2
+// (cost 0) sits between items 0 and 1 in the order; item 0 spends all that is left.
+TEST(Apportion, NothingIsGivenOnceWhatIsLeftReachesZeroEvenForFree) {
+    for (const size_t n : {size_t(3), 2 * kBandPixels + 7}) {
+        std::vector<double> weights(n, 0.0), costs(n, 1.0);
+        weights[0] = 0.75, weights[1] = 0.25, weights[2] = 0.5;
+        costs[2] = 0.0;
+        const std::vector<uint32_t> got =
+            apportion(weights, 1.0, std::vector<uint32_t>(n, 10), costs);
+        EXPECT_EQ(got[0], 1u) << n;
+        EXPECT_EQ(got[1], 0u) << n;
+        EXPECT_EQ(got[2], 0u) << n;
+    }
+}
+
 // A strategy keeps the order's buffer from one round end to the next: what it held
 // before, of another size, changes nothing.
 TEST(Apportion, AKeptScratchGivesWhatAFreshOneGives) {
