@@ -5,9 +5,12 @@
 // hashed. Two builds that print the same lines planned the same renders, bit for bit.
 // With THREADS, the round end's passes run on that many threads (bands.h).
 //
-// Usage: round_digest [WxH] [method,...] [threads] [spp]
+// With PLAN_AHEAD, optimal's plan_ahead is that (0: every round planned after the one
+// before has merged, as before plan_ahead existed).
+//
+// Usage: round_digest [WxH] [method,...] [threads] [spp] [plan_ahead]
 //        (defaults: 480x270 uniform,dammertz,adaptive,optimal,optimal-time,cycles,
-//        the machine's threads, 128 spp of budget)
+//        the machine's threads, 128 spp of budget, the default plan_ahead)
 #include <cstdio>
 #include <cstring>
 #include <sstream>
@@ -70,6 +73,7 @@ int main(int argc, char** argv) {
         params.budget = spp * size.width * size.height;
         params.max_variance = 1e-5;
         params.max_spp = 1024;
+        if (argc > 5) params.plan_ahead = std::strtod(argv[5], nullptr);
         const auto strategy = make_strategy(params, size.width, size.height);
         Accumulator merged(size.width, size.height);
         Digest all;

@@ -52,6 +52,10 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
                    "optimal: spend what the pilot leaves in this many rounds, each at "
                    "most half of what is left (0: doubling rounds)")
         ->capture_default_str();
+    cmd.add_option("--plan-ahead", s.plan_ahead,
+                   "optimal: plan the round after a steered round of at most this "
+                   "share of the budget while that round is traced (0: never)")
+        ->capture_default_str();
     cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
         ->capture_default_str();
     cmd.add_option("--adaptive-min-samples", s.adaptive_min_samples,

@@ -242,6 +242,9 @@ void Coordinator::record_round(RenderSlot& slot, const RoundSummary& round) {
 void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) {
     RenderSession& r = *slot.session;
     CheckpointTiming& timing = slot.checkpoint;
+    // A strategy holding a round it planned before this round's results cannot be
+    // restored from these buffers: the next checkpoint where it holds none covers them.
+    if (r.strategy().holds_planned_round()) return;
     if (!timing.in_flight &&
         checkpoint_due(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - timing.ended)
@@ -1308,13 +1311,13 @@ uint64_t default_memory_limit() {
 uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
     const uint64_t pixels = uint64_t(width) * height;
     uint64_t per_pixel =
-        Accumulator::kBytesPerPixel    // the accumulator
-        + Accumulator::kBytesPerPixel  // the copy a checkpoint is written from
-        + 12                           // a round's jobs: counts, first indices
-        + 16                           // the round's spp; a strategy's per pixel
-        + 56                           // optimal's planning buffers, kept between rounds
-        + 24                           // optimal's weights kept, with their sigma, cost
-        + 20;                          // the final image: RGB, spp, variance
+        Accumulator::kBytesPerPixel      // the accumulator
+        + Accumulator::kBytesPerPixel    // the copy a checkpoint is written from
+        + 12                             // a round's jobs: counts, first indices
+        + 16                             // the round's spp; a strategy's per pixel
+        + 72                             // optimal's planning, the round ahead
+        + 24                             // optimal's weights kept, with their sigma, cost
+        + 20;                            // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <system_error>
 
 #include "error_estimate.h"
 #include "error_metric.h"
@@ -81,6 +82,15 @@ void RenderSession::plan_next_round() {
         for (SampleJob& job : jobs) {
             pending_.push_back(jobs_.size());
             jobs_.push_back(JobSlot{std::move(job), {}, {}, {}, 0});
+        }
+        // The next round planned while this one is traced: off the lock the caller
+        // holds, so results merge and jobs are leased meanwhile.
+        if (std::function<void()> work = strategy_->take_work_ahead()) {
+            try {
+                work_ahead_ = std::async(std::launch::async, work);
+            } catch (const std::system_error&) {
+                work();  // no thread to be had: done here, as before
+            }
         }
         return;
     }
@@ -187,6 +197,7 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     }
     if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
 
+    finish_work_ahead();
     ++rounds_done_;
     RoundSummary summary;
     summary.index = round_index_;
@@ -201,6 +212,10 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     if (on_round) on_round(*this, summary);
     plan_next_round();
     return {CompleteStatus::Merged, {}};
+}
+
+void RenderSession::finish_work_ahead() {
+    if (work_ahead_.valid()) work_ahead_.get();
 }
 
 bool RenderSession::renew(uint64_t lease_id, const std::string& worker,

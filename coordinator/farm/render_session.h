@@ -6,6 +6,7 @@
 #include <chrono>
 #include <deque>
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -129,6 +130,9 @@ private:
     };
 
     void plan_next_round();
+    // Waits for the strategy's work ahead (take_work_ahead) to end; rethrows what it
+    // threw.
+    void finish_work_ahead();
     void finish(RenderState state);
     std::string check_result(const JobSlot& slot, const SampleJobResult& result) const;
     bool blocklisted(const std::string& worker, const FailurePolicy& policy) const;
@@ -164,6 +168,11 @@ private:
     double seconds_before_ = 0;
     std::optional<Clock::time_point> started_;
     std::optional<double> final_seconds_;
+
+    // The strategy's work ahead, running on its own thread while the round's results
+    // merge (it reads only what the strategy copied). Last, so that it is waited for
+    // before the strategy it works on is destroyed.
+    std::future<void> work_ahead_;
 };
 
 }  // namespace aliquot

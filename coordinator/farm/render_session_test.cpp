@@ -4,7 +4,10 @@
 
 #include <algorithm>
 
+#include "checkpoint.h"
 #include "scene_loader.h"
+#include "strategy_params.h"
+#include "synthetic_source.h"
 
 namespace aliquot {
 namespace {
@@ -229,6 +232,64 @@ TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne)
         return resumed.merged().image(true).rgb;
     };
     EXPECT_EQ(run(-1), run(1));
+}
+
+TEST_F(RenderSessionTest, RoundsPlannedAheadGiveTheBuffersOfAStrategyThatPlansInPlace) {
+    // The session runs optimal's work ahead on its own thread while the round out
+    // merges; the buffers must be those of the strategy driven round by round. A
+    // checkpoint is offered only where no round is planned ahead, and resuming from the
+    // last of them gives the same buffers again.
+    const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
+    for (const char* method : {"optimal", "optimal-time"}) {
+        SCOPED_TRACE(method);
+        spec.strategy.method = method;
+        spec.strategy.spp = 64;
+        spec.strategy.plan_ahead = 1.0 / 8;
+        Accumulator in_place(40, 40);
+        {
+            StrategyParams p = spec.strategy;
+            const auto strategy = make_strategy(p, 40, 40);
+            ASSERT_TRUE(run_synthetic(*strategy, image, in_place).finished);
+        }
+        const auto render = [&](const std::optional<Checkpoint>& from,
+                                std::optional<Checkpoint>* last) {
+            RenderSession s("r", spec, 0);
+            uint32_t held = 0;
+            s.on_round = [&](RenderSession& r, const RoundSummary&) {
+                if (r.strategy().holds_planned_round()) {
+                    ++held;
+                } else if (last) {
+                    last->emplace();
+                    (*last)->merged.copy_from(r.merged());
+                    (*last)->strategy_state = r.strategy().save_state();
+                    (*last)->rounds_done = r.rounds_done();
+                }
+            };
+            if (from) {
+                Accumulator copy;
+                copy.copy_from(from->merged);
+                s.restore(std::move(copy), from->strategy_state, from->rounds_done, 0);
+            }
+            s.start();
+            uint64_t lease = 1;
+            while (auto job = s.issue(lease, "w", far))
+                EXPECT_EQ(s.complete(lease++, "w", image.trace(*job)).status,
+                          CompleteStatus::Merged);
+            EXPECT_EQ(s.state(), RenderState::Done);
+            if (!from) EXPECT_GT(held, 2u);
+            Accumulator out;
+            out.copy_from(s.merged());
+            return out;
+        };
+        std::optional<Checkpoint> last;
+        const Accumulator whole = render(std::nullopt, &last);
+        ASSERT_TRUE(last);
+        const Accumulator resumed = render(last, nullptr);
+        for (size_t i = 0; i < in_place.pixel_count(); ++i) {
+            ASSERT_EQ(whole.at(i), in_place.at(i)) << i;
+            ASSERT_EQ(resumed.at(i), in_place.at(i)) << i;
+        }
+    }
 }
 
 // Issue 12, item 5: a job a worker cannot trace goes to another worker; failures count

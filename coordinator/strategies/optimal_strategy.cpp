@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 #include "allocation.h"
 #include "bands.h"
@@ -204,49 +205,62 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       sigma_radius_(p.sigma_radius),
       sigma_prior_(p.sigma_prior),
       steer_rounds_(p.steer_rounds),
+      plan_ahead_(p.plan_ahead),
       cost_aware_(cost_aware) {
     min_spp_ = std::min(min_spp_, cap_);  // a floor from the budget never passes max_spp
 }
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
                                                      uint32_t radius, uint32_t prior) {
-    std::vector<double> variance, sigma;
-    sigma_estimates(merged, radius, prior, variance, nullptr, sigma);
-    return sigma;
+    Planning b;
+    read_merged(merged, false, {}, b);
+    estimate_sigma(b, merged.width(), merged.height(), radius, prior);
+    return std::move(b.sigma);
 }
 
-void OptimalStrategy::sigma_estimates(const Accumulator& merged, uint32_t radius,
-                                      uint32_t prior, std::vector<double>& var,
-                                      std::vector<double>* costs,
-                                      std::vector<double>& sigma) {
+void OptimalStrategy::read_merged(const Accumulator& merged, bool costs,
+                                  const std::vector<uint32_t>& in_flight, Planning& b) {
     const size_t n = merged.pixel_count();
-    var.resize(n);
+    b.variance.resize(n);
+    b.samples.resize(n);
     // optimal-time's costs (a pixel's rays per sample, or the image's mean where it has
     // none) are made in the same pass, from the counts the accumulator keeps beside its
     // sums.
-    const double mean_cost = costs ? rays_per_sample(merged) : 0.0;
-    if (costs) costs->resize(n);
+    b.mean_cost = rays_per_sample(merged);
+    b.cost.resize(costs ? n : 0);
     // Each band's largest finite variance; max is exact in any order.
     std::vector<double> band_largest(band_count(n, kBandPixels), 0.0);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         double largest = 0;
         for (size_t i = begin; i < end; ++i) {
-            var[i] = merged.luminance_variance(i);
-            if (std::isfinite(var[i])) largest = std::max(largest, var[i]);
+            const double v = merged.luminance_variance(i);
+            b.variance[i] = v;
+            if (std::isfinite(v)) largest = std::max(largest, v);
+            const uint64_t samples = merged.samples(i);
+            b.samples[i] = samples;
             if (costs) {
-                const uint64_t samples = merged.samples(i), rays = merged.rays(i);
-                (*costs)[i] =
-                    samples && rays ? double(rays) / double(samples) : mean_cost;
+                const uint64_t rays = merged.rays(i);
+                b.cost[i] =
+                    samples && rays ? double(rays) / double(samples) : b.mean_cost;
             }
         }
         band_largest[band] = largest;
     });
-    double largest = 0;
-    for (double l : band_largest) largest = std::max(largest, l);
+    b.largest = 0;
+    for (double l : band_largest) b.largest = std::max(b.largest, l);
+    b.spent = costs ? double(merged.total_rays()) : double(merged.total_samples());
+    b.in_flight = in_flight;
+}
+
+void OptimalStrategy::estimate_sigma(Planning& b, uint32_t width, uint32_t height,
+                                     uint32_t radius, uint32_t prior) {
+    std::vector<double>& var = b.variance;
+    std::vector<double>& sigma = b.sigma;
+    const size_t n = var.size();
     // Sums that overflowed say "very noisy", not NaN.
     for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i)
-            if (!std::isfinite(var[i])) var[i] = largest;
+            if (!std::isfinite(var[i])) var[i] = b.largest;
     });
     const double median = median_value(var);
     const auto each_pixel = [&](auto&& f) {
@@ -260,11 +274,10 @@ void OptimalStrategy::sigma_estimates(const Accumulator& merged, uint32_t radius
         // firefly leans on its neighbourhood; one with thousands of samples on itself, so
         // a truly isolated noisy pixel still gets its share once it has been sampled.
         const std::vector<double> pooled =
-            box_mean(var, merged.width(), merged.height(), std::max(radius, 1u));
+            box_mean(var, width, height, std::max(radius, 1u));
         sigma.resize(n);
         each_pixel([&](size_t i) {
-            const double own =
-                merged.samples(i) > 1 ? double(merged.samples(i) - 1) : 0.0;
+            const double own = b.samples[i] > 1 ? double(b.samples[i] - 1) : 0.0;
             const double v = (own * var[i] + prior * pooled[i]) / (own + prior);
             sigma[i] = std::sqrt(std::max(v, kImageFactor * median));
         });
@@ -276,16 +289,14 @@ void OptimalStrategy::sigma_estimates(const Accumulator& merged, uint32_t radius
         // pixel drew is spread over the window, so the budget no longer chases that pixel
         // alone and its neighbours, which drew none yet, are not starved. The price: a
         // sharp edge between a noisy and a quiet region is blurred by r pixels.
-        const std::vector<double> pooled =
-            box_mean(var, merged.width(), merged.height(), radius);
+        const std::vector<double> pooled = box_mean(var, width, height, radius);
         sigma.resize(n);
         each_pixel([&](size_t i) {
             sigma[i] = std::sqrt(std::max(pooled[i], kImageFactor * median));
         });
         return;
     }
-    sigma_from_neighbourhood(var, merged.width(), merged.height(), kImageFactor * median,
-                             sigma);
+    sigma_from_neighbourhood(var, width, height, kImageFactor * median, sigma);
 }
 
 std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
@@ -415,18 +426,44 @@ void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
     });
 }
 
+// Planning ahead. A round end holds up the farm: no job is out until the next round is
+// planned, and planning a steered round passes over every pixel several times (~100 ms
+// at 1920x1080). The last steered rounds are the shortest (each half of the one before),
+// so that wait would be a large share of them. After a steered round that spends at most
+// plan_ahead of the limit, the next is planned while that one is traced: from the
+// buffers merged before it, with its own counts taken as had (samples, or its rays at
+// each pixel's cost) and its fireflies answered a round later. next_round copies what
+// the plan reads (read_merged, one pass) and leaves the rest to work the caller may run
+// elsewhere. Which rounds are planned ahead and from what follows from the rounds alone,
+// so the bytes of a render stay the same with the work done here or on another thread.
 std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
+    if (work_ahead_) std::exchange(work_ahead_, nullptr)();  // not taken: done here
     if (finished_) return std::nullopt;
     Round round{rounds_, {}};
+    double share = 0;  // what a steered round spends of the limit
     if (!piloted_) {
         round.spp = pilot_round();
     } else {
-        std::optional<std::vector<uint32_t>> spp = steered_round(merged);
-        if (!spp) {
+        Steered steered;
+        if (ahead_) {
+            steered = std::move(*ahead_);
+            ahead_.reset();
+            ahead_pending_ = false;
+        } else {
+            read_merged(merged, cost_aware_, {}, planning_);
+            // A budget given in samples is, in rays, what those samples cost at the
+            // pilot's mean.
+            if (cost_aware_ && ray_budget_ == 0)
+                ray_budget_ = double(budget_) * planning_.mean_cost;
+            steered = steered_round();
+        }
+        if (steered.spp.empty()) {
             finished_ = true;
             return std::nullopt;
         }
-        round.spp = std::move(*spp);
+        round.spp = std::move(steered.spp);
+        share = steered.share;
+        out_spends_rest_ = steered.spends_rest;
     }
     const uint64_t total = round.total();
     if (total == 0) {
@@ -435,7 +472,16 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     }
     issued_ += total;
     ++rounds_;
+    if (share > 0 && share <= plan_ahead_ * limit()) {
+        read_merged(merged, cost_aware_, round.spp, planning_);
+        ahead_pending_ = true;
+        work_ahead_ = [this] { ahead_ = steered_round(); };
+    }
     return round;
+}
+
+std::function<void()> OptimalStrategy::take_work_ahead() {
+    return std::exchange(work_ahead_, nullptr);
 }
 
 std::vector<uint32_t> OptimalStrategy::pilot_round() {
@@ -450,24 +496,39 @@ std::vector<uint32_t> OptimalStrategy::pilot_round() {
                      std::vector<uint32_t>(pixels, cap_));
 }
 
-std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
-    const Accumulator& merged) {
+OptimalStrategy::Steered OptimalStrategy::steered_round() {
+    Planning& b = planning_;
     const size_t pixels = size_t(width_) * height_;
-    // A budget given in samples is, in rays, what those samples cost at the pilot's mean.
-    if (cost_aware_ && ray_budget_ == 0)
-        ray_budget_ = double(budget_) * rays_per_sample(merged);
-    const double spent =
-        cost_aware_ ? double(merged.total_rays()) : double(merged.total_samples());
-    const double limit = cost_aware_ ? ray_budget_ : double(budget_);
-    const double remaining = limit - spent;
-    if (!(remaining >= 1)) return std::nullopt;
+    std::vector<double>& cost = b.cost;  // empty for optimal: every sample costs 1
+    // A round planned ahead counts the round out as spent: its samples, or their rays at
+    // each pixel's cost.
+    double spent = b.spent;
+    if (!b.in_flight.empty()) {
+        std::vector<double> band_sums(band_count(pixels, kBandPixels), 0.0);
+        for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+            double sum = 0;
+            for (size_t i = begin; i < end; ++i)
+                sum += double(b.in_flight[i]) * (cost_aware_ ? cost[i] : 1.0);
+            band_sums[band] = sum;
+        });
+        for (double sum : band_sums) spent += sum;
+    }
+    const double remaining = limit() - spent;
+    if (!(remaining >= 1)) return {};
+    // optimal-time's rays are predicted from each pixel's cost so far, and a round costs
+    // more or less than predicted (Russian roulette): after a round that spends all that
+    // was left, the difference is left alone (the budget is met to within that noise,
+    // docs/STRATEGIES.md), not chased by rounds of a few samples, each behind a whole
+    // round end. optimal's samples are exact: what a cap kept a round from placing is
+    // tried again.
+    if (cost_aware_ && out_spends_rest_) return {};
     // Each round spends at most as much as all before it (at most what is left), so the
     // estimates that steer a round rest on at least half of the render so far. With
     // steer_rounds k, a round also spends at most half of what is left, and the k-th
     // after the pilot all of it: sigma is re-estimated from every merged sample before
-    // each round, so a firefly drawn in one round is answered in the next (as Cycles
-    // answers it at its next check), and the last rounds, whose fireflies are never
-    // answered, are the small ones.
+    // each, so a firefly drawn in one round is answered in the next (as Cycles answers it
+    // at its next check), and the last rounds, whose fireflies are never answered, are
+    // the small ones.
     double share = std::min(remaining, std::max(spent, 1.0));
     if (steer_rounds_ > 0) {
         const uint32_t steered = rounds_ > 0 ? rounds_ - 1 : 0;  // round 0 is the pilot
@@ -476,13 +537,9 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
                     : remaining;
     }
 
-    // The weights live in weight_ between rounds (see the header), the buffers they are
-    // planned with in planning_.
-    Planning& b = planning_;
-    std::vector<double>& cost = b.cost;  // empty for optimal: every sample costs 1
+    // The weights live in weight_ between rounds (see the header).
+    estimate_sigma(b, width_, height_, sigma_radius_, sigma_prior_);
     const std::vector<double>& sigma = b.sigma;
-    sigma_estimates(merged, sigma_radius_, sigma_prior_, b.variance,
-                    cost_aware_ ? &cost : nullptr, b.sigma);
     if (weight_.size() != pixels) {  // NaN: no sigma is equal to it
         weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
         weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
@@ -527,12 +584,13 @@ std::optional<std::vector<uint32_t>> OptimalStrategy::steered_round(
     room.resize(pixels);
     for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {
-            const uint64_t have = merged.samples(i);
+            const uint64_t have =
+                b.samples[i] + (b.in_flight.empty() ? 0 : b.in_flight[i]);
             gap[i] = std::max(0.0, gap[i] - double(have));  // the target, then the gap
             room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
         }
     });
-    return apportion(gap, share, room, cost, &b.apportion);
+    return {apportion(gap, share, room, cost, &b.apportion), share, share >= remaining};
 }
 
 nlohmann::json OptimalStrategy::outcome() const {
@@ -545,11 +603,9 @@ nlohmann::json OptimalStrategy::outcome() const {
 }
 
 nlohmann::json OptimalStrategy::save_state() const {
-    return {{"ray_budget", ray_budget_},
-            {"rounds", rounds_},
-            {"issued", issued_},
-            {"piloted", piloted_},
-            {"finished", finished_}};
+    return {{"ray_budget", ray_budget_}, {"rounds", rounds_},
+            {"issued", issued_},         {"piloted", piloted_},
+            {"finished", finished_},     {"spends_rest", out_spends_rest_}};
 }
 
 void OptimalStrategy::restore_state(const nlohmann::json& state) {
@@ -558,6 +614,13 @@ void OptimalStrategy::restore_state(const nlohmann::json& state) {
     issued_ = state.at("issued").get<uint64_t>();
     piloted_ = state.at("piloted").get<bool>();
     finished_ = state.at("finished").get<bool>();
+    // A state is saved only where no round is planned ahead (holds_planned_round).
+    work_ahead_ = nullptr;
+    ahead_.reset();
+    ahead_pending_ = false;
+    // States saved before it existed: a round end that follows the last round then
+    // plans the rest of optimal-time's rays, as it did.
+    out_spends_rest_ = state.value("spends_rest", false);
 }
 
 }  // namespace aliquot

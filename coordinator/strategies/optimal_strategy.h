@@ -4,6 +4,9 @@
 // sample, minimising the error for a fixed time (rays) instead of a fixed sample count.
 #pragma once
 
+#include <functional>
+#include <optional>
+
 #include "allocation.h"
 #include "strategy.h"
 #include "strategy_params.h"
@@ -41,13 +44,45 @@ public:
                                               const std::vector<double>& costs,
                                               double total, double lo, double hi);
 
+    std::function<void()> take_work_ahead() override;
+    bool holds_planned_round() const override { return ahead_pending_; }
+
 private:
-    // As above, into `sigma`, with `variance` to work in; with `costs`, each pixel's
-    // measured rays per sample too (the mean for a pixel not yet sampled), made in the
-    // same pass.
-    static void sigma_estimates(const Accumulator& merged, uint32_t radius,
-                                uint32_t prior, std::vector<double>& variance,
-                                std::vector<double>* costs, std::vector<double>& sigma);
+    // The buffers a round end plans in, kept for the next: at 1920x1080 each is 8-32 MB,
+    // and taking them fresh every round end cost the kernel's page faults and zeroing
+    // (~25 ms of optimal-time's). Every element is written before it is read, so nothing
+    // carries from one plan to the next; nothing of it is saved.
+    struct Planning {
+        // What a plan reads of the merged buffers, copied by read_merged at a round
+        // boundary: each pixel's luminance variance, samples and (optimal-time) rays per
+        // sample, the round out meanwhile when the plan is made ahead (else empty), and
+        // the totals.
+        std::vector<double> variance, cost;
+        std::vector<uint64_t> samples;
+        std::vector<uint32_t> in_flight;
+        double largest = 0;    // the largest finite variance
+        double spent = 0;      // samples (optimal-time: rays) merged
+        double mean_cost = 1;  // rays per sample merged
+        // Worked in by the plan.
+        std::vector<double> sigma, gap;
+        std::vector<uint32_t> room;
+        ApportionScratch apportion;
+    };
+    // A steered round's counts and what it spends of the limit; no counts: the budget is
+    // spent.
+    struct Steered {
+        std::vector<uint32_t> spp;
+        double share = 0;
+        bool spends_rest = false;  // share is all that was left
+    };
+
+    // Copies what a plan reads of `merged` into `b`, with `in_flight` (a round out, or
+    // empty); costs only when `costs`.
+    static void read_merged(const Accumulator& merged, bool costs,
+                            const std::vector<uint32_t>& in_flight, Planning& b);
+    // b.sigma from b.variance (and b.samples, for the prior); see sigma_estimates.
+    static void estimate_sigma(Planning& b, uint32_t width, uint32_t height,
+                               uint32_t radius, uint32_t prior);
     // As above, into `counts`.
     static void optimal_counts(const std::vector<double>& weights,
                                const std::vector<double>& costs, double total, double lo,
@@ -55,12 +90,15 @@ private:
 
     // The first round: min_spp everywhere, the estimates' foundation.
     std::vector<uint32_t> pilot_round();
-    // A later round from the merged estimates; nullopt when the budget is spent.
-    std::optional<std::vector<uint32_t>> steered_round(const Accumulator& merged);
+    // A later round from what read_merged copied into planning_.
+    Steered steered_round();
+    // The budget in the unit steered rounds spend: samples, or optimal-time's rays.
+    double limit() const { return cost_aware_ ? ray_budget_ : double(budget_); }
 
     uint32_t width_, height_;
     uint64_t budget_;
     uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_, steer_rounds_;
+    double plan_ahead_;
     bool cost_aware_;
 
     double ray_budget_ = 0;
@@ -76,16 +114,15 @@ private:
     // is saved with the render.
     std::vector<double> weight_sigma_, weight_cost_, weight_;
 
-    // The buffers a round end plans in, kept for the next: at 1920x1080 each is 8-32 MB,
-    // and taking them fresh every round end cost the kernel's page faults and zeroing
-    // (~25 ms of optimal-time's). Each round end writes every element before reading it,
-    // so nothing carries from one round to the next; nothing of it is saved.
-    struct Planning {
-        std::vector<double> variance, sigma, cost, gap;
-        std::vector<uint32_t> room;
-        ApportionScratch apportion;
-    };
     Planning planning_;
+
+    // Planning ahead (docs/STRATEGIES.md): the plan of the next round, to be made by
+    // work_ahead_ (or by whoever took it) and then kept in ahead_ until next_round hands
+    // it out; ahead_pending_ from the moment it is arranged until then.
+    std::function<void()> work_ahead_;
+    std::optional<Steered> ahead_;
+    bool ahead_pending_ = false;
+    bool out_spends_rest_ = false;  // the last round handed out spends all that was left
 };
 
 }  // namespace aliquot

@@ -35,6 +35,7 @@ void to_json(json& j, const StrategyParams& p) {
              {"sigma_prior", p.sigma_prior},
              {"floor_fraction", p.floor_fraction},
              {"steer_rounds", p.steer_rounds},
+             {"plan_ahead", p.plan_ahead},
              {"noise_threshold", p.noise_threshold},
              {"adaptive_min_samples", p.adaptive_min_samples},
              {"adaptive_step", p.adaptive_step},
@@ -82,6 +83,8 @@ void read_member(const std::string& key, const JsonField& v, StrategyParams& p) 
         p.floor_fraction = v.number();
     else if (key == "steer_rounds")
         p.steer_rounds = whole<uint32_t>(v);
+    else if (key == "plan_ahead")
+        p.plan_ahead = v.number();
     else if (key == "noise_threshold")
         p.noise_threshold = v.number();
     else if (key == "adaptive_min_samples")
@@ -120,6 +123,7 @@ void from_json(const json& j, StrategyParams& p) {
                          "sigma_prior",
                          "floor_fraction",
                          "steer_rounds",
+                         "plan_ahead",
                          "noise_threshold",
                          "adaptive_min_samples",
                          "adaptive_step",
@@ -220,6 +224,8 @@ void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t heigh
     if (!(p.floor_fraction >= 0 && p.floor_fraction < 1))
         fail("floor_fraction must be at least 0 and below 1");
     if (p.steer_rounds > 64) fail("steer_rounds must be at most 64");
+    if (!(p.plan_ahead >= 0 && p.plan_ahead <= 1))
+        fail("plan_ahead must be at least 0 and at most 1");
     if (!(p.noise_threshold > 0) || std::isinf(p.noise_threshold))
         fail("noise_threshold must be greater than 0 and finite");
     if (p.adaptive_step == 0) fail("adaptive_step must be at least 1");

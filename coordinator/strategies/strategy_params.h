@@ -58,6 +58,13 @@ struct StrategyParams {
     // drawn late are answered (0: rounds that double, what the pilot leaves in one or
     // two rounds at floor_fraction 0.5). 8 by default (docs/RESULTS.md, issue 15).
     uint32_t steer_rounds = 8;
+    // optimal / optimal-time: a steered round that spends at most this share of the
+    // budget has the round after it planned while it is traced, from the samples merged
+    // before it (the round out counted as had), so the farm does not wait for the plan
+    // (0: every round planned after the one before has merged). 1/32 by default: the
+    // rounds planned ahead then hold 1/32 of the budget, the last and shortest
+    // (docs/STRATEGIES.md, "Planning ahead").
+    double plan_ahead = 1.0 / 32;
 
     // cycles (Blender Cycles' adaptive sampling, with its defaults)
     double noise_threshold = 0.01;

@@ -217,6 +217,11 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
     p.steer_rounds = 65;
     EXPECT_NE(message(p).find("steer_rounds"), std::string::npos);
     p.steer_rounds = 64;
+    for (double f : {-0.1, 1.5, std::nan("")}) {
+        p.plan_ahead = f;
+        EXPECT_NE(message(p).find("plan_ahead"), std::string::npos) << f;
+    }
+    p.plan_ahead = 1;
     EXPECT_NO_THROW(validate(p, 8, 8));
     StrategyParams read;
     from_json(nlohmann::json{{"method", "cycles"},
@@ -226,7 +231,8 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
                              {"sigma_radius", 2},
                              {"sigma_prior", 16},
                              {"floor_fraction", 0.5},
-                             {"steer_rounds", 3}},
+                             {"steer_rounds", 3},
+                             {"plan_ahead", 0.25}},
               read);
     EXPECT_EQ(read.noise_threshold, 0.05);
     EXPECT_EQ(read.adaptive_min_samples, 8u);
@@ -235,6 +241,7 @@ TEST(StrategyParams, CyclesAndRobustSigmaParametersAreCheckedByName) {
     EXPECT_EQ(read.sigma_prior, 16u);
     EXPECT_EQ(read.floor_fraction, 0.5);
     EXPECT_EQ(read.steer_rounds, 3u);
+    EXPECT_EQ(read.plan_ahead, 0.25);
     EXPECT_EQ(StrategyParams{}.steer_rounds, 8u);  // the default, docs/RESULTS.md
 }
 
