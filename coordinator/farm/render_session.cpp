@@ -60,10 +60,10 @@ double RenderSession::seconds() const {
 }
 
 void RenderSession::plan_next_round() {
-    // The ended round's jobs lend their vectors to the next round's (cut_round).
-    std::vector<SampleJob> spare;
-    spare.reserve(jobs_.size());
-    for (JobSlot& slot : jobs_) spare.push_back(std::move(slot.job));
+    // The ended round's jobs lend their vectors to the next round's (cut_job).
+    spare_.clear();
+    for (JobSlot& slot : jobs_)
+        if (slot.cut) spare_.push_back(std::move(slot.job));
     jobs_.clear();
     pending_.clear();
     lease_to_job_.clear();
@@ -75,13 +75,18 @@ void RenderSession::plan_next_round() {
             finish(RenderState::Done);
             return;
         }
-        std::vector<SampleJob> jobs = cut_round(*round, merged_, 0, std::move(spare));
-        if (jobs.empty()) continue;
+        // The jobs' rectangles now, their contents when each is first leased (issue).
+        const std::vector<PixelRect> rects =
+            round_tiles(*round, merged_.width(), merged_.height());
+        if (rects.empty()) continue;
         round_index_ = round->index;
         round_samples_ = round->total();
-        for (SampleJob& job : jobs) {
+        round_ = std::move(*round);
+        for (const PixelRect& rect : rects) {
             pending_.push_back(jobs_.size());
-            jobs_.push_back(JobSlot{std::move(job), {}, {}, {}, 0});
+            JobSlot slot;
+            slot.job.rect = rect;
+            jobs_.push_back(std::move(slot));
         }
         // The next round planned while this one is traced: off the lock the caller
         // holds, so results merge and jobs are leased meanwhile.
@@ -135,6 +140,15 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
     const size_t j = *pick;
     pending_.erase(pick);
     JobSlot& slot = jobs_[j];
+    if (!slot.cut) {
+        SampleJob spare;
+        if (!spare_.empty()) {
+            spare = std::move(spare_.back());
+            spare_.pop_back();
+        }
+        slot.job = cut_job(slot.job.rect, round_, merged_, std::move(spare));
+        slot.cut = true;
+    }
     slot.worker = worker;
     slot.deadline = deadline;
     lease_to_job_[lease_id] = j;

@@ -127,6 +127,7 @@ private:
         Clock::time_point deadline;
         std::vector<std::string> failed_on;  // distinct workers it failed on, this round
         uint32_t failures = 0;               // failures in all
+        bool cut = false;  // job holds its counts and first samples, not only its rect
     };
 
     void plan_next_round();
@@ -157,6 +158,10 @@ private:
 
     uint32_t round_index_ = 0;
     uint64_t round_samples_ = 0;
+    // The round out: its jobs are cut from it as they are first leased (round_cutter.h),
+    // into the vectors of the round before's (spare_).
+    Round round_;
+    std::vector<SampleJob> spare_;
     std::vector<JobSlot> jobs_;
     std::deque<size_t> pending_;
     std::unordered_map<uint64_t, size_t> lease_to_job_;

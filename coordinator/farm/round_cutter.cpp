@@ -1,8 +1,8 @@
 #include "round_cutter.h"
 
 #include <algorithm>
-#include <iterator>
-#include <optional>
+#include <array>
+#include <utility>
 
 #include "bands.h"
 
@@ -15,14 +15,11 @@ uint32_t job_tile_side(double mean_spp) {
     return side;
 }
 
-namespace {
-
-std::optional<SampleJob> job_for(const PixelRect& rect, const Round& round,
-                                 const Accumulator& merged, SampleJob job) {
+SampleJob cut_job(const PixelRect& rect, const Round& round, const Accumulator& merged,
+                  SampleJob job) {
     job.rect = rect;
     job.counts.resize(rect.size());
     job.first_sample.resize(rect.size());
-    uint64_t any = 0;
     const uint32_t w = merged.width();
     size_t k = 0;
     for (uint32_t y = rect.y; y < rect.y + rect.height; ++y) {
@@ -30,85 +27,113 @@ std::optional<SampleJob> job_for(const PixelRect& rect, const Round& round,
         for (uint32_t x = 0; x < rect.width; ++x, ++k) {
             job.counts[k] = round.spp[row + x];
             job.first_sample[k] = merged.samples(row + x);
-            any += round.spp[row + x];
         }
     }
-    if (!any) return std::nullopt;
     return job;
 }
 
-// The jobs of `rects` that hold samples, in the rects' order; the rects are cut on the
-// band pool's threads, each into its own slot, rect k into spare[k]'s vectors when there
-// is one.
-std::vector<SampleJob> jobs_for(const std::vector<PixelRect>& rects, const Round& round,
-                                const Accumulator& merged,
-                                std::vector<SampleJob>& spare) {
-    std::vector<std::optional<SampleJob>> cut(rects.size());
-    // A band of 16 tiles is 16 K pixels at the smallest automatic tile.
-    for_each_band(rects.size(), 16, [&](size_t, size_t begin, size_t end) {
-        for (size_t k = begin; k < end; ++k)
-            cut[k] = job_for(rects[k], round, merged,
-                             k < spare.size() ? std::move(spare[k]) : SampleJob{});
-    });
-    spare.erase(spare.begin(), spare.begin() + std::min(spare.size(), rects.size()));
-    std::vector<SampleJob> jobs;
-    jobs.reserve(rects.size());
-    for (std::optional<SampleJob>& job : cut)
-        if (job) jobs.push_back(std::move(*job));
-    return jobs;
-}
+namespace {
 
 size_t tile_count(uint32_t w, uint32_t h, uint32_t tile) {
     return size_t((w + tile - 1) / tile) * ((h + tile - 1) / tile);
 }
 
+// The quadrants of a tile, as the tail of a round is cut: top left, top right, bottom
+// left, bottom right (some empty when a side is 1).
+std::array<PixelRect, 4> quadrants_of(const PixelRect& r) {
+    const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
+    return {PixelRect{r.x, r.y, hw, hh}, PixelRect{r.x + hw, r.y, r.width - hw, hh},
+            PixelRect{r.x, r.y + hh, hw, r.height - hh},
+            PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}};
+}
+
 }  // namespace
 
-std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
-                                 uint32_t tile, std::vector<SampleJob> spare) {
-    const uint32_t w = merged.width(), h = merged.height();
+std::vector<PixelRect> round_tiles(const Round& round, uint32_t w, uint32_t h,
+                                   uint32_t tile) {
+    const size_t n = size_t(w) * h;
     if (tile == 0) {
         // Mean over the pixels that get samples, so a round that refines a small area is
         // cut by the density it actually has there.
+        std::vector<std::pair<size_t, uint64_t>> band(band_count(n, kBandPixels));
+        for_each_band(n, kBandPixels, [&](size_t b, size_t begin, size_t end) {
+            size_t active = 0;
+            uint64_t total = 0;
+            for (size_t i = begin; i < end; ++i) {
+                active += round.spp[i] > 0;
+                total += round.spp[i];
+            }
+            band[b] = {active, total};
+        });
         size_t active = 0;
-        for (uint32_t s : round.spp) active += s > 0;
-        tile = job_tile_side(active ? double(round.total()) / double(active) : 1.0);
+        uint64_t total = 0;
+        for (const auto& [a, t] : band) active += a, total += t;
+        tile = job_tile_side(active ? double(total) / double(active) : 1.0);
         // Enough jobs to keep several workers' threads busy even on a small image.
         while (tile > kMinAutoTile && tile_count(w, h, tile) < kMinJobsPerRound)
             tile /= 2;
     }
-    std::vector<PixelRect> tiles;
-    for (uint32_t y0 = 0; y0 < h; y0 += tile)
-        for (uint32_t x0 = 0; x0 < w; x0 += tile)
-            tiles.push_back({x0, y0, std::min(tile, w - x0), std::min(tile, h - y0)});
-
-    std::vector<SampleJob> jobs = jobs_for(tiles, round, merged, spare);
-    if (tile < 2 * kMinAutoTile) return jobs;
-
+    const uint32_t across = (w + tile - 1) / tile, down = (h + tile - 1) / tile;
+    const auto rect_of = [&](size_t t) {
+        const uint32_t x0 = uint32_t(t % across) * tile, y0 = uint32_t(t / across) * tile;
+        return PixelRect{x0, y0, std::min(tile, w - x0), std::min(tile, h - y0)};
+    };
+    // Whether each quadrant of each tile holds samples, from one pass over the counts in
+    // bands of tile rows (an "or" is the same in any order).
+    std::vector<uint8_t> holds(size_t(across) * down * 4, 0);
+    const size_t rows_per_band = std::max<size_t>(1, kBandPixels / (size_t(tile) * w));
+    for_each_band(down, rows_per_band, [&](size_t, size_t row0, size_t row1) {
+        for (size_t ty = row0; ty < row1; ++ty) {
+            const uint32_t y0 = uint32_t(ty) * tile, th = std::min(tile, h - y0);
+            for (uint32_t y = y0; y < y0 + th; ++y) {
+                const uint32_t* row = &round.spp[size_t(y) * w];
+                const size_t lower = y - y0 < (th + 1) / 2 ? 0 : 2;
+                for (uint32_t tx = 0; tx < across; ++tx) {
+                    const uint32_t x0 = tx * tile, tw = std::min(tile, w - x0);
+                    const uint32_t mid = x0 + (tw + 1) / 2;
+                    uint32_t left = 0, right = 0;
+                    for (uint32_t x = x0; x < mid; ++x) left |= row[x];
+                    for (uint32_t x = mid; x < x0 + tw; ++x) right |= row[x];
+                    uint8_t* q = &holds[(ty * across + tx) * 4 + lower];
+                    q[0] |= left != 0;
+                    q[1] |= right != 0;
+                }
+            }
+        }
+    });
+    std::vector<size_t> kept;  // the tiles with samples, row by row
+    for (size_t t = 0; t < size_t(across) * down; ++t)
+        if (holds[4 * t] | holds[4 * t + 1] | holds[4 * t + 2] | holds[4 * t + 3])
+            kept.push_back(t);
+    std::vector<PixelRect> rects;
     // A round ends when its last job does: whoever finishes early waits. Jobs are issued
     // in order, so the last quarter is cut into quadrants and the wait shrinks to a
     // quadrant's work, without making every job small (each costs a lease and a result
     // message).
-    const size_t whole = jobs.size() - jobs.size() / 4;
-    std::vector<SampleJob> tail(std::make_move_iterator(jobs.begin() + whole),
-                                std::make_move_iterator(jobs.end()));
-    jobs.resize(whole);
-    std::vector<PixelRect> quadrants;
-    for (const SampleJob& big : tail) {
-        const PixelRect& r = big.rect;
-        const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
-        for (const PixelRect& q :
-             {PixelRect{r.x, r.y, hw, hh}, PixelRect{r.x + hw, r.y, r.width - hw, hh},
-              PixelRect{r.x, r.y + hh, hw, r.height - hh},
-              PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}}) {
-            if (q.width == 0 || q.height == 0) continue;
-            quadrants.push_back(q);
-        }
+    const size_t whole =
+        tile < 2 * kMinAutoTile ? kept.size() : kept.size() - kept.size() / 4;
+    for (size_t k = 0; k < whole; ++k) rects.push_back(rect_of(kept[k]));
+    for (size_t k = whole; k < kept.size(); ++k) {
+        const std::array<PixelRect, 4> q = quadrants_of(rect_of(kept[k]));
+        for (int i = 0; i < 4; ++i)
+            if (q[i].width > 0 && q[i].height > 0 && holds[4 * kept[k] + i])
+                rects.push_back(q[i]);
     }
-    // The quadrants take over the spares left and the big jobs they replace.
-    std::move(tail.begin(), tail.end(), std::back_inserter(spare));
-    for (SampleJob& job : jobs_for(quadrants, round, merged, spare))
-        jobs.push_back(std::move(job));
+    return rects;
+}
+
+std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
+                                 uint32_t tile, std::vector<SampleJob> spare) {
+    const std::vector<PixelRect> rects =
+        round_tiles(round, merged.width(), merged.height(), tile);
+    std::vector<SampleJob> jobs(rects.size());
+    // A band of 16 jobs is 16 K pixels at the smallest automatic tile; job k takes
+    // spare[k]'s vectors when there is one.
+    for_each_band(rects.size(), 16, [&](size_t, size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k)
+            jobs[k] = cut_job(rects[k], round, merged,
+                              k < spare.size() ? std::move(spare[k]) : SampleJob{});
+    });
     return jobs;
 }
 

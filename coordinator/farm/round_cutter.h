@@ -25,6 +25,17 @@ inline constexpr uint64_t kJobSamples = uint64_t(1) << 18;
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
                                  uint32_t tile = 0, std::vector<SampleJob> spare = {});
 
+// cut_round in two steps. The rectangles of the round's jobs, in issue order (one pass
+// over the round's counts)...
+std::vector<PixelRect> round_tiles(const Round& round, uint32_t width, uint32_t height,
+                                   uint32_t tile = 0);
+// ...and one job, its counts and first sample indices. The farm cuts each job when it is
+// first leased, not all at the round's end: the jobs of a round cover disjoint pixels, so
+// until a job merges no other job changes what its pixels have, and it is the job cut at
+// the round's end. `spare`'s vectors are reused.
+SampleJob cut_job(const PixelRect& rect, const Round& round, const Accumulator& merged,
+                  SampleJob spare = {});
+
 // Tile side for a round of `mean_spp` samples per pixel: the largest power of two whose
 // tile holds at most kJobSamples (about 0.1 s of one worker thread on the Cornell box),
 // so a job's fixed cost (a lease, a result message and its merge: about a millisecond of

@@ -85,6 +85,63 @@ TEST(RoundCutter, JobsCutIntoSpareJobsAreTheJobsCutAfresh) {
     }
 }
 
+// round_tiles against its definition, written out plainly: the tiles that hold samples,
+// row by row, the last quarter of them as their quadrants that hold samples; and each
+// job cut alone is the job cut_round cuts.
+TEST(RoundCutter, RoundTilesAreTheTilesWithSamplesAndTheTailsQuadrants) {
+    for (const uint32_t tile : {0u, 16u, 32u, 33u, 64u}) {
+        for (const auto& [w, h] :
+             {std::pair{157u, 93u}, std::pair{64u, 64u}, std::pair{31u, 200u}}) {
+            SCOPED_TRACE(std::to_string(tile) + " " + std::to_string(w) + "x" +
+                         std::to_string(h));
+            Accumulator acc(w, h);
+            Round round{0, std::vector<uint32_t>(size_t(w) * h, 0)};
+            for (size_t i = 0; i < round.spp.size(); ++i)  // sparse, as a steered round
+                round.spp[i] = (i * 2654435761u) % 97 < 3 ? uint32_t(1 + i % 5) : 0;
+            const auto holds = [&](const PixelRect& r) {
+                for (uint32_t y = r.y; y < r.y + r.height; ++y)
+                    for (uint32_t x = r.x; x < r.x + r.width; ++x)
+                        if (round.spp[size_t(y) * w + x]) return true;
+                return false;
+            };
+            const std::vector<SampleJob> jobs = cut_round(round, acc, tile);
+            ASSERT_FALSE(jobs.empty());
+            // The side cut_round chose: the first job's, unless it was a quadrant.
+            const uint32_t side =
+                tile ? tile : std::max(jobs.front().rect.width, jobs.front().rect.height);
+            std::vector<PixelRect> tiles, want;
+            for (uint32_t y = 0; y < h; y += side)
+                for (uint32_t x = 0; x < w; x += side) {
+                    const PixelRect r{x, y, std::min(side, w - x), std::min(side, h - y)};
+                    if (holds(r)) tiles.push_back(r);
+                }
+            const size_t whole =
+                side < 2 * kMinAutoTile ? tiles.size() : tiles.size() - tiles.size() / 4;
+            want.assign(tiles.begin(), tiles.begin() + whole);
+            for (size_t k = whole; k < tiles.size(); ++k) {
+                const PixelRect& r = tiles[k];
+                const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
+                for (const PixelRect& q :
+                     {PixelRect{r.x, r.y, hw, hh},
+                      PixelRect{r.x + hw, r.y, r.width - hw, hh},
+                      PixelRect{r.x, r.y + hh, hw, r.height - hh},
+                      PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}})
+                    if (q.width && q.height && holds(q)) want.push_back(q);
+            }
+            const std::vector<PixelRect> got = round_tiles(round, w, h, tile);
+            ASSERT_EQ(got.size(), want.size());
+            ASSERT_EQ(jobs.size(), want.size());
+            for (size_t k = 0; k < want.size(); ++k) {
+                EXPECT_EQ(got[k], want[k]) << k;
+                const SampleJob alone = cut_job(got[k], round, acc);
+                EXPECT_EQ(alone.rect, jobs[k].rect);
+                EXPECT_EQ(alone.counts, jobs[k].counts);
+                EXPECT_EQ(alone.first_sample, jobs[k].first_sample);
+            }
+        }
+    }
+}
+
 // The largest power-of-two side up to 128 whose tile holds at most kJobSamples (2^18).
 TEST(RoundCutter, TilesHoldAboutAQuarterMillionSamplesUpTo128) {
     EXPECT_EQ(job_tile_side(1), 128u);
