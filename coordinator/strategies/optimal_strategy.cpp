@@ -443,6 +443,10 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     double share = 0;  // what a steered round spends of the limit
     if (!piloted_) {
         round.spp = pilot_round();
+        // The first steered round end would take its ~150 MB of buffers (at 1920x1080)
+        // from fresh pages, ~0.1 s of faults and zeroing while the farm waits: they are
+        // taken while the pilot is traced instead.
+        if (!finished_) work_ahead_ = [this] { prepare_buffers(); };
     } else {
         Steered steered;
         if (ahead_) {
@@ -478,6 +482,22 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         work_ahead_ = [this] { ahead_ = steered_round(); };
     }
     return round;
+}
+
+void OptimalStrategy::prepare_buffers() {
+    const size_t pixels = size_t(width_) * height_;
+    // NaN: no sigma is equal to it, so every weight is computed at first.
+    weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
+    weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
+    weight_.assign(pixels, 0.0);
+    Planning& b = planning_;
+    b.variance.resize(pixels);
+    b.cost.resize(cost_aware_ ? pixels : 0);
+    b.samples.resize(pixels);
+    b.sigma.resize(pixels);
+    b.gap.resize(pixels);
+    b.room.resize(pixels);
+    b.apportion.keys.resize(pixels);
 }
 
 std::function<void()> OptimalStrategy::take_work_ahead() {
@@ -540,11 +560,7 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
     // The weights live in weight_ between rounds (see the header).
     estimate_sigma(b, width_, height_, sigma_radius_, sigma_prior_);
     const std::vector<double>& sigma = b.sigma;
-    if (weight_.size() != pixels) {  // NaN: no sigma is equal to it
-        weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
-        weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
-        weight_.assign(pixels, 0.0);
-    }
+    if (weight_.size() != pixels) prepare_buffers();
     std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         bool any = false;

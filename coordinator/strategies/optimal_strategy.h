@@ -88,6 +88,8 @@ private:
                                const std::vector<double>& costs, double total, double lo,
                                double hi, std::vector<double>& counts);
 
+    // Sizes (and so touches) the weights kept and the planning buffers.
+    void prepare_buffers();
     // The first round: min_spp everywhere, the estimates' foundation.
     std::vector<uint32_t> pilot_round();
     // A later round from what read_merged copied into planning_.
@@ -118,7 +120,8 @@ private:
 
     // Planning ahead (docs/STRATEGIES.md): the plan of the next round, to be made by
     // work_ahead_ (or by whoever took it) and then kept in ahead_ until next_round hands
-    // it out; ahead_pending_ from the moment it is arranged until then.
+    // it out; ahead_pending_ from the moment it is arranged until then. After the pilot,
+    // work_ahead_ only prepares the buffers.
     std::function<void()> work_ahead_;
     std::optional<Steered> ahead_;
     bool ahead_pending_ = false;

@@ -53,11 +53,12 @@ public:
     virtual std::string name() const = 0;
     // The next round given everything merged so far, or nullopt when the render is done.
     virtual std::optional<Round> next_round(const Accumulator& merged) = 0;
-    // Work the last next_round left to do before the next round may be asked for:
-    // planning that round ahead, from what next_round copied of the buffers
-    // (docs/STRATEGIES.md, "Planning ahead"). A caller that takes it may run it on any
-    // thread while results merge, and must let it finish before calling the strategy
-    // again; work not taken is done by the next next_round. Empty when there is none.
+    // Work the last next_round left to do before the next round may be asked for, which
+    // needs none of the round's results: planning that round ahead from what next_round
+    // copied of the buffers (docs/STRATEGIES.md, "Planning ahead"), or taking the
+    // buffers a plan will need. A caller that takes it may run it on any thread while
+    // results merge, and must let it finish before calling the strategy again; work not
+    // taken is done by the next next_round. Empty when there is none.
     virtual std::function<void()> take_work_ahead() { return {}; }
     // Whether the strategy holds a round planned before the last round's results merged:
     // its state then does not follow from the merged buffers, and is not checkpointed.
