@@ -333,6 +333,7 @@ double heavy_tailed_error(const StrategyParams& p) {
 TEST(Optimal, AFloorFractionLowersTheErrorOfHeavyTailedPixels) {
     StrategyParams p = optimal(1024 * 64);
     p.steer_rounds = 0;  // the floor as measured, before the steered rounds
+    p.plan_ahead = 0;    // and before planning ahead
     p.floor_fraction = 0;
     const double plain = heavy_tailed_error(p);
     p.floor_fraction = 0.5;
@@ -462,9 +463,13 @@ std::vector<bool> held_after_each_round(const StrategyParams& p) {
 
 TEST(Optimal, TheRoundAfterASmallSteeredRoundIsPlannedAhead) {
     // Rounds of 65536 (the pilot), 32768, 16384, 8192, 4096, 2048, 1024, 512, 512
-    // samples (see above): from the round of 4096, 1/32 of the budget, on, the next is
+    // samples (see above): from the round of 8192, 1/16 of the budget, on, the next is
     // planned while it is out; after the last, that there is none.
     StrategyParams p = optimal(4096 * 32);
+    EXPECT_EQ(
+        held_after_each_round(p),
+        (std::vector<bool>{false, false, false, true, true, true, true, true, true}));
+    p.plan_ahead = 1.0 / 32;
     EXPECT_EQ(
         held_after_each_round(p),
         (std::vector<bool>{false, false, false, false, true, true, true, true, true}));

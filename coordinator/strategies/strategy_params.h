@@ -61,10 +61,10 @@ struct StrategyParams {
     // optimal / optimal-time: a steered round that spends at most this share of the
     // budget has the round after it planned while it is traced, from the samples merged
     // before it (the round out counted as had), so the farm does not wait for the plan
-    // (0: every round planned after the one before has merged). 1/32 by default: the
-    // rounds planned ahead then hold 1/32 of the budget, the last and shortest
-    // (docs/STRATEGIES.md, "Planning ahead").
-    double plan_ahead = 1.0 / 32;
+    // (0: every round planned after the one before has merged). 1/16 by default: the
+    // rounds planned ahead then hold 1/16 of the budget, the last and shortest
+    // (docs/STRATEGIES.md, "Planning ahead"; docs/RESULTS.md).
+    double plan_ahead = 1.0 / 16;
 
     // cycles (Blender Cycles' adaptive sampling, with its defaults)
     double noise_threshold = 0.01;
