@@ -12,11 +12,16 @@
 namespace aliquot {
 
 RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms)
+    : RenderSession(std::move(id), spec, created_ms,
+                    make_strategy(spec.strategy, spec.width, spec.height)) {}
+
+RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms,
+                             std::unique_ptr<Strategy> strategy)
     : id_(std::move(id)),
       spec_(std::move(spec)),
       scene_hash_(aliquot::scene_hash(spec_.scene_json)),
       created_ms_(created_ms),
-      strategy_(make_strategy(spec_.strategy, spec_.width, spec_.height)),
+      strategy_(std::move(strategy)),
       merged_(spec_.width, spec_.height) {}
 
 void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_state,
@@ -93,8 +98,8 @@ void RenderSession::plan_next_round() {
         if (std::function<void()> work = strategy_->take_work_ahead()) {
             try {
                 work_ahead_ = std::async(std::launch::async, work);
-            } catch (const std::system_error&) {
-                work();  // no thread to be had: done here, as before
+            } catch (...) {
+                work();  // no thread to be had: done here, as before (complete catches)
             }
         }
         return;
@@ -211,7 +216,18 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     }
     if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
 
-    finish_work_ahead();
+    // A plan that cannot be made (memory, or a strategy's error) fails the render with
+    // the reason: the round has merged and no job is out, so nothing else would end it.
+    const auto planning_failed = [&](const std::exception& e) {
+        fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
+             e.what());
+        return CompleteOutcome{CompleteStatus::Merged, {}};
+    };
+    try {
+        finish_work_ahead();
+    } catch (const std::exception& e) {
+        return planning_failed(e);
+    }
     ++rounds_done_;
     RoundSummary summary;
     summary.index = round_index_;
@@ -224,7 +240,11 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
             compare_images(merged_.image(), *spec_.reference).mean_abs;
     last_round_ = summary;
     if (on_round) on_round(*this, summary);
-    plan_next_round();
+    try {
+        plan_next_round();
+    } catch (const std::exception& e) {
+        return planning_failed(e);
+    }
     return {CompleteStatus::Merged, {}};
 }
 
@@ -355,6 +375,9 @@ void RenderSession::fail(const std::string& message) {
 }
 
 void RenderSession::finish(RenderState state) {
+    // A plan still being made ahead is let finish here, under the render's own lock:
+    // whoever drops the session last (the coordinator, under its lock) must not wait.
+    if (work_ahead_.valid()) work_ahead_.wait();
     final_seconds_ = seconds();
     state_ = state;
     pending_.clear();

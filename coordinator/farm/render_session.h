@@ -49,6 +49,9 @@ public:
     using Clock = std::chrono::steady_clock;
 
     RenderSession(std::string id, RenderSpec spec, int64_t created_ms);
+    // With `strategy` instead of the one the spec names (tests).
+    RenderSession(std::string id, RenderSpec spec, int64_t created_ms,
+                  std::unique_ptr<Strategy> strategy);
 
     // Continues from a checkpoint taken at a round boundary: the merged buffers and the
     // strategy's state then. Call before start().

@@ -292,6 +292,40 @@ TEST_F(RenderSessionTest, RoundsPlannedAheadGiveTheBuffersOfAStrategyThatPlansIn
     }
 }
 
+// A strategy whose plan, made ahead on the session's thread, throws (as a plan that
+// runs out of memory would): after a first round of one sample a pixel.
+class ThrowingAhead : public Strategy {
+public:
+    std::string name() const override { return "throwing"; }
+    std::optional<Round> next_round(const Accumulator& merged) override {
+        if (work_taken_) return std::nullopt;  // never reached: the render has failed
+        return Round{0, std::vector<uint32_t>(merged.pixel_count(), 1)};
+    }
+    std::function<void()> take_work_ahead() override {
+        if (work_taken_) return {};
+        work_taken_ = true;
+        return [] { throw std::runtime_error("out of memory, say"); };
+    }
+    uint64_t planned_samples() const override { return 0; }
+    nlohmann::json save_state() const override { return nlohmann::json::object(); }
+    void restore_state(const nlohmann::json&) override {}
+
+private:
+    bool work_taken_ = false;
+};
+
+TEST_F(RenderSessionTest, APlanThatThrowsAheadFailsTheRenderWithTheReason) {
+    RenderSession s("r", spec, 0, std::make_unique<ThrowingAhead>());
+    s.start();
+    uint64_t lease = 1;
+    while (auto job = s.issue(lease, "w", far))
+        EXPECT_EQ(s.complete(lease++, "w", fake_result(*job)).status,
+                  CompleteStatus::Merged);
+    EXPECT_EQ(s.state(), RenderState::Failed);
+    EXPECT_EQ(s.error(), "cannot plan round 1: out of memory, say");
+    EXPECT_EQ(s.merged().total_samples(), 40u * 40);  // what merged is kept
+}
+
 // Issue 12, item 5: a job a worker cannot trace goes to another worker; failures count
 // per job and per worker, and a job nobody can trace fails the render with the reason.
 class FailingJobsTest : public RenderSessionTest {

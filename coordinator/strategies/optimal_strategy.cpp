@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 #include <utility>
 
 #include "allocation.h"
@@ -449,6 +450,11 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         if (!finished_) work_ahead_ = [this] { prepare_buffers(); };
     } else {
         Steered steered;
+        // Planned from older buffers but never made (its work was lost or threw):
+        // planning it now from these would give other bytes than a render whose plan was
+        // made.
+        if (ahead_pending_ && !ahead_)
+            throw std::logic_error("the round planned ahead was never made");
         if (ahead_) {
             steered = std::move(*ahead_);
             ahead_.reset();

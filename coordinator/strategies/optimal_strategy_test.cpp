@@ -557,6 +557,22 @@ TEST(Optimal, ARoundPlannedAheadIsTheSameWhereverItsWorkRuns) {
     }
 }
 
+TEST(Optimal, ARoundPlannedAheadWhoseWorkWasLostIsAnErrorNotAnotherPlan) {
+    // Planning it from the buffers merged since would give other bytes than the render
+    // whose plan was made; the session fails the render instead.
+    const SyntheticImage image = banded_image();
+    StrategyParams p = optimal(4096 * 32);
+    p.plan_ahead = 1;
+    OptimalStrategy strategy(p, 64, 64, false);
+    Accumulator merged(64, 64);
+    run_synthetic(strategy, image, merged, 2);
+    const std::optional<Round> out = strategy.next_round(merged);
+    ASSERT_TRUE(out && strategy.holds_planned_round());
+    ASSERT_TRUE(strategy.take_work_ahead());  // taken, and never run
+    for (const SampleJob& job : cut_round(*out, merged)) merged.merge(image.trace(job));
+    EXPECT_THROW(strategy.next_round(merged), std::logic_error);
+}
+
 TEST(OptimalTime, NoRoundFollowsTheOneThatSpendsWhatIsLeft) {
     // Rays per sample vary (Russian roulette), so a round costs less or more than
     // predicted. Here every result comes back a ray short at a third of its pixels:
