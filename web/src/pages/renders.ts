@@ -30,6 +30,7 @@ const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string 
     { key: "sigma_radius", label: "sigma pool radius (0: own pixel)" },
     { key: "floor_fraction", label: "pilot and floor, share of mean spp", step: "any" },
     { key: "steer_rounds", label: "steered rounds after the pilot (0: doubling)" },
+    { key: "plan_ahead", label: "plan ahead after rounds of at most this share (0: never)", step: "any" },
   ],
   "optimal-time": [
     { key: "spp", label: "budget (spp x pixels)" },
@@ -37,6 +38,7 @@ const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string 
     { key: "max_spp", label: "max spp (0: default)" },
     { key: "floor_fraction", label: "pilot and floor, share of mean spp", step: "any" },
     { key: "steer_rounds", label: "steered rounds after the pilot (0: doubling)" },
+    { key: "plan_ahead", label: "plan ahead after rounds of at most this share (0: never)", step: "any" },
   ],
   cycles: [
     { key: "noise_threshold", label: "noise threshold", step: "any" },
