@@ -45,8 +45,14 @@ for chart in error-vs-budget error-vs-time maps seeds uniform-spp; do
         "grep -q '<svg' '$tmp/tiny/charts/$chart.svg' && [[ \$(head -c 4 '$tmp/tiny/charts/$chart.png' | tail -c 3) == PNG ]]"
 done
 db="$tmp/tiny/data/aliquot.db"
+# 27 results, but not always 27 renders: a time-matched render whose budget, on a busy
+# machine, lands on the same spec as another's shares that render's result (by design).
+distinct="SELECT COUNT(DISTINCT render_id) FROM study_results WHERE render_id IS NOT NULL"
+renders_now=$(sql "$db" 'SELECT COUNT(*) FROM renders')
 check "every render and its rounds are in SQLite" \
-    "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq 27 && \$(sql '$db' 'SELECT COUNT(DISTINCT render_id) FROM rounds') -eq 27 ]]"
+    "[[ \$(sql '$db' 'SELECT COUNT(*) FROM study_results') -eq 27 && \$(sql '$db' \"$distinct\") -ge 25 &&
+       $renders_now -eq \$(sql '$db' \"$distinct\") &&
+       \$(sql '$db' 'SELECT COUNT(*) FROM study_results s WHERE NOT EXISTS (SELECT 1 FROM rounds r WHERE r.render_id = s.render_id)') -eq 0 ]]"
 check "metrics recorded for every render" \
     "[[ \$(sql '$db' \"SELECT COUNT(*) FROM study_results WHERE state = 'done' AND mean_abs > 0 AND p99_bucket > 0 AND samples > 0\") -eq 27 ]]"
 check "the oracle's sigma render has its own seed" "ls '$tmp/tiny/data/references/' | grep -q 'sigma-seed1099511627777.exr'"
@@ -54,7 +60,7 @@ check "the report gives E over the oracle's E" "grep -q 'E ÷ oracle E' '$tmp/ti
 
 "$aliquot" study "$tiny" --scale small --out "$tmp/tiny" >"$tmp/again.log" 2>&1
 check "a second run renders nothing" "grep -q '(0 rendered now' '$tmp/again.log'"
-check "... and adds no render" "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq 27 ]]"
+check "... and adds no render" "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq $renders_now ]]"
 
 # --- an interrupted study resumes without re-rendering
 python3 - "$tmp/slow.json" <<'PY'
