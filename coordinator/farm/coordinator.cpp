@@ -892,7 +892,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     // render's lock alone.
     CompleteOutcome outcome;
     double round_end = 0, round_end_cpu = 0;
-    bool ended_round = false;
+    bool ended_round = false, waited = false;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
@@ -910,12 +910,14 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
                     .count();
             round_end_cpu = thread_cpu_seconds() + band_pool_cpu_seconds() - began_cpu;
+            waited = !(s.state() == RenderState::Running && s.round_opened_ahead());
         }
         render_failed = s.state() == RenderState::Failed;
     }
     std::lock_guard lock(mutex_);
     round_end_seconds_ += round_end;
     round_end_cpu_seconds_ += round_end_cpu;
+    if (waited) round_end_wait_seconds_ += round_end;
     if (ended_round) ++rounds_ended_;
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
@@ -1052,6 +1054,11 @@ std::map<RenderState, uint64_t> Coordinator::render_counts() {
 double Coordinator::round_end_seconds() {
     std::lock_guard lock(mutex_);
     return round_end_seconds_;
+}
+
+double Coordinator::round_end_wait_seconds() {
+    std::lock_guard lock(mutex_);
+    return round_end_wait_seconds_;
 }
 
 double Coordinator::round_end_cpu_seconds() {
@@ -1317,6 +1324,7 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + 16                             // the round's spp; a strategy's per pixel
         + 72                             // optimal's planning, the round ahead
         + 24                             // optimal's weights kept, with their sigma, cost
+        + sizeof(PixelSums) / 4          // results held for a round opened ahead
         + 20;                            // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest

@@ -174,6 +174,10 @@ public:
     // The same calls' CPU time on their threads: what they cost whatever the load (on a
     // busy machine the wall time also counts waiting for a core).
     double round_end_cpu_seconds();
+    // The part of round_end_seconds the workers waited through: round ends after which
+    // the render's next round had not been opened ahead (render_session.h, "two rounds
+    // out"), so none of its jobs was out meanwhile.
+    double round_end_wait_seconds();
     // Rounds ended, over all renders (each ended by one of those calls).
     uint64_t rounds_ended();
 
@@ -343,7 +347,8 @@ private:
         std::make_shared<const std::set<std::string>>();  // a copy of alive_
     int ticks_ = 0;
     std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
-    double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0;
+    double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0,
+           round_end_wait_seconds_ = 0;
     uint64_t rounds_ended_ = 0;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
     bool stopping_ = false;

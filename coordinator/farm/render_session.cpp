@@ -64,45 +64,130 @@ double RenderSession::seconds() const {
            std::chrono::duration<double>(Clock::now() - *started_).count();
 }
 
-void RenderSession::plan_next_round() {
-    // The ended round's jobs lend their vectors to the next round's (cut_job).
-    spare_.clear();
-    for (JobSlot& slot : jobs_)
-        if (slot.cut) spare_.push_back(std::move(slot.job));
-    jobs_.clear();
-    pending_.clear();
-    lease_to_job_.clear();
-    merged_jobs_ = 0;
+void RenderSession::plan_next_round(const std::set<std::string>& alive,
+                                    const FailurePolicy& policy) {
+    std::optional<Round> round;
+    std::vector<PixelRect> rects;
     // A strategy may plan a round with no samples; skip such rounds rather than stall.
     while (true) {
-        std::optional<Round> round = strategy_->next_round(merged_);
+        round = strategy_->next_round(merged_);
         if (!round) {
+            if (next_spp_)
+                throw std::logic_error("the round opened ahead was never handed out");
             finish(RenderState::Done);
             return;
         }
+        if (next_spp_) break;
         // The jobs' rectangles now, their contents when each is first leased (issue).
-        const std::vector<PixelRect> rects =
-            round_tiles(*round, merged_.width(), merged_.height());
-        if (rects.empty()) continue;
-        round_index_ = round->index;
-        round_samples_ = round->total();
-        round_ = std::move(*round);
+        rects = round_tiles(*round, merged_.width(), merged_.height());
+        if (!rects.empty()) break;
+    }
+    // The ended round's jobs lend their vectors to the next round's (cut_job).
+    spare_.clear();
+    for (size_t j = 0; j < current_jobs_; ++j)
+        if (jobs_[j].cut) spare_.push_back(std::move(jobs_[j].job));
+    if (next_spp_) {
+        // The round opened ahead: the strategy hands over the counts its jobs were cut
+        // from. Anything else would trace other samples than the render planned.
+        if (round->index != round_index_ + 1 ||
+            (round->spp.data() != next_spp_->data() && round->spp != *next_spp_))
+            throw std::logic_error("the round handed out is not the one opened ahead");
+        jobs_.erase(jobs_.begin(), jobs_.begin() + std::ptrdiff_t(current_jobs_));
+        // Every lease left is the round after's: the round out has merged.
+        for (auto& [lease, j] : lease_to_job_) j -= current_jobs_;
+        pending_.clear();
+        for (size_t j : next_pending_) pending_.push_back(j - current_jobs_);
+        next_pending_.clear();
+        next_spp_ = nullptr;
+        next_pixels_ = 0;
+        opened_ahead_ = true;
+    } else {
+        opened_ahead_ = false;
+        jobs_.clear();
+        pending_.clear();
+        lease_to_job_.clear();
         for (const PixelRect& rect : rects) {
             pending_.push_back(jobs_.size());
             JobSlot slot;
             slot.job.rect = rect;
             jobs_.push_back(std::move(slot));
         }
-        // The next round planned while this one is traced: off the lock the caller
-        // holds, so results merge and jobs are leased meanwhile.
-        if (std::function<void()> work = strategy_->take_work_ahead()) {
-            try {
-                work_ahead_ = std::async(std::launch::async, work);
-            } catch (...) {
-                work();  // no thread to be had: done here, as before (complete catches)
-            }
+    }
+    current_jobs_ = jobs_.size();
+    merged_jobs_ = 0;
+    next_tried_ = false;
+    round_index_ = round->index;
+    round_samples_ = round->total();
+    round_ = std::move(*round);
+    // The next round planned while this one is traced: off the lock the caller holds, so
+    // results merge and jobs are leased meanwhile.
+    if (std::function<void()> work = strategy_->take_work_ahead()) {
+        try {
+            work_ahead_ = std::async(std::launch::async, work);
+        } catch (...) {
+            work();  // no thread to be had: done here, as before (complete catches)
         }
+    }
+    // The results held for this round merge now, after the round before's: each
+    // pixel's sums add up in round order.
+    for (size_t j = 0; j < current_jobs_ && state_ == RenderState::Running; ++j) {
+        JobSlot& slot = jobs_[j];
+        if (!slot.held) continue;
+        std::string why;  // checked when it came; the merge may still refuse it
+        try {
+            merged_.merge(*slot.held);
+        } catch (const MergeError& e) {
+            why = e.what();
+        }
+        slot.held.reset();
+        if (why.empty()) {
+            ++merged_jobs_;
+        } else {
+            slot.done = false;
+            count_failure(j, slot.worker, "result rejected: " + why, alive, policy);
+        }
+    }
+}
+
+void RenderSession::open_next_round() {
+    if (next_spp_ || next_tried_ || !work_ahead_.valid() ||
+        work_ahead_.wait_for(std::chrono::seconds(0)) != std::future_status::ready)
         return;
+    next_tried_ = true;
+    try {
+        work_ahead_.get();
+    } catch (const std::exception& e) {
+        fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
+             e.what());
+        return;
+    }
+    const std::vector<uint32_t>* spp = strategy_->round_planned_ahead();
+    if (!spp) return;
+    const std::vector<PixelRect> rects =
+        round_tiles(*spp, merged_.width(), merged_.height());
+    if (rects.empty()) return;
+    next_spp_ = spp;
+    for (const PixelRect& rect : rects) {
+        next_pending_.push_back(jobs_.size());
+        JobSlot slot;
+        slot.job.rect = rect;
+        jobs_.push_back(std::move(slot));
+    }
+}
+
+std::vector<const SampleJob*> RenderSession::unmerged_jobs() const {
+    std::vector<const SampleJob*> out;
+    for (size_t j = 0; j < current_jobs_; ++j)
+        if (!jobs_[j].done) out.push_back(&jobs_[j].job);
+    return out;
+}
+
+void RenderSession::requeue(size_t j) {
+    if (j < current_jobs_) {
+        pending_.push_front(j);
+    } else {
+        next_pending_.push_front(j);
+        next_pixels_ -= jobs_[j].job.rect.size();
     }
 }
 
@@ -128,22 +213,37 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
                                               Clock::time_point deadline,
                                               const std::set<std::string>& alive,
                                               const FailurePolicy& policy) {
-    if (state_ != RenderState::Running || pending_.empty()) return std::nullopt;
+    if (state_ != RenderState::Running) return std::nullopt;
+    if (pending_.empty()) open_next_round();
+    if (state_ != RenderState::Running || (pending_.empty() && next_pending_.empty()))
+        return std::nullopt;
     if (blocklisted(worker, policy) &&
         std::any_of(alive.begin(), alive.end(), [&](const std::string& other) {
             return other != worker && !blocklisted(other, policy);
         }))
         return std::nullopt;  // kept off this render while someone else can trace it
-    // The first pending job this worker may take: one it failed on waits for another.
-    auto pick = std::find_if(pending_.begin(), pending_.end(), [&](size_t j) {
+    // The first pending job this worker may take, the round out's first: one it failed
+    // on waits for another.
+    const auto may_take = [&](size_t j) {
         const JobSlot& slot = jobs_[j];
         const bool failed_here = std::find(slot.failed_on.begin(), slot.failed_on.end(),
                                            worker) != slot.failed_on.end();
         return !failed_here || !another_could_take(slot, worker, alive, policy);
-    });
-    if (pick == pending_.end()) return std::nullopt;
+    };
+    std::deque<size_t>* queue = &pending_;
+    auto pick = std::find_if(pending_.begin(), pending_.end(), may_take);
+    if (pick == pending_.end()) {
+        queue = &next_pending_;
+        pick = std::find_if(next_pending_.begin(), next_pending_.end(), may_take);
+        if (pick == next_pending_.end()) return std::nullopt;
+        // What the round after holds is bounded (render_session.h).
+        const size_t size = jobs_[*pick].job.rect.size();
+        if (next_pixels_ > 0 && next_pixels_ + size > merged_.pixel_count() / 4)
+            return std::nullopt;
+        next_pixels_ += size;
+    }
     const size_t j = *pick;
-    pending_.erase(pick);
+    queue->erase(pick);
     JobSlot& slot = jobs_[j];
     if (!slot.cut) {
         SampleJob spare;
@@ -151,7 +251,10 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
             spare = std::move(spare_.back());
             spare_.pop_back();
         }
-        slot.job = cut_job(slot.job.rect, round_, merged_, std::move(spare));
+        slot.job = j < current_jobs_
+                       ? cut_job(slot.job.rect, round_, merged_, std::move(spare))
+                       : cut_job_after(slot.job.rect, *next_spp_, merged_,
+                                       unmerged_jobs(), std::move(spare));
         slot.cut = true;
     }
     slot.worker = worker;
@@ -200,8 +303,10 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     // nor ends the lease, and cannot get the holder's job rejected.
     if (slot.worker != worker) return {CompleteStatus::Ignored, "not your lease"};
     lease_to_job_.erase(it);
+    const size_t j = size_t(&slot - jobs_.data());
+    const bool ahead = j >= current_jobs_;  // the round after's: held, merged later
     std::string why = check_result(slot, result);
-    if (why.empty()) {
+    if (why.empty() && !ahead) {
         try {
             merged_.merge(result);  // refuses, whole, sums that would stop being finite
         } catch (const MergeError& e) {
@@ -210,42 +315,50 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     }
     if (!why.empty()) {
         // Nothing was merged; the job is traced again, preferably by another worker.
-        count_failure(size_t(&slot - jobs_.data()), worker, "result rejected: " + why,
-                      alive, policy);
+        count_failure(j, worker, "result rejected: " + why, alive, policy);
         return {CompleteStatus::Rejected, why};
     }
-    if (++merged_jobs_ < jobs_.size()) return {CompleteStatus::Merged, {}};
+    slot.done = true;
+    if (ahead) {
+        slot.held = result;
+        return {CompleteStatus::Merged, {}};
+    }
+    if (++merged_jobs_ == current_jobs_) end_rounds(alive, policy);
+    return {CompleteStatus::Merged, {}};
+}
 
+void RenderSession::end_rounds(const std::set<std::string>& alive,
+                               const FailurePolicy& policy) {
     // A plan that cannot be made (memory, or a strategy's error) fails the render with
     // the reason: the round has merged and no job is out, so nothing else would end it.
     const auto planning_failed = [&](const std::exception& e) {
         fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
              e.what());
-        return CompleteOutcome{CompleteStatus::Merged, {}};
     };
-    try {
-        finish_work_ahead();
-    } catch (const std::exception& e) {
-        return planning_failed(e);
+    while (state_ == RenderState::Running && merged_jobs_ == current_jobs_) {
+        try {
+            finish_work_ahead();
+        } catch (const std::exception& e) {
+            return planning_failed(e);
+        }
+        ++rounds_done_;
+        RoundSummary summary;
+        summary.index = round_index_;
+        summary.samples_in_round = round_samples_;
+        summary.samples_total = merged_.total_samples();
+        summary.seconds = seconds();
+        summary.error_estimate = estimate_mean_abs_error(merged_);
+        if (spec_.reference)
+            summary.error_vs_reference =
+                compare_images(merged_.image(), *spec_.reference).mean_abs;
+        last_round_ = summary;
+        if (on_round) on_round(*this, summary);
+        try {
+            plan_next_round(alive, policy);
+        } catch (const std::exception& e) {
+            return planning_failed(e);
+        }
     }
-    ++rounds_done_;
-    RoundSummary summary;
-    summary.index = round_index_;
-    summary.samples_in_round = round_samples_;
-    summary.samples_total = merged_.total_samples();
-    summary.seconds = seconds();
-    summary.error_estimate = estimate_mean_abs_error(merged_);
-    if (spec_.reference)
-        summary.error_vs_reference =
-            compare_images(merged_.image(), *spec_.reference).mean_abs;
-    last_round_ = summary;
-    if (on_round) on_round(*this, summary);
-    try {
-        plan_next_round();
-    } catch (const std::exception& e) {
-        return planning_failed(e);
-    }
-    return {CompleteStatus::Merged, {}};
 }
 
 void RenderSession::finish_work_ahead() {
@@ -263,9 +376,9 @@ bool RenderSession::renew(uint64_t lease_id, const std::string& worker,
 bool RenderSession::abandon(uint64_t lease_id, const std::string& worker) {
     const auto it = lease_to_job_.find(lease_id);
     if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
-    JobSlot& slot = jobs_[it->second];
+    const size_t j = it->second;
     lease_to_job_.erase(it);
-    pending_.push_front(size_t(&slot - jobs_.data()));
+    requeue(j);
     return true;
 }
 
@@ -335,7 +448,7 @@ void RenderSession::count_failure(size_t j, const std::string& worker,
         return;
     }
     // Back to the front: the next worker that may take it does.
-    pending_.push_front(j);
+    requeue(j);
 }
 
 uint32_t RenderSession::failures_of(const std::string& worker) const {
@@ -348,7 +461,7 @@ std::vector<uint64_t> RenderSession::expire(Clock::time_point now) {
     for (auto it = lease_to_job_.begin(); it != lease_to_job_.end();) {
         JobSlot& slot = jobs_[it->second];
         if (slot.deadline <= now) {
-            pending_.push_front(it->second);
+            requeue(it->second);
             expired.push_back(it->first);
             it = lease_to_job_.erase(it);
         } else {
@@ -381,7 +494,9 @@ void RenderSession::finish(RenderState state) {
     final_seconds_ = seconds();
     state_ = state;
     pending_.clear();
+    next_pending_.clear();
     lease_to_job_.clear();
+    for (JobSlot& slot : jobs_) slot.held.reset();
     if (on_finished) on_finished(*this);
 }
 

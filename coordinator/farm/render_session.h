@@ -93,7 +93,12 @@ public:
     void cancel();
     void fail(const std::string& message);
 
-    bool has_pending() const { return !pending_.empty(); }
+    // Whether a job may be there to issue: one pending, or a round planned ahead that
+    // may open (issue says for certain).
+    bool has_pending() const {
+        return !pending_.empty() || !next_pending_.empty() ||
+               (!next_spp_ && !next_tried_ && work_ahead_.valid());
+    }
     bool finished() const { return is_terminal(state_); }
     // (worker, "render/job") for each lease out.
     std::vector<std::pair<std::string, std::string>> leases() const;
@@ -109,6 +114,9 @@ public:
     Image image(bool aovs) const;
     const Strategy& strategy() const { return *strategy_; }
     uint32_t rounds_done() const { return rounds_done_; }
+    // Whether the round out was opened ahead: its jobs were leased before the round
+    // before it ended, so that round's end held up none of its workers.
+    bool round_opened_ahead() const { return opened_ahead_; }
     uint64_t samples_planned() const { return strategy_->planned_samples(); }
     double seconds() const;
     double error_estimate() const { return last_round_.error_estimate; }
@@ -130,10 +138,24 @@ private:
         Clock::time_point deadline;
         std::vector<std::string> failed_on;  // distinct workers it failed on, this round
         uint32_t failures = 0;               // failures in all
-        bool cut = false;  // job holds its counts and first samples, not only its rect
+        bool cut = false;   // job holds its counts and first samples, not only its rect
+        bool done = false;  // its result merged, or (the round after's) is held
+        std::optional<SampleJobResult> held;  // the round after's, until it merges
     };
 
-    void plan_next_round();
+    // Ends the round out when its last job merged, and the round after it too when that
+    // one, opened ahead, has merged whole meanwhile.
+    void end_rounds(const std::set<std::string>& alive, const FailurePolicy& policy);
+    // `alive` and `policy` judge a held result that fails to merge (complete's).
+    void plan_next_round(const std::set<std::string>& alive = {},
+                         const FailurePolicy& policy = {});
+    // Opens the round after the one out when the strategy has planned it ahead and every
+    // job of the round out is leased: its jobs are then leased too.
+    void open_next_round();
+    // A job no longer leased and not done goes back to the front of its round's queue.
+    void requeue(size_t j);
+    // The round out's jobs not merged yet, for cutting the round after's.
+    std::vector<const SampleJob*> unmerged_jobs() const;
     // Waits for the strategy's work ahead (take_work_ahead) to end; rethrows what it
     // threw.
     void finish_work_ahead();
@@ -166,7 +188,21 @@ private:
     Round round_;
     std::vector<SampleJob> spare_;
     std::vector<JobSlot> jobs_;
-    std::deque<size_t> pending_;
+    std::deque<size_t> pending_;  // the round out's jobs to lease, then the next's
+    // Two rounds out: once every job of the round out is leased, a round the strategy
+    // planned ahead opens, so workers trace it while the round out's last jobs are
+    // traced and its end is worked out, instead of waiting on them. Its counts are the
+    // strategy's (next_spp_, the very vector next_round hands over), its jobs follow the
+    // round out's in jobs_ (from current_jobs_ on), and their results are held until the
+    // round out has merged and ended, so every pixel's sums add up in round order and a
+    // render's bytes do not depend on when a round opened. What is held is bounded:
+    // results of at most a quarter of the image (next_pixels_, leased or held).
+    size_t current_jobs_ = 0;
+    const std::vector<uint32_t>* next_spp_ = nullptr;
+    std::deque<size_t> next_pending_;
+    size_t next_pixels_ = 0;
+    bool next_tried_ = false;  // the round out's work ahead has been looked at
+    bool opened_ahead_ = false;
     std::unordered_map<uint64_t, size_t> lease_to_job_;
     size_t merged_jobs_ = 0;
     std::map<std::string, uint32_t> worker_failures_;  // the blocklist's counts

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <deque>
+#include <thread>
 
 #include "checkpoint.h"
 #include "scene_loader.h"
@@ -276,7 +278,9 @@ TEST_F(RenderSessionTest, RoundsPlannedAheadGiveTheBuffersOfAStrategyThatPlansIn
                 EXPECT_EQ(s.complete(lease++, "w", image.trace(*job)).status,
                           CompleteStatus::Merged);
             EXPECT_EQ(s.state(), RenderState::Done);
-            if (!from) EXPECT_GT(held, 2u);
+            if (!from) {
+                EXPECT_GT(held, 2u);
+            }
             Accumulator out;
             out.copy_from(s.merged());
             return out;
@@ -289,6 +293,88 @@ TEST_F(RenderSessionTest, RoundsPlannedAheadGiveTheBuffersOfAStrategyThatPlansIn
             ASSERT_EQ(whole.at(i), in_place.at(i)) << i;
             ASSERT_EQ(resumed.at(i), in_place.at(i)) << i;
         }
+    }
+}
+
+// Two rounds out: once every job of a round is leased, the round planned ahead opens and
+// its jobs are leased while the round out's last job is traced; their results are held
+// until that one merges. Driven with a straggler in every round (once expiring and
+// traced again), results coming back newest first, the buffers are those of the
+// strategy driven round by round.
+TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
+    const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
+    for (const char* method : {"optimal", "optimal-time"}) {
+        SCOPED_TRACE(method);
+        spec.strategy.method = method;
+        spec.strategy.spp = 64;
+        spec.strategy.plan_ahead = 1;  // every steered round planned ahead
+        Accumulator in_place(40, 40);
+        {
+            const auto strategy = make_strategy(spec.strategy, 40, 40);
+            ASSERT_TRUE(run_synthetic(*strategy, image, in_place).finished);
+        }
+        RenderSession s("r", spec, 0);
+        s.start();
+        struct Out {
+            uint64_t lease;
+            SampleJob job;
+        };
+        std::deque<Out> out;  // oldest first
+        uint64_t next_lease = 1;
+        const auto lease_all = [&] {
+            size_t n = 0;
+            while (auto job = s.issue(next_lease, "w", far)) {
+                out.push_back({next_lease++, std::move(*job)});
+                ++n;
+            }
+            return n;
+        };
+        size_t held = 0, expired = 0;
+        for (int step = 0; s.state() == RenderState::Running; ++step) {
+            ASSERT_LT(step, 10000);
+            lease_all();
+            // All but the oldest come back, newest first.
+            const auto all_but_the_oldest = [&] {
+                while (out.size() > 1) {
+                    const uint64_t before = s.merged().total_samples();
+                    const Out o = out.back();
+                    out.pop_back();
+                    ASSERT_EQ(s.complete(o.lease, "w", image.trace(o.job)).status,
+                              CompleteStatus::Merged);
+                    if (s.merged().total_samples() == before) ++held;
+                }
+            };
+            all_but_the_oldest();
+            // The oldest is the straggler: the round after opens once its plan is made.
+            for (int spin = 0; spin < 2000 && lease_all() == 0 && s.has_pending(); ++spin)
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            if (step % 2) all_but_the_oldest();  // the round after's come back first
+            if (out.size() > 1 && expired == 0) {
+                // Its lease runs out: it goes back ahead of the round after's jobs.
+                const Out late = out.front();
+                out.pop_front();
+                ASSERT_EQ(s.expire(far + std::chrono::hours(1)).size(), out.size() + 1);
+                ++expired;
+                out.clear();  // every lease expired: all are traced again
+                ASSERT_TRUE(lease_all() > 0);
+                EXPECT_TRUE(out.front().job.rect == late.job.rect);
+                EXPECT_EQ(s.complete(late.lease, "w", image.trace(late.job)).status,
+                          CompleteStatus::Ignored);
+            }
+            while (!out.empty()) {  // the straggler first, then what opened after it
+                const uint64_t before = s.merged().total_samples();
+                const Out o = out.front();
+                out.pop_front();
+                ASSERT_EQ(s.complete(o.lease, "w", image.trace(o.job)).status,
+                          CompleteStatus::Merged);
+                if (s.merged().total_samples() == before) ++held;
+            }
+        }
+        EXPECT_EQ(s.state(), RenderState::Done);
+        EXPECT_GT(held, 0u);
+        EXPECT_EQ(expired, 1u);
+        for (size_t i = 0; i < in_place.pixel_count(); ++i)
+            ASSERT_EQ(s.merged().at(i), in_place.at(i)) << i;
     }
 }
 

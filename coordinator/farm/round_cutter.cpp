@@ -15,8 +15,8 @@ uint32_t job_tile_side(double mean_spp) {
     return side;
 }
 
-SampleJob cut_job(const PixelRect& rect, const Round& round, const Accumulator& merged,
-                  SampleJob job) {
+SampleJob cut_job(const PixelRect& rect, const std::vector<uint32_t>& spp,
+                  const Accumulator& merged, SampleJob job) {
     job.rect = rect;
     job.counts.resize(rect.size());
     job.first_sample.resize(rect.size());
@@ -25,9 +25,27 @@ SampleJob cut_job(const PixelRect& rect, const Round& round, const Accumulator& 
     for (uint32_t y = rect.y; y < rect.y + rect.height; ++y) {
         const size_t row = size_t(y) * w + rect.x;
         for (uint32_t x = 0; x < rect.width; ++x, ++k) {
-            job.counts[k] = round.spp[row + x];
+            job.counts[k] = spp[row + x];
             job.first_sample[k] = merged.samples(row + x);
         }
+    }
+    return job;
+}
+
+SampleJob cut_job_after(const PixelRect& rect, const std::vector<uint32_t>& spp,
+                        const Accumulator& merged,
+                        const std::vector<const SampleJob*>& unmerged, SampleJob spare) {
+    SampleJob job = cut_job(rect, spp, merged, std::move(spare));
+    // Where an unmerged job of the round out overlaps, its samples are still to come.
+    for (const SampleJob* out : unmerged) {
+        const PixelRect& o = out->rect;
+        const uint32_t x0 = std::max(rect.x, o.x), y0 = std::max(rect.y, o.y);
+        const uint32_t x1 = std::min(rect.x + rect.width, o.x + o.width);
+        const uint32_t y1 = std::min(rect.y + rect.height, o.y + o.height);
+        for (uint32_t y = y0; y < y1; ++y)
+            for (uint32_t x = x0; x < x1; ++x)
+                job.first_sample[size_t(y - rect.y) * rect.width + (x - rect.x)] +=
+                    out->counts[size_t(y - o.y) * o.width + (x - o.x)];
     }
     return job;
 }
@@ -49,8 +67,8 @@ std::array<PixelRect, 4> quadrants_of(const PixelRect& r) {
 
 }  // namespace
 
-std::vector<PixelRect> round_tiles(const Round& round, uint32_t w, uint32_t h,
-                                   uint32_t tile) {
+std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
+                                   uint32_t h, uint32_t tile) {
     const size_t n = size_t(w) * h;
     if (tile == 0) {
         // Mean over the pixels that get samples, so a round that refines a small area is
@@ -60,8 +78,8 @@ std::vector<PixelRect> round_tiles(const Round& round, uint32_t w, uint32_t h,
             size_t active = 0;
             uint64_t total = 0;
             for (size_t i = begin; i < end; ++i) {
-                active += round.spp[i] > 0;
-                total += round.spp[i];
+                active += spp[i] > 0;
+                total += spp[i];
             }
             band[b] = {active, total};
         });
@@ -86,7 +104,7 @@ std::vector<PixelRect> round_tiles(const Round& round, uint32_t w, uint32_t h,
         for (size_t ty = row0; ty < row1; ++ty) {
             const uint32_t y0 = uint32_t(ty) * tile, th = std::min(tile, h - y0);
             for (uint32_t y = y0; y < y0 + th; ++y) {
-                const uint32_t* row = &round.spp[size_t(y) * w];
+                const uint32_t* row = &spp[size_t(y) * w];
                 const size_t lower = y - y0 < (th + 1) / 2 ? 0 : 2;
                 for (uint32_t tx = 0; tx < across; ++tx) {
                     const uint32_t x0 = tx * tile, tw = std::min(tile, w - x0);

@@ -27,14 +27,31 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
 
 // cut_round in two steps. The rectangles of the round's jobs, in issue order (one pass
 // over the round's counts)...
-std::vector<PixelRect> round_tiles(const Round& round, uint32_t width, uint32_t height,
-                                   uint32_t tile = 0);
+std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t width,
+                                   uint32_t height, uint32_t tile = 0);
+inline std::vector<PixelRect> round_tiles(const Round& round, uint32_t width,
+                                          uint32_t height, uint32_t tile = 0) {
+    return round_tiles(round.spp, width, height, tile);
+}
 // ...and one job, its counts and first sample indices. The farm cuts each job when it is
 // first leased, not all at the round's end: the jobs of a round cover disjoint pixels, so
 // until a job merges no other job changes what its pixels have, and it is the job cut at
 // the round's end. `spare`'s vectors are reused.
-SampleJob cut_job(const PixelRect& rect, const Round& round, const Accumulator& merged,
-                  SampleJob spare = {});
+SampleJob cut_job(const PixelRect& rect, const std::vector<uint32_t>& spp,
+                  const Accumulator& merged, SampleJob spare = {});
+inline SampleJob cut_job(const PixelRect& rect, const Round& round,
+                         const Accumulator& merged, SampleJob spare = {}) {
+    return cut_job(rect, round.spp, merged, std::move(spare));
+}
+// A job of the round after the one out, cut while the round out is still merging
+// (render_session.h, "two rounds out"): each pixel's first sample is the one the round
+// out leaves it, whether the job that traces it there has merged or is among `unmerged`
+// (the round out's jobs not merged yet, each cut). The job cut once the round out has
+// merged is the same.
+SampleJob cut_job_after(const PixelRect& rect, const std::vector<uint32_t>& spp,
+                        const Accumulator& merged,
+                        const std::vector<const SampleJob*>& unmerged,
+                        SampleJob spare = {});
 
 // Tile side for a round of `mean_spp` samples per pixel: the largest power of two whose
 // tile holds at most kJobSamples (about 0.1 s of one worker thread on the Cornell box),

@@ -153,5 +153,44 @@ TEST(RoundCutter, TilesHoldAboutAQuarterMillionSamplesUpTo128) {
     EXPECT_EQ(job_tile_side(1e6), 16u);  // never below kMinAutoTile
 }
 
+// The round after the one out, cut while some of the round out's jobs have not merged:
+// each job is the one cut once all of them have.
+TEST(RoundCutter, AJobOfTheRoundAfterIsTheSameCutBeforeOrAfterTheRoundOutMerges) {
+    const uint32_t w = 37, h = 29;
+    Accumulator acc(w, h);
+    Round out{0, std::vector<uint32_t>(size_t(w) * h)}, after{1, out.spp};
+    for (size_t i = 0; i < out.spp.size(); ++i) {
+        out.spp[i] = uint32_t(i * 7 % 5);  // some pixels get nothing this round
+        after.spp[i] = uint32_t(1 + i % 3);
+    }
+    const std::vector<SampleJob> out_jobs = cut_round(out, acc, 8);
+    const auto merge = [&](Accumulator& into, const SampleJob& job) {
+        SampleJobResult r;
+        r.rect = job.rect;
+        r.pixels.resize(job.rect.size());
+        for (size_t k = 0; k < r.pixels.size(); ++k) r.pixels[k].samples = job.counts[k];
+        into.merge(r);
+    };
+    Accumulator all;
+    all.copy_from(acc);
+    for (const SampleJob& job : out_jobs) merge(all, job);
+    // Every other job of the round out merged; the rest are still traced.
+    Accumulator part;
+    part.copy_from(acc);
+    std::vector<const SampleJob*> unmerged;
+    for (size_t k = 0; k < out_jobs.size(); ++k)
+        if (k % 2)
+            unmerged.push_back(&out_jobs[k]);
+        else
+            merge(part, out_jobs[k]);
+    ASSERT_FALSE(unmerged.empty());
+    for (const PixelRect& rect : round_tiles(after, w, h, 11)) {  // across the old tiles
+        const SampleJob early = cut_job_after(rect, after.spp, part, unmerged);
+        const SampleJob late = cut_job(rect, after, all);
+        EXPECT_EQ(early.counts, late.counts);
+        EXPECT_EQ(early.first_sample, late.first_sample);
+    }
+}
+
 }  // namespace
 }  // namespace aliquot

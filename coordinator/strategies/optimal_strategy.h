@@ -46,6 +46,9 @@ public:
 
     std::function<void()> take_work_ahead() override;
     bool holds_planned_round() const override { return ahead_pending_; }
+    const std::vector<uint32_t>* round_planned_ahead() const override {
+        return ahead_ && !ahead_->spp.empty() ? &ahead_->spp : nullptr;
+    }
 
 private:
     // The buffers a round end plans in, kept for the next: at 1920x1080 each is 8-32 MB,

@@ -63,6 +63,11 @@ public:
     // Whether the strategy holds a round planned before the last round's results merged:
     // its state then does not follow from the merged buffers, and is not checkpointed.
     virtual bool holds_planned_round() const { return false; }
+    // The counts of the round planned ahead, once the work that plans it has run and
+    // until the next_round that hands it out (which returns these very counts): a caller
+    // may lease that round's jobs while the round before is still merging, and merge
+    // their results after it. Null when no such round is held.
+    virtual const std::vector<uint32_t>* round_planned_ahead() const { return nullptr; }
 
     // Samples the render expects to spend in all, for progress; an upper bound for
     // methods that stop early.
