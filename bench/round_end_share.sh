@@ -4,9 +4,10 @@
 # at RESOLUTION and SPP (budget = SPP x pixels) with each method in turn, and the
 # coordinator's own counters (`aliquot_round_end_seconds_total`, `..._cpu_seconds_total`,
 # `aliquot_rounds_ended_total` on /metrics) are read before and after each render. A round
-# end holds up the render's workers (none of its jobs is out meanwhile), so
-# share = round-end wall seconds ÷ the render's seconds is the time the farm waited on the
-# coordinator. On one machine the coordinator and the workers share its cores, so a round
+# end holds up the render's workers unless the round after it was opened ahead (its jobs
+# out before the round end: docs/FARM.md, "Two rounds out"); those that did are
+# `aliquot_round_end_wait_seconds_total`, so share = round-end wait ÷ the render's seconds
+# is the time the farm waited on the coordinator. On one machine the coordinator and the workers share its cores, so a round
 # end's CPU is also taken from the tracing: this is the farm this machine can run, not a
 # farm of many machines (bench/farm_scale.cpp extrapolates to those). Per round, the
 # rounds' own seconds (from /api/renders/ID/rounds) against a round end's mean give
@@ -58,7 +59,8 @@ def scrape():
             name, value = line.rsplit(" ", 1)
             values[name] = float(value)
     return (values["aliquot_rounds_ended_total"], values["aliquot_round_end_seconds_total"],
-            values["aliquot_round_end_cpu_seconds_total"])
+            values["aliquot_round_end_cpu_seconds_total"],
+            values["aliquot_round_end_wait_seconds_total"])
 if len(sys.argv) > 3:
     last = None
     with open(sys.argv[3], "a") as out:
@@ -94,15 +96,16 @@ method, before, after, result = sys.argv[1], sys.argv[2].split(), sys.argv[3].sp
 port, token = sys.argv[5], open(sys.argv[6]).read().strip()
 polled = [tuple(map(float, line.split())) for line in open(sys.argv[7]) if line.strip()]
 r = json.loads(result.strip().splitlines()[-1])
-rounds, wall, cpu = (float(a) - float(b) for a, b in zip(after, before))
+rounds, wall, cpu, wait = (float(a) - float(b) for a, b in zip(after, before))
 seconds = float(r["seconds"])
 each = wall / max(rounds, 1)
 # Each round end's wall time, from the polled counters (two ends within one poll share
 # their sum evenly); the round end at the end of round k holds up round k + 1.
-end_seconds = []
-for (r0, s0, _), (r1, s1, _) in zip(polled, polled[1:]):
+end_seconds, wait_seconds = [], []
+for (r0, s0, _, w0), (r1, s1, _, w1) in zip(polled, polled[1:]):
     n = int(round(r1 - r0))
     end_seconds += [(s1 - s0) / n] * n if n > 0 else []
+    wait_seconds += [(w1 - w0) / n] * n if n > 0 else []
 # A round's seconds run from the render's time at the end of the round before to its own,
 # so the round end that planned it is included.
 req = urllib.request.Request(f"http://127.0.0.1:{port}/api/renders/{r['id']}/rounds",
@@ -111,15 +114,17 @@ ends = [row[3] for row in json.loads(urllib.request.urlopen(req, timeout=10).rea
 round_seconds = [b - a for a, b in zip(ends, ends[1:])]
 # The first polled line is the state before the render; its round ends follow in order,
 # the last one (which plans nothing) after the final round.
-per_round = [e / d for e, d in zip(end_seconds, round_seconds) if d > 0]
+per_round = [e / d for e, d in zip(wait_seconds, round_seconds) if d > 0]
 print(json.dumps({
     "method": method, "image": f"{r['width']}x{r['height']}", "state": r["state"],
     "samples": r["samples_done"], "rounds": int(rounds), "render_seconds": seconds,
     "round_end_seconds": round(wall, 4), "round_end_cpu_seconds": round(cpu, 4),
     "round_end_ms_each": round(1e3 * each, 1),
-    "share": round(wall / seconds, 4) if seconds > 0 else None,
+    "round_end_wait_seconds": round(wait, 4),
+    "share": round(wait / seconds, 4) if seconds > 0 else None,
     "round_seconds": [round(d, 3) for d in round_seconds],
     "round_end_ms": [round(1e3 * e, 1) for e in end_seconds],
+    "round_wait_ms": [round(1e3 * e, 1) for e in wait_seconds],
     "largest_round_share": round(max(per_round), 4) if per_round else None,
 }))
 PY

@@ -68,9 +68,9 @@ std::vector<MetricFamily> farm_state(Coordinator& c) {
                "Samples merged into renders since the coordinator started.",
                MetricType::Counter, double(c.samples_merged()));
 
-    // A round end holds up the render's workers (none of its jobs is out meanwhile), so
-    // these against the render time say how much of it the coordinator costs: the
-    // share issue 14 bounds (bench/round_end_share.sh).
+    // A round end holds up the render's workers unless its next round was opened ahead
+    // (render_session.h), so the wait against the render time says how much of it the
+    // coordinator costs: the share issue 14 bounds (bench/round_end_share.sh).
     add_single(out, "aliquot_rounds_ended_total",
                "Rounds ended across renders since the coordinator started.",
                MetricType::Counter, double(c.rounds_ended()));
@@ -83,6 +83,10 @@ std::vector<MetricFamily> farm_state(Coordinator& c) {
     add_single(out, "aliquot_round_end_cpu_seconds_total",
                "CPU seconds of those calls, the band pool's threads included.",
                MetricType::Counter, c.round_end_cpu_seconds());
+    add_single(out, "aliquot_round_end_wait_seconds_total",
+               "Wall seconds of those calls after which the render's next round had not "
+               "been opened ahead: its workers waited through them.",
+               MetricType::Counter, c.round_end_wait_seconds());
 
     // The states are WorkerStatus's three; a state outside them is not reported rather
     // than becoming a new label value.

@@ -57,6 +57,7 @@ TEST(FarmMetrics, AnIdleFarmReportsEveryMetricAtZero) {
     EXPECT_EQ(s.at("aliquot_rounds_ended_total"), 0);
     EXPECT_EQ(s.at("aliquot_round_end_seconds_total"), 0);
     EXPECT_EQ(s.at("aliquot_round_end_cpu_seconds_total"), 0);
+    EXPECT_EQ(s.at("aliquot_round_end_wait_seconds_total"), 0);
     EXPECT_NE(text.find("# TYPE aliquot_samples_merged_total counter"),
               std::string::npos);
     EXPECT_NE(text.find("# TYPE aliquot_merge_seconds histogram"), std::string::npos);
@@ -106,6 +107,8 @@ TEST(FarmMetrics, ValuesFollowTheFarm) {
     EXPECT_GT(s.at("aliquot_round_end_seconds_total"), 0);
     EXPECT_DOUBLE_EQ(s.at("aliquot_round_end_cpu_seconds_total"),
                      c.round_end_cpu_seconds());
+    // The render's last round end: nothing was opened ahead of it, so it counts whole.
+    EXPECT_DOUBLE_EQ(s.at("aliquot_round_end_wait_seconds_total"), c.round_end_seconds());
     c.stop();
 }
 
