@@ -7,7 +7,10 @@
 // latencies (median and 99th percentile) of the calls that got a job; round_end_share is
 // the seconds the coordinator spent ending rounds (Coordinator::round_end_seconds) ÷ the
 // render's; round_end_ms and round_end_cpu_ms are one round end's wall and CPU time (the
-// CPU time is what it costs however loaded the machine is). One JSON object per line.
+// CPU time is what it costs however loaded the machine is); round_end_wait_share and
+// round_end_wait_ms count only the round ends the workers waited through, those after
+// which the next round had not been opened ahead (docs/FARM.md, "Two rounds out"). One
+// JSON object per line.
 //
 // Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
 //        (defaults: 1920x1080 10 1,16,64,256
@@ -57,7 +60,7 @@ struct Run {
     double seconds = 0;
     uint64_t samples = 0, leases = 0;
     uint32_t rounds = 0;
-    double round_end_seconds = 0, round_end_cpu_seconds = 0;
+    double round_end_seconds = 0, round_end_cpu_seconds = 0, round_end_wait_seconds = 0;
     std::string state;
     std::vector<double> lease_ms, complete_ms;
 };
@@ -138,6 +141,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         out.state = std::string(to_string(info.state));
         out.round_end_seconds = coordinator.round_end_seconds();
         out.round_end_cpu_seconds = coordinator.round_end_cpu_seconds();
+        out.round_end_wait_seconds = coordinator.round_end_wait_seconds();
         out.leases = out.lease_ms.size();
     }
     fs::remove_all(dir);
@@ -164,14 +168,17 @@ int main(int argc, char** argv) try {
                 "\"lease_ms_p50\": %.3f, \"lease_ms_p99\": %.3f, "
                 "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f, "
                 "\"round_end_share\": %.4f, \"round_end_ms\": %.1f, "
-                "\"round_end_cpu_ms\": %.1f}\n",
+                "\"round_end_cpu_ms\": %.1f, \"round_end_wait_share\": %.4f, "
+                "\"round_end_wait_ms\": %.1f}\n",
                 size.width, size.height, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
                 percentile(r.lease_ms, 0.99), percentile(r.complete_ms, 0.5),
                 percentile(r.complete_ms, 0.99), r.round_end_seconds / r.seconds,
                 r.rounds ? 1e3 * r.round_end_seconds / r.rounds : 0.0,
-                r.rounds ? 1e3 * r.round_end_cpu_seconds / r.rounds : 0.0);
+                r.rounds ? 1e3 * r.round_end_cpu_seconds / r.rounds : 0.0,
+                r.round_end_wait_seconds / r.seconds,
+                r.rounds ? 1e3 * r.round_end_wait_seconds / r.rounds : 0.0);
             std::fflush(stdout);
         }
 } catch (const std::exception& e) {

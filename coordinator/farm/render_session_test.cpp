@@ -378,6 +378,61 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
     }
 }
 
+// A held result is checked when it comes, but only its merge, after the round before's,
+// can refuse sums that would stop being finite: it is then a rejected result, counted
+// against its worker, and its job is traced again.
+TEST_F(RenderSessionTest, AHeldResultTheMergeRefusesIsTracedAgain) {
+    const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
+    spec.strategy.method = "optimal";
+    spec.strategy.spp = 64;
+    spec.strategy.plan_ahead = 1;
+    Accumulator in_place(40, 40);
+    ASSERT_TRUE(
+        run_synthetic(*make_strategy(spec.strategy, 40, 40), image, in_place).finished);
+    RenderSession s("r", spec, 0);
+    s.start();
+    uint64_t lease = 1;
+    bool poisoned = false;
+    for (int step = 0; s.state() == RenderState::Running; ++step) {
+        ASSERT_LT(step, 10000);
+        std::vector<std::pair<uint64_t, SampleJob>> out;
+        while (auto job = s.issue(lease, "w", far)) out.emplace_back(lease++, *job);
+        ASSERT_FALSE(out.empty());
+        // All but the first back; then, once, a job of the round after while the first
+        // is still out.
+        for (size_t k = out.size(); k-- > 1;)
+            ASSERT_EQ(s.complete(out[k].first, "w", image.trace(out[k].second)).status,
+                      CompleteStatus::Merged);
+        if (!poisoned) {
+            std::optional<SampleJob> ahead;
+            for (int spin = 0;
+                 spin < 2000 && !(ahead = s.issue(lease, "w", far)) && s.has_pending();
+                 ++spin)
+                std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            if (ahead) {
+                SampleJobResult huge = image.trace(*ahead);
+                const auto traced =
+                    std::find_if(huge.pixels.begin(), huge.pixels.end(),
+                                 [](const PixelSums& p) { return p.samples; });
+                ASSERT_NE(traced, huge.pixels.end());
+                traced->even[0] = 1.7e308;
+                const CompleteOutcome o = s.complete(lease++, "w", huge);
+                ASSERT_EQ(o.status, CompleteStatus::Merged) << o.message;
+                poisoned = true;
+                EXPECT_EQ(s.failures_of("w"), 0u);
+            }
+        }
+        ASSERT_EQ(s.complete(out[0].first, "w", image.trace(out[0].second)).status,
+                  CompleteStatus::Merged);
+        if (poisoned) EXPECT_LE(s.failures_of("w"), 1u);
+    }
+    EXPECT_TRUE(poisoned);
+    EXPECT_EQ(s.failures_of("w"), 1u);
+    EXPECT_EQ(s.state(), RenderState::Done);
+    for (size_t i = 0; i < in_place.pixel_count(); ++i)
+        ASSERT_EQ(s.merged().at(i), in_place.at(i)) << i;
+}
+
 // A strategy whose plan, made ahead on the session's thread, throws (as a plan that
 // runs out of memory would): after a first round of one sample a pixel.
 class ThrowingAhead : public Strategy {
