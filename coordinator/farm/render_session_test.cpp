@@ -42,6 +42,24 @@ protected:
         spec.strategy.method = "uniform";
         spec.strategy.spp = 8;
     }
+    // `method` (optimal or optimal-time) at 64 spp, planning ahead rounds of at most
+    // `plan_ahead` of the budget.
+    void plan(const char* method, double plan_ahead) {
+        spec.strategy.method = method;
+        spec.strategy.spp = 64;
+        spec.strategy.plan_ahead = plan_ahead;
+    }
+
+    // The buffers of spec's strategy driven round by round on `image`: what a session
+    // must give however it runs the rounds (ahead, two out, resumed).
+    Accumulator round_by_round(const SyntheticImage& image) const {
+        Accumulator out(spec.width, spec.height);
+        EXPECT_TRUE(run_synthetic(*make_strategy(spec.strategy, spec.width, spec.height),
+                                  image, out)
+                        .finished);
+        return out;
+    }
+
     RenderSpec spec;
     RenderSession::Clock::time_point far =
         RenderSession::Clock::now() + std::chrono::hours(1);
@@ -244,15 +262,8 @@ TEST_F(RenderSessionTest, RoundsPlannedAheadGiveTheBuffersOfAStrategyThatPlansIn
     const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
     for (const char* method : {"optimal", "optimal-time"}) {
         SCOPED_TRACE(method);
-        spec.strategy.method = method;
-        spec.strategy.spp = 64;
-        spec.strategy.plan_ahead = 1.0 / 8;
-        Accumulator in_place(40, 40);
-        {
-            StrategyParams p = spec.strategy;
-            const auto strategy = make_strategy(p, 40, 40);
-            ASSERT_TRUE(run_synthetic(*strategy, image, in_place).finished);
-        }
+        plan(method, 1.0 / 8);
+        const Accumulator in_place = round_by_round(image);
         const auto render = [&](const std::optional<Checkpoint>& from,
                                 std::optional<Checkpoint>* last) {
             RenderSession s("r", spec, 0);
@@ -305,14 +316,8 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
     const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
     for (const char* method : {"optimal", "optimal-time"}) {
         SCOPED_TRACE(method);
-        spec.strategy.method = method;
-        spec.strategy.spp = 64;
-        spec.strategy.plan_ahead = 1;  // every steered round planned ahead
-        Accumulator in_place(40, 40);
-        {
-            const auto strategy = make_strategy(spec.strategy, 40, 40);
-            ASSERT_TRUE(run_synthetic(*strategy, image, in_place).finished);
-        }
+        plan(method, 1);  // every steered round planned ahead
+        const Accumulator in_place = round_by_round(image);
         RenderSession s("r", spec, 0);
         s.start();
         struct Out {
@@ -333,16 +338,15 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
         for (int step = 0; s.state() == RenderState::Running; ++step) {
             ASSERT_LT(step, 10000);
             lease_all();
+            const auto give = [&](const Out& o) {  // merged, or held
+                const uint64_t before = s.merged().total_samples();
+                ASSERT_EQ(s.complete(o.lease, "w", image.trace(o.job)).status,
+                          CompleteStatus::Merged);
+                if (s.merged().total_samples() == before) ++held;
+            };
             // All but the oldest come back, newest first.
             const auto all_but_the_oldest = [&] {
-                while (out.size() > 1) {
-                    const uint64_t before = s.merged().total_samples();
-                    const Out o = out.back();
-                    out.pop_back();
-                    ASSERT_EQ(s.complete(o.lease, "w", image.trace(o.job)).status,
-                              CompleteStatus::Merged);
-                    if (s.merged().total_samples() == before) ++held;
-                }
+                for (; out.size() > 1; out.pop_back()) give(out.back());
             };
             all_but_the_oldest();
             // The oldest is the straggler: the round after opens once its plan is made.
@@ -361,14 +365,8 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
                 EXPECT_EQ(s.complete(late.lease, "w", image.trace(late.job)).status,
                           CompleteStatus::Ignored);
             }
-            while (!out.empty()) {  // the straggler first, then what opened after it
-                const uint64_t before = s.merged().total_samples();
-                const Out o = out.front();
-                out.pop_front();
-                ASSERT_EQ(s.complete(o.lease, "w", image.trace(o.job)).status,
-                          CompleteStatus::Merged);
-                if (s.merged().total_samples() == before) ++held;
-            }
+            // The straggler first, then what opened after it.
+            for (; !out.empty(); out.pop_front()) give(out.front());
         }
         EXPECT_EQ(s.state(), RenderState::Done);
         EXPECT_GT(held, 0u);
@@ -383,12 +381,8 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
 // against its worker, and its job is traced again.
 TEST_F(RenderSessionTest, AHeldResultTheMergeRefusesIsTracedAgain) {
     const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
-    spec.strategy.method = "optimal";
-    spec.strategy.spp = 64;
-    spec.strategy.plan_ahead = 1;
-    Accumulator in_place(40, 40);
-    ASSERT_TRUE(
-        run_synthetic(*make_strategy(spec.strategy, 40, 40), image, in_place).finished);
+    plan("optimal", 1);
+    const Accumulator in_place = round_by_round(image);
     RenderSession s("r", spec, 0);
     s.start();
     uint64_t lease = 1;
