@@ -826,12 +826,14 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
         // workers.
         std::optional<LeaseGrant> grant;
         std::vector<RenderSlot*> busy;
+        std::set<std::string> failed;  // renders a plan made ahead failed (issue)
         auto try_issue = [&](RenderSlot& slot) {
             RenderSession& s = *slot.session;
             if (s.state() != RenderState::Running || !s.has_pending()) return;
             std::optional<SampleJob> job = s.issue(
                 lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
                 *alive, options_.failure_policy);
+            if (s.state() == RenderState::Failed) failed.insert(s.id());
             if (job)
                 grant = LeaseGrant{
                     lease_id,        s.id(),
@@ -852,6 +854,10 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
             try_issue(*busy[i]);
         }
         lock.lock();
+        if (!failed.empty()) {  // as complete does for a render its merge failed
+            forget_ended_leases({}, failed);
+            changed();
+        }
         if (grant) {
             lease_render_[lease_id] = {grant->render_id, session};
             changed();
@@ -860,7 +866,8 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
         lease_render_.erase(lease_id);
         // Whatever could give this worker a job (a round planned, a lease given back or
         // expired, a worker lost) changes version_ under this lock: nothing is missed
-        // between the scan above and this wait.
+        // between the scan above and this wait. A round planned ahead whose plan ends on
+        // the session's thread is announced by tick(), within its 200 ms.
         if (!work_ready_.wait_until(lock, deadline,
                                     [&] { return version_ != seen || stopping_; }))
             break;
@@ -892,7 +899,8 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     // render's lock alone.
     CompleteOutcome outcome;
     double round_end = 0, round_end_cpu = 0;
-    bool ended_round = false, waited = false;
+    uint32_t ended = 0;  // rounds this call ended
+    bool waited = false;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
@@ -904,8 +912,11 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         // well; farm_scale runs one render.
         const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
         outcome = s.complete(lease_id, worker, result, *alive, options_.failure_policy);
-        if (s.rounds_done() != rounds_before) {  // this result ended a round
-            ended_round = true;
+        // This result ended a round, or two: the round after it, opened ahead, may have
+        // merged whole by then. The call's time counts as waited through when the round
+        // it left out was not opened ahead.
+        if (s.rounds_done() != rounds_before) {
+            ended = s.rounds_done() - rounds_before;
             round_end =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
                     .count();
@@ -918,7 +929,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     round_end_seconds_ += round_end;
     round_end_cpu_seconds_ += round_end_cpu;
     if (waited) round_end_wait_seconds_ += round_end;
-    if (ended_round) ++rounds_ended_;
+    rounds_ended_ += ended;
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
         samples_merged_ += result.total_samples();
@@ -1135,18 +1146,21 @@ void Coordinator::tick() {
     const auto now = RenderSession::Clock::now();
     std::vector<uint64_t> expired;
     std::set<std::string> finished;
+    bool opened_ahead = false;  // a round planned ahead can be leased now
     for (const SlotPtr& slot : slots) {
         std::lock_guard render(slot->mutex);
-        if (slot->session->finished())
+        if (slot->session->finished()) {
             finished.insert(slot->session->id());
-        else
+        } else {
             for (const uint64_t lease : slot->session->expire(now))
                 expired.push_back(lease);
+            opened_ahead = slot->session->announce_next_round() || opened_ahead;
+        }
     }
     bool retention_due = false, wal_due = false;
     {
         std::lock_guard lock(mutex_);
-        bool any = !expired.empty();
+        bool any = !expired.empty() || opened_ahead;
         forget_ended_leases(expired, finished);
         const int64_t wall = unix_millis_now();
         // Not a structured binding: the lambdas below copy the name, and C++17 (clang's,
@@ -1324,7 +1338,7 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + 16                             // the round's spp; a strategy's per pixel
         + 72                             // optimal's planning, the round ahead
         + 24                             // optimal's weights kept, with their sigma, cost
-        + sizeof(PixelSums) / 4          // results held for a round opened ahead
+        + (sizeof(PixelSums) + 12) / 4   // a round opened ahead: held results, jobs
         + 20;                            // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest

@@ -70,6 +70,8 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     std::vector<PixelRect> rects;
     // A strategy may plan a round with no samples; skip such rounds rather than stall.
     while (true) {
+        // From here on next_spp_ may point at a vector the strategy has moved from and
+        // destroyed: it is never read again (below, only next_data_ is compared).
         round = strategy_->next_round(merged_);
         if (!round) {
             if (next_spp_)
@@ -87,10 +89,10 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     for (size_t j = 0; j < current_jobs_; ++j)
         if (jobs_[j].cut) spare_.push_back(std::move(jobs_[j].job));
     if (next_spp_) {
-        // The round opened ahead: the strategy hands over the counts its jobs were cut
-        // from. Anything else would trace other samples than the render planned.
-        if (round->index != round_index_ + 1 ||
-            (round->spp.data() != next_spp_->data() && round->spp != *next_spp_))
+        // The round opened ahead: the strategy hands over the very vector its jobs were
+        // cut from (moved, so its buffer is the same). Anything else could trace other
+        // samples than the render planned.
+        if (round->index != round_index_ + 1 || round->spp.data() != next_data_)
             throw std::logic_error("the round handed out is not the one opened ahead");
         jobs_.erase(jobs_.begin(), jobs_.begin() + std::ptrdiff_t(current_jobs_));
         // Every lease left is the round after's: the round out has merged.
@@ -99,6 +101,7 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
         for (size_t j : next_pending_) pending_.push_back(j - current_jobs_);
         next_pending_.clear();
         next_spp_ = nullptr;
+        next_data_ = nullptr;
         next_pixels_ = 0;
         opened_ahead_ = true;
     } else {
@@ -116,6 +119,7 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     current_jobs_ = jobs_.size();
     merged_jobs_ = 0;
     next_tried_ = false;
+    announced_ = false;
     round_index_ = round->index;
     round_samples_ = round->total();
     round_ = std::move(*round);
@@ -167,6 +171,7 @@ void RenderSession::open_next_round() {
         round_tiles(*spp, merged_.width(), merged_.height());
     if (rects.empty()) return;
     next_spp_ = spp;
+    next_data_ = spp->data();
     for (const PixelRect& rect : rects) {
         next_pending_.push_back(jobs_.size());
         JobSlot slot;
@@ -495,6 +500,7 @@ void RenderSession::finish(RenderState state) {
     state_ = state;
     pending_.clear();
     next_pending_.clear();
+    next_spp_ = nullptr;
     lease_to_job_.clear();
     for (JobSlot& slot : jobs_) slot.held.reset();
     if (on_finished) on_finished(*this);

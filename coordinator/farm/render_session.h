@@ -99,6 +99,17 @@ public:
         return !pending_.empty() || !next_pending_.empty() ||
                (!next_spp_ && !next_tried_ && work_ahead_.valid());
     }
+    // True once a round, when the next issue would look at a plan made ahead that is
+    // now done (every job of the round out leased, the plan's work ended). Nothing else
+    // tells workers waiting for a job that one may be there: the Coordinator's tick asks,
+    // and wakes them.
+    bool announce_next_round() {
+        if (announced_ || state_ != RenderState::Running || !pending_.empty() ||
+            next_spp_ || next_tried_ || !work_ahead_.valid() ||
+            work_ahead_.wait_for(std::chrono::seconds(0)) != std::future_status::ready)
+            return false;
+        return announced_ = true;
+    }
     bool finished() const { return is_terminal(state_); }
     // (worker, "render/job") for each lease out.
     std::vector<std::pair<std::string, std::string>> leases() const;
@@ -199,9 +210,11 @@ private:
     // results of at most a quarter of the image (next_pixels_, leased or held).
     size_t current_jobs_ = 0;
     const std::vector<uint32_t>* next_spp_ = nullptr;
+    const uint32_t* next_data_ = nullptr;  // its buffer, which next_round hands over
     std::deque<size_t> next_pending_;
     size_t next_pixels_ = 0;
     bool next_tried_ = false;  // the round out's work ahead has been looked at
+    bool announced_ = false;   // ... or announce_next_round said it could be
     bool opened_ahead_ = false;
     std::unordered_map<uint64_t, size_t> lease_to_job_;
     size_t merged_jobs_ = 0;

@@ -418,7 +418,9 @@ TEST_F(RenderSessionTest, AHeldResultTheMergeRefusesIsTracedAgain) {
         }
         ASSERT_EQ(s.complete(out[0].first, "w", image.trace(out[0].second)).status,
                   CompleteStatus::Merged);
-        if (poisoned) EXPECT_LE(s.failures_of("w"), 1u);
+        if (poisoned) {
+            EXPECT_LE(s.failures_of("w"), 1u);
+        }
     }
     EXPECT_TRUE(poisoned);
     EXPECT_EQ(s.failures_of("w"), 1u);
