@@ -60,6 +60,13 @@ protected:
         return out;
     }
 
+    // Bit for bit.
+    static void expect_same_buffers(const Accumulator& got, const Accumulator& want) {
+        ASSERT_EQ(got.pixel_count(), want.pixel_count());
+        for (size_t i = 0; i < want.pixel_count(); ++i)
+            ASSERT_EQ(got.at(i), want.at(i)) << i;
+    }
+
     RenderSpec spec;
     RenderSession::Clock::time_point far =
         RenderSession::Clock::now() + std::chrono::hours(1);
@@ -371,18 +378,71 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
         EXPECT_EQ(s.state(), RenderState::Done);
         EXPECT_GT(held, 0u);
         EXPECT_EQ(expired, 1u);
-        for (size_t i = 0; i < in_place.pixel_count(); ++i)
-            ASSERT_EQ(s.merged().at(i), in_place.at(i)) << i;
+        expect_same_buffers(s.merged(), in_place);
     }
+}
+
+// optimal planning every steered round ahead on a banded image, and the buffers it must
+// give.
+class TwoRoundsOutTest : public RenderSessionTest {
+protected:
+    TwoRoundsOutTest() {
+        plan("optimal", 1);
+        in_place = round_by_round(image);
+    }
+    const SyntheticImage image{40, 40, 7, {0.5, 0.3, 1, 0.01, 20}};
+    Accumulator in_place;
+};
+
+// The round after's jobs leased or held cover at most a quarter of the image: a round-k
+// job that does not come back cannot make the coordinator hold a whole round.
+TEST_F(TwoRoundsOutTest, WhatTheRoundAfterHoldsIsAQuarterOfTheImageAtMost) {
+    RenderSession s("r", spec, 0);
+    s.start();
+    uint64_t lease = 1;
+    size_t capped = 0;
+    const auto lease_all = [&](std::vector<std::pair<uint64_t, SampleJob>>& out) {
+        size_t n = 0;
+        for (; auto job = s.issue(lease, "w", far); ++n) out.emplace_back(lease++, *job);
+        return n;
+    };
+    const auto give = [&](const std::pair<uint64_t, SampleJob>& o) {
+        ASSERT_EQ(s.complete(o.first, "w", image.trace(o.second)).status,
+                  CompleteStatus::Merged);
+    };
+    for (int step = 0; s.state() == RenderState::Running; ++step) {
+        ASSERT_LT(step, 10000);
+        std::vector<std::pair<uint64_t, SampleJob>> out, after;
+        lease_all(out);
+        ASSERT_FALSE(out.empty());
+        for (size_t k = 1; k < out.size(); ++k) give(out[k]);
+        // The first is out: lease what the round after allows, all of it held back.
+        for (int spin = 0; spin < 2000 && lease_all(after) == 0 && s.has_pending();
+             ++spin)
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        size_t pixels = 0;
+        for (const auto& o : after) pixels += o.second.rect.size();
+        if (after.size() > 1) {
+            EXPECT_LE(pixels, 40u * 40 / 4);
+        }
+        for (const auto& o : after) give(o);  // held: they still count
+        std::vector<std::pair<uint64_t, SampleJob>> more;
+        if (!after.empty()) {
+            EXPECT_EQ(lease_all(more), 0u);
+            capped += s.has_pending();  // jobs were left: the cap held them back
+        }
+        give(out[0]);
+        for (const auto& o : more) give(o);
+    }
+    EXPECT_GT(capped, 0u);
+    EXPECT_EQ(s.state(), RenderState::Done);
+    expect_same_buffers(s.merged(), in_place);
 }
 
 // A held result is checked when it comes, but only its merge, after the round before's,
 // can refuse sums that would stop being finite: it is then a rejected result, counted
 // against its worker, and its job is traced again.
-TEST_F(RenderSessionTest, AHeldResultTheMergeRefusesIsTracedAgain) {
-    const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
-    plan("optimal", 1);
-    const Accumulator in_place = round_by_round(image);
+TEST_F(TwoRoundsOutTest, AHeldResultTheMergeRefusesIsTracedAgain) {
     RenderSession s("r", spec, 0);
     s.start();
     uint64_t lease = 1;
@@ -425,8 +485,7 @@ TEST_F(RenderSessionTest, AHeldResultTheMergeRefusesIsTracedAgain) {
     EXPECT_TRUE(poisoned);
     EXPECT_EQ(s.failures_of("w"), 1u);
     EXPECT_EQ(s.state(), RenderState::Done);
-    for (size_t i = 0; i < in_place.pixel_count(); ++i)
-        ASSERT_EQ(s.merged().at(i), in_place.at(i)) << i;
+    expect_same_buffers(s.merged(), in_place);
 }
 
 // A strategy whose plan, made ahead on the session's thread, throws (as a plan that
