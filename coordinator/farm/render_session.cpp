@@ -144,12 +144,10 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
             why = e.what();
         }
         slot.held.reset();
-        if (why.empty()) {
+        if (why.empty())
             ++merged_jobs_;
-        } else {
-            slot.done = false;
+        else
             count_failure(j, slot.worker, "result rejected: " + why, alive, policy);
-        }
     }
 }
 
@@ -181,9 +179,12 @@ void RenderSession::open_next_round() {
 }
 
 std::vector<const SampleJob*> RenderSession::unmerged_jobs() const {
+    // A job of the round out not merged is leased or pending: a few, where its jobs can
+    // be thousands.
     std::vector<const SampleJob*> out;
-    for (size_t j = 0; j < current_jobs_; ++j)
-        if (!jobs_[j].done) out.push_back(&jobs_[j].job);
+    for (const auto& [lease, j] : lease_to_job_)
+        if (j < current_jobs_) out.push_back(&jobs_[j].job);
+    for (size_t j : pending_) out.push_back(&jobs_[j].job);
     return out;
 }
 
@@ -323,7 +324,6 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
         count_failure(j, worker, "result rejected: " + why, alive, policy);
         return {CompleteStatus::Rejected, why};
     }
-    slot.done = true;
     if (ahead) {
         slot.held = result;
         return {CompleteStatus::Merged, {}};

@@ -149,8 +149,7 @@ private:
         Clock::time_point deadline;
         std::vector<std::string> failed_on;  // distinct workers it failed on, this round
         uint32_t failures = 0;               // failures in all
-        bool cut = false;   // job holds its counts and first samples, not only its rect
-        bool done = false;  // its result merged, or (the round after's) is held
+        bool cut = false;  // job holds its counts and first samples, not only its rect
         std::optional<SampleJobResult> held;  // the round after's, until it merges
     };
 
