@@ -9,6 +9,7 @@
 
 #include "allocation.h"
 #include "bands.h"
+#include "cube_root.h"
 
 // Why n_i ∝ sigma_i^(2/3). The mean of n_i samples of pixel i has standard deviation
 // sigma_i / sqrt(n_i), and for a near-normal error its expected absolute value is
@@ -493,8 +494,6 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
 void OptimalStrategy::prepare_buffers() {
     const size_t pixels = size_t(width_) * height_;
     // NaN: no sigma is equal to it, so every weight is computed at first.
-    weight_sigma_.assign(pixels, std::numeric_limits<double>::quiet_NaN());
-    weight_cost_.assign(cost_aware_ ? pixels : 0, 0.0);
     weight_.assign(pixels, 0.0);
     Planning& b = planning_;
     b.variance.resize(pixels);
@@ -563,42 +562,40 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
                     : remaining;
     }
 
-    // The weights live in weight_ between rounds (see the header).
     estimate_sigma(b, width_, height_, sigma_radius_, sigma_prior_);
     const std::vector<double>& sigma = b.sigma;
     if (weight_.size() != pixels) prepare_buffers();
     std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
+    // w_i = r_i^(2/3) = cbrt(r_i^2), r_i = sigma_i (optimal-time: sigma_i / c_i), in
+    // loops without branches, which the compiler vectorises (cube_root.h).
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        bool any = false;
-        // The pixels held up by the image's floor share one sigma, which moves every
-        // round: the band's last computed weight answers them (on cornell-box about
-        // half of the pixels whose sigma changed).
-        double last_sigma = std::numeric_limits<double>::quiet_NaN(), last_cost = 0,
-               last_weight = 0;
-        for (size_t i = begin; i < end; ++i) {
-            const double c = cost_aware_ ? cost[i] : 0.0;
-            if (sigma[i] != weight_sigma_[i] || (cost_aware_ && weight_cost_[i] != c)) {
-                if (!(sigma[i] == last_sigma && c == last_cost)) {
-                    last_sigma = sigma[i];
-                    last_cost = c;
-                    const double r = cost_aware_ ? sigma[i] / c : sigma[i];
-                    last_weight = std::cbrt(r * r);
-                }
-                weight_[i] = last_weight;
-                weight_sigma_[i] = sigma[i];
-                if (cost_aware_) weight_cost_[i] = c;
-            }
-            any = any || weight_[i] > 0;
-        }
-        band_any[band] = any;
+        const auto weigh = [&](const auto& square) {
+            for (size_t i = begin; i < end; ++i)
+                weight_[i] = inverse_cube_root_guess(square(i));
+            for (size_t i = begin; i < end; ++i)
+                weight_[i] = cube_root_from_guess(square(i), weight_[i]);
+            long odd = 0;
+            for (size_t i = begin; i < end; ++i)
+                odd |= long(!cube_root_steps_hold(square(i)));
+            if (odd)  // 0, a subnormal, infinity or NaN
+                for (size_t i = begin; i < end; ++i)
+                    if (!cube_root_steps_hold(square(i)))
+                        weight_[i] = std::cbrt(square(i));
+        };
+        if (cost_aware_)
+            weigh([&](size_t i) { return (sigma[i] / cost[i]) * (sigma[i] / cost[i]); });
+        else
+            weigh([&](size_t i) { return sigma[i] * sigma[i]; });
+        long any = 0;
+        for (size_t i = begin; i < end; ++i) any |= long(weight_[i] > 0);
+        band_any[band] = char(any);
     });
     const bool noise_seen =
         std::find(band_any.begin(), band_any.end(), 1) != band_any.end();
 
     // The round closes the gap between what each pixel has and its target; pixels already
     // past their target get nothing, so the gaps are scaled to the share.
-    // With no noise seen anywhere every pixel weighs the same (weight_ is left as
-    // computed, so that what it keeps stays a function of sigma and cost).
+    // With no noise seen anywhere every pixel weighs the same.
     std::vector<double>& gap = b.gap;
     optimal_counts(noise_seen ? weight_ : std::vector<double>(pixels, 1.0), cost,
                    spent + share, double(min_spp_), double(cap_), gap);

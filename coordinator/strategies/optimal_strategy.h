@@ -112,12 +112,9 @@ private:
     bool piloted_ = false;
     bool finished_ = false;
 
-    // Each pixel's weight as the last round end computed it, with the sigma (and cost) it
-    // was computed from: a weight is a function of those alone, so where they have not
-    // changed (most pixels of a late steered round, which gives samples to few) the
-    // `cbrt` is not taken again. The same bits as computing every weight; nothing of it
-    // is saved with the render.
-    std::vector<double> weight_sigma_, weight_cost_, weight_;
+    // Each pixel's weight (sigma_i / c_i)^(2/3), written by each plan: kept only so that
+    // its 16 MB at 1920x1080 are not taken fresh every round end.
+    std::vector<double> weight_;
 
     Planning planning_;
 
