@@ -277,7 +277,9 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     const size_t n = weights.size();
     std::vector<uint32_t> count(n, 0);
     if (!(total > 0)) return count;
-    const auto keep = [&](size_t i) { return weights[i] > 0 && caps[i] > 0; };
+    // Without a branch: which items are kept is as unpredictable as which pixels' gaps
+    // are 0, and the passes below take no branch on it where they need not.
+    const auto keep = [&](size_t i) { return (weights[i] > 0) & (caps[i] > 0); };
 
     // The passes over every item run in bands on the pool's threads (bands.h); what is
     // summed in floating point is summed in item order within each band and the bands'
@@ -317,19 +319,21 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             }
             double cheapest = unit ? 1.0 : HUGE_VAL, spent = 0;
             bool capped = false;
+            // Every item is visited alike: one not kept has a share of 0 and adds 0
+            // everywhere, which leaves each sum as it was, bit for bit.
             for (size_t i = begin; i < end; ++i) {
-                if (!keep(i)) continue;
-                const double s = share(i), whole = std::floor(s);
-                if (check_caps) capped = capped || s >= caps[i];
+                const bool k = keep(i);
+                const double s = k ? share(i) : 0.0, whole = std::floor(s);
+                if (check_caps) capped = capped | (k & (s >= caps[i]));
                 count[i] = uint32_t(std::min(whole, double(caps[i])));
                 floors += count[i];
-                ++kept;
-                if (!one_band) ++h[fraction_bucket(s - whole)];
+                kept += k;
+                if (!one_band) h[fraction_bucket(s - whole)] += k;
                 if (!unit) {
-                    cheapest = std::min(cheapest, cost(i));
-                    spent += cost(i) * count[i];
-                    if (spend)
-                        spend[run_of_bucket(fraction_bucket(s - whole))] += cost(i);
+                    const double c = k ? cost(i) : 0.0;
+                    cheapest = std::min(cheapest, k ? c : HUGE_VAL);
+                    spent += c * count[i];
+                    if (spend) spend[run_of_bucket(fraction_bucket(s - whole))] += c;
                 }
             }
             band_floors[band] = floors;
@@ -356,7 +360,11 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // The kept items whose fractions fall in `bucket`, in item order, with the ranges
     // of their fractions and hashes; the others in a bucket above it (larger fractions)
     // are passed to `above`.
-    const auto gather = [&](size_t bucket, const auto& above) {
+    // The kept items whose fractions fall in `bucket`, in item order, with the ranges
+    // of their fractions and hashes; those in a bucket above it (larger fractions) get
+    // one more unit each (below their caps), without a branch, and are counted in
+    // `band_given`.
+    const auto gather = [&](size_t bucket, std::vector<size_t>& band_given) {
         std::vector<size_t> offset(bands + 1, 0);
         for (size_t b = 0; b < bands; ++b)
             offset[b + 1] = offset[b] + histogram[b][bucket];
@@ -364,18 +372,21 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         tied.items.resize(offset[bands]);
         std::vector<Tied> band_tied(bands);
         for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-            size_t t = offset[band];
+            size_t t = offset[band], given = 0;
             for (size_t i = begin; i < end; ++i) {
-                if (!keep(i)) continue;
-                const double f = order.fraction(i);
+                const bool k = keep(i);
+                const double s = k ? share(i) : 0.0,
+                             f = s - std::floor(s);  // fraction(i)
                 const size_t b = fraction_bucket(f);
-                if (b == bucket) {
+                if (k & (b == bucket)) {  // a few of every band
                     tied.items[t++] = i;
                     band_tied[band].note(bits_of(f), mix64(i));
-                } else if (b > bucket) {
-                    above(band, i);
                 }
+                const bool up = k & (b > bucket) & (count[i] < caps[i]);
+                count[i] += up;
+                given += up;
             }
+            band_given[band] = given;
         });
         for (const Tied& t : band_tied) tied.note(t);
         return tied;
@@ -391,9 +402,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
             wanted -= m;
         }
         std::vector<size_t> band_given(bands, 0);
-        Tied tied = gather(bucket, [&](size_t band, size_t i) {
-            band_given[band] += give(i, count, caps);
-        });
+        Tied tied = gather(bucket, band_given);
         size_t given = give_to_first(std::move(tied), wanted, order, count, caps);
         for (size_t g : band_given) given += g;
         return given;

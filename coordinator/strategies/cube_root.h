@@ -34,7 +34,8 @@ inline double inverse_cube_root_guess(double x) {
 
 // x^(1/3) from the guess y above.
 inline double cube_root_from_guess(double x, double y) {
-    for (int step = 0; step < 4; ++step) y = y * (4.0 / 3.0 - x * y * y * y * (1.0 / 3.0));
+    for (int step = 0; step < 4; ++step)
+        y = y * (4.0 / 3.0 - x * y * y * y * (1.0 / 3.0));
     return x * y * y;
 }
 
