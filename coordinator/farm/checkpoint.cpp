@@ -36,7 +36,11 @@ void write_checkpoint_file(const std::filesystem::path& tmp, const Checkpoint& c
     const std::string state = cp.strategy_state.dump();
     put(out, uint64_t(state.size()));
     out.write(state.data(), std::streamsize(state.size()));
-    for (size_t i = 0; i < cp.merged.pixel_count(); ++i) put(out, cp.merged.at(i));
+    // The pixels as they lie in memory, in one write: put() per pixel spent ~20 ns each
+    // (2 M calls at 1920x1080) on the round end's cores. The same bytes.
+    if (const size_t n = cp.merged.pixel_count())
+        out.write(reinterpret_cast<const char*>(&cp.merged.at(0)),
+                  std::streamsize(n * sizeof(PixelSums)));
     out.flush();
     if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
 }
