@@ -141,16 +141,13 @@ std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
 }
 
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
-                                 uint32_t tile, std::vector<SampleJob> spare) {
+                                 uint32_t tile) {
     const std::vector<PixelRect> rects =
         round_tiles(round, merged.width(), merged.height(), tile);
     std::vector<SampleJob> jobs(rects.size());
-    // A band of 16 jobs is 16 K pixels at the smallest automatic tile; job k takes
-    // spare[k]'s vectors when there is one.
+    // A band of 16 jobs is 16 K pixels at the smallest automatic tile.
     for_each_band(rects.size(), 16, [&](size_t, size_t begin, size_t end) {
-        for (size_t k = begin; k < end; ++k)
-            jobs[k] = cut_job(rects[k], round, merged,
-                              k < spare.size() ? std::move(spare[k]) : SampleJob{});
+        for (size_t k = begin; k < end; ++k) jobs[k] = cut_job(rects[k], round, merged);
     });
     return jobs;
 }

@@ -18,12 +18,10 @@ inline constexpr uint32_t kMinAutoTile = 16;
 inline constexpr size_t kMinJobsPerRound = 16;
 inline constexpr uint64_t kJobSamples = uint64_t(1) << 18;
 
-// `spare`: jobs no longer needed (the previous round's), whose vectors the new jobs take
-// over: their pages are already the process's, where fresh ones (freed at the round's
-// end, then faulted in again by the next cut) were most of cutting's time at 1920x1080.
-// The jobs are the same with or without them.
+// Every job of a round at once (the tests', the studies' and round_digest's way; the
+// farm cuts each job when it is first leased, handing cut_job a spent job's vectors).
 std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
-                                 uint32_t tile = 0, std::vector<SampleJob> spare = {});
+                                 uint32_t tile = 0);
 
 // cut_round in two steps. The rectangles of the round's jobs, in issue order (one pass
 // over the round's counts)...
@@ -36,7 +34,8 @@ inline std::vector<PixelRect> round_tiles(const Round& round, uint32_t width,
 // ...and one job, its counts and first sample indices. The farm cuts each job when it is
 // first leased, not all at the round's end: the jobs of a round cover disjoint pixels, so
 // until a job merges no other job changes what its pixels have, and it is the job cut at
-// the round's end. `spare`'s vectors are reused.
+// the round's end. `spare`'s vectors (a spent job's) are reused: their pages are already
+// the process's, where fresh ones were most of cutting's time at 1920x1080.
 SampleJob cut_job(const PixelRect& rect, const std::vector<uint32_t>& spp,
                   const Accumulator& merged, SampleJob spare = {});
 inline SampleJob cut_job(const PixelRect& rect, const Round& round,

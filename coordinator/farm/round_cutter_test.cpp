@@ -76,8 +76,13 @@ TEST(RoundCutter, JobsCutIntoSpareJobsAreTheJobsCutAfresh) {
         spare[k].first_sample.assign(k % 2 ? 5000 : 3, 12345);
     }
     const std::vector<SampleJob> fresh = cut_round(round, acc, 32);
-    const std::vector<SampleJob> reused = cut_round(round, acc, 32, std::move(spare));
-    ASSERT_EQ(reused.size(), fresh.size());
+    const std::vector<PixelRect> rects = round_tiles(round, 160, 96, 32);
+    ASSERT_EQ(rects.size(), fresh.size());
+    ASSERT_GT(rects.size(), spare.size());
+    std::vector<SampleJob> reused;
+    for (size_t j = 0; j < rects.size(); ++j)
+        reused.push_back(cut_job(rects[j], round, acc,
+                                 j < spare.size() ? std::move(spare[j]) : SampleJob{}));
     for (size_t j = 0; j < fresh.size(); ++j) {
         EXPECT_EQ(reused[j].rect, fresh[j].rect) << "job " << j;
         EXPECT_EQ(reused[j].counts, fresh[j].counts) << "job " << j;
