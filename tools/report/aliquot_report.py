@@ -509,8 +509,9 @@ def conclude_near_bound(study, c):
         worst = max(ratios) if ratios else float("inf")
         ok += worst <= 1 + within
         parts.append(f"{fmt(int(round(b[i].mean('samples'))))}: {fmt_ratio(ratios)}")
+    # The check is one-sided, and "within 0 %" (never above the bound) read as a typo.
     text = (
-        f"E ÷ {c['bound']} E within {within * 100:.0f} % for every seed at **{ok} of {n}** budgets "
+        f"E ÷ {c['bound']} E at most {1 + within:g} for every seed at **{ok} of {n}** budgets "
         "(mean over seeds, worst seed in brackets): " + "; ".join(parts) + ". "
     )
     return text, ok == n and n > 0
