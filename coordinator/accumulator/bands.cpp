@@ -156,6 +156,8 @@ void for_each_band(size_t items, size_t band,
     pool().run(items, band, fn);
 }
 
+void keep_passes_on_this_thread() { in_pass = true; }  // never reset on this thread
+
 unsigned band_threads() { return pool().threads(); }
 
 void set_band_threads(unsigned threads) { pool().set_threads(threads); }

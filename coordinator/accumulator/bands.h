@@ -30,6 +30,12 @@ inline size_t band_count(size_t items, size_t band) {
 void for_each_band(size_t items, size_t band,
                    const std::function<void(size_t index, size_t begin, size_t end)>& fn);
 
+// From now on, passes started on the calling thread run on it alone, as a pass inside a
+// pass does: for a background thread (the record writer's, at a low priority), whose
+// passes must not take the pool from a round end, nor start the pool's threads, which
+// would inherit its priority.
+void keep_passes_on_this_thread();
+
 // Threads that run bands, the caller's included; the machine's hardware threads unless
 // set. set_band_threads(1) runs everything on the caller (tests compare it with more).
 unsigned band_threads();

@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <exception>
 
+#include "bands.h"
+
 namespace aliquot {
 
 namespace {
@@ -115,6 +117,7 @@ void RecordBacklog::writer_main() {
     // weighs a tenth of a normal thread where the CPU is contended and nothing where it
     // is not, so the writes still go on under full load. (Linux: a thread's own nice.)
     setpriority(PRIO_PROCESS, id_t(gettid()), kWriterNice);
+    keep_passes_on_this_thread();  // threads it started would inherit its nice
     std::unique_lock lock(mutex_);
     while (true) {
         if (queue_.empty()) {
