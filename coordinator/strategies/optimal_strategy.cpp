@@ -502,7 +502,6 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
 
 void OptimalStrategy::prepare_buffers() {
     const size_t pixels = size_t(width_) * height_;
-    // NaN: no sigma is equal to it, so every weight is computed at first.
     weight_.assign(pixels, 0.0);
     Planning& b = planning_;
     b.variance.resize(pixels);
