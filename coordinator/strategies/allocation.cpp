@@ -358,9 +358,6 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         return m;
     };
     // The kept items whose fractions fall in `bucket`, in item order, with the ranges
-    // of their fractions and hashes; the others in a bucket above it (larger fractions)
-    // are passed to `above`.
-    // The kept items whose fractions fall in `bucket`, in item order, with the ranges
     // of their fractions and hashes; those in a bucket above it (larger fractions) get
     // one more unit each (below their caps), without a branch, and are counted in
     // `band_given`.
