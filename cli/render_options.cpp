@@ -54,7 +54,9 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
         ->capture_default_str();
     cmd.add_option("--plan-ahead", s.plan_ahead,
                    "optimal: plan the round after a steered round of at most this "
-                   "share of the budget while that round is traced (0: never)")
+                   "share of the budget while that round is traced; at least the "
+                   "pilot's share (1/2): the pilot in two halves, no round planned in "
+                   "place, for large farms (0: never)")
         ->capture_default_str();
     cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
         ->capture_default_str();

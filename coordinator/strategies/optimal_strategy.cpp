@@ -210,6 +210,11 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       plan_ahead_(p.plan_ahead),
       cost_aware_(cost_aware) {
     min_spp_ = std::min(min_spp_, cap_);  // a floor from the budget never passes max_spp
+    const size_t pixels = std::max<size_t>(size_t(width) * height, 1);
+    pilot_spp_ = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
+    // Each half needs two samples for a variance.
+    split_pilot_ = pilot_spp_ >= 4 &&
+                   double(pilot_spp_) * double(pixels) <= plan_ahead_ * double(budget_);
 }
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
@@ -442,8 +447,9 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     if (work_ahead_) std::exchange(work_ahead_, nullptr)();  // not taken: done here
     if (finished_) return std::nullopt;
     Round round{rounds_, {}};
-    double share = 0;        // what a steered round spends of the limit
-    bool read_here = false;  // planning_ holds what `merged` holds now
+    double share = 0;         // what a steered round spends of the limit
+    bool read_here = false;   // planning_ holds what `merged` holds now
+    bool pilot_half = false;  // the pilot's second half: the first plan is made ahead
     if (!piloted_) {
         round.spp = pilot_round();
         // The first steered round end would take its ~150 MB of buffers (at 1920x1080)
@@ -477,6 +483,7 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         round.spp = std::move(steered.spp);
         share = steered.share;
         out_spends_rest_ = steered.spends_rest;
+        pilot_half = steered.pilot;
     }
     const uint64_t total = round.total();
     if (total == 0) {
@@ -485,7 +492,7 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     }
     issued_ += total;
     ++rounds_;
-    if (share > 0 && share <= plan_ahead_ * limit()) {
+    if (pilot_half || (share > 0 && share <= plan_ahead_ * limit())) {
         // A round planned here leaves in planning_ what the next plan would read again
         // (its only change, non-finite variances made the largest, is one the next plan
         // makes too): the round out is all that plan lacks. ~10 ms of this round end at
@@ -494,6 +501,9 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
             planning_.in_flight = round.spp;
         else
             read_merged(merged, cost_aware_, round.spp, planning_);
+        // The first plan, made ahead: the ray budget from the pilot's first half.
+        if (cost_aware_ && ray_budget_ == 0)
+            ray_budget_ = double(budget_) * planning_.mean_cost;
         ahead_pending_ = true;
         work_ahead_ = [this] { ahead_ = steered_round(); };
     }
@@ -520,7 +530,16 @@ std::function<void()> OptimalStrategy::take_work_ahead() {
 std::vector<uint32_t> OptimalStrategy::pilot_round() {
     piloted_ = true;
     const size_t pixels = size_t(width_) * height_;
-    const uint64_t pilot = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
+    const uint64_t pilot = pilot_spp_;
+    if (split_pilot_) {
+        const uint64_t first = pilot / 2;
+        Steered second;
+        second.spp.assign(pixels, uint32_t(pilot - first));
+        second.pilot = true;
+        ahead_ = std::move(second);
+        ahead_pending_ = true;
+        return std::vector<uint32_t>(pixels, uint32_t(first));
+    }
     if (pilot > 0) return std::vector<uint32_t>(pixels, uint32_t(pilot));
     // Less than a sample per pixel: nothing can be estimated, so the budget is spread
     // evenly (hash-ordered, not the first rows) in one round.
@@ -564,7 +583,9 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
     // the small ones.
     double share = std::min(remaining, std::max(spent, 1.0));
     if (steer_rounds_ > 0) {
-        const uint32_t steered = rounds_ > 0 ? rounds_ - 1 : 0;  // round 0 is the pilot
+        // The pilot is round 0 (and 1, when split).
+        const uint32_t pilot_rounds = split_pilot_ ? 2 : 1;
+        const uint32_t steered = rounds_ > pilot_rounds ? rounds_ - pilot_rounds : 0;
         share = steered + 1 < steer_rounds_
                     ? std::min(share, std::max(1.0, std::floor(remaining / 2)))
                     : remaining;
@@ -620,6 +641,23 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
     return {apportion(gap, share, room, cost, &b.apportion), share, share >= remaining};
 }
 
+void OptimalStrategy::restore_planned_round(std::vector<uint32_t> spp) {
+    // None given where the state holds one: next_round finds it never made.
+    if (spp.empty()) return;
+    if (!restored_ahead_)
+        throw std::runtime_error(name() +
+                                 ": a round planned ahead that its state does not hold");
+    const size_t pixels = size_t(width_) * height_;
+    if (spp.size() != pixels ||
+        std::any_of(spp.begin(), spp.end(), [&](uint32_t s) { return s > cap_; }))
+        throw std::runtime_error(name() +
+                                 ": the round planned ahead does not fit the render");
+    Steered round = std::move(*restored_ahead_);
+    restored_ahead_.reset();
+    round.spp = std::move(spp);
+    ahead_ = std::move(round);
+}
+
 nlohmann::json OptimalStrategy::outcome() const {
     nlohmann::json out = {{"budget", budget_}, {"samples", issued_}, {"rounds", rounds_}};
     if (cost_aware_)
@@ -630,9 +668,17 @@ nlohmann::json OptimalStrategy::outcome() const {
 }
 
 nlohmann::json OptimalStrategy::save_state() const {
-    return {{"ray_budget", ray_budget_}, {"rounds", rounds_},
-            {"issued", issued_},         {"piloted", piloted_},
-            {"finished", finished_},     {"spends_rest", out_spends_rest_}};
+    nlohmann::json state = {
+        {"ray_budget", ray_budget_}, {"rounds", rounds_},
+        {"issued", issued_},         {"piloted", piloted_},
+        {"finished", finished_},     {"spends_rest", out_spends_rest_}};
+    // A round planned ahead and made: what it spends; its counts are the checkpoint's
+    // (round_planned_ahead), too large for this state.
+    if (ahead_pending_ && ahead_)
+        state["ahead"] = {{"share", ahead_->share},
+                          {"spends_rest", ahead_->spends_rest},
+                          {"pilot", ahead_->pilot}};
+    return state;
 }
 
 void OptimalStrategy::restore_state(const nlohmann::json& state) {
@@ -641,10 +687,21 @@ void OptimalStrategy::restore_state(const nlohmann::json& state) {
     issued_ = state.at("issued").get<uint64_t>();
     piloted_ = state.at("piloted").get<bool>();
     finished_ = state.at("finished").get<bool>();
-    // A state is saved only where no round is planned ahead (holds_planned_round).
     work_ahead_ = nullptr;
     ahead_.reset();
-    ahead_pending_ = false;
+    // Saved while a round planned ahead was held: it is pending until its counts come
+    // back (restore_planned_round); a next_round without them is an error, not a plan
+    // from other buffers.
+    ahead_pending_ = state.contains("ahead");
+    restored_ahead_.reset();
+    if (ahead_pending_) {
+        const nlohmann::json& a = state.at("ahead");
+        Steered meta;
+        meta.share = a.at("share").get<double>();
+        meta.spends_rest = a.at("spends_rest").get<bool>();
+        meta.pilot = a.at("pilot").get<bool>();
+        restored_ahead_ = std::move(meta);
+    }
     // States saved before it existed: a round end that follows the last round then
     // plans the rest of optimal-time's rays, as it did.
     out_spends_rest_ = state.value("spends_rest", false);

@@ -24,6 +24,7 @@ public:
     uint64_t planned_samples() const override { return budget_; }
     nlohmann::json save_state() const override;
     void restore_state(const nlohmann::json& state) override;
+    void restore_planned_round(std::vector<uint32_t> spp) override;
     nlohmann::json outcome() const override;
 
     // optimal-time's budget in rays (budget * the pilot's mean rays per sample); 0 before
@@ -77,6 +78,7 @@ private:
         std::vector<uint32_t> spp;
         double share = 0;
         bool spends_rest = false;  // share is all that was left
+        bool pilot = false;        // the pilot's second half, planned by no one
     };
 
     // Copies what a plan reads of `merged` into `b`, with `in_flight` (a round out, or
@@ -93,7 +95,8 @@ private:
 
     // Sizes (and so touches) the weights kept and the planning buffers.
     void prepare_buffers();
-    // The first round: min_spp everywhere, the estimates' foundation.
+    // The first round: min_spp everywhere, the estimates' foundation; its first half
+    // when the pilot is split (split_pilot_), the second then held in ahead_.
     std::vector<uint32_t> pilot_round();
     // A later round from what read_merged copied into planning_.
     Steered steered_round();
@@ -105,6 +108,12 @@ private:
     uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_, steer_rounds_;
     double plan_ahead_;
     bool cost_aware_;
+    // The pilot's samples a pixel, and whether it is traced in two rounds of half each so
+    // that the first steered round is planned, from the first half, while the second is
+    // traced: when the pilot's share of the budget is at most plan_ahead (docs/
+    // STRATEGIES.md, "Planning ahead"). Both follow from the parameters alone.
+    uint64_t pilot_spp_;
+    bool split_pilot_;
 
     double ray_budget_ = 0;
     uint32_t rounds_ = 0;
@@ -126,6 +135,8 @@ private:
     std::optional<Steered> ahead_;
     bool ahead_pending_ = false;
     bool out_spends_rest_ = false;  // the last round handed out spends all that was left
+    // What a restored state says of its round planned ahead, until its counts come back.
+    std::optional<Steered> restored_ahead_;
 };
 
 }  // namespace aliquot

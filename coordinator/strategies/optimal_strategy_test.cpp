@@ -475,9 +475,53 @@ TEST(Optimal, TheRoundAfterASmallSteeredRoundIsPlannedAhead) {
         (std::vector<bool>{false, false, false, false, true, true, true, true, true}));
     p.plan_ahead = 0;
     EXPECT_EQ(held_after_each_round(p), std::vector<bool>(9, false));
-    p.plan_ahead = 1;  // every steered round; never across the pilot
+    p.plan_ahead = 1.0 / 4;  // every steered round after the first
     EXPECT_EQ(held_after_each_round(p),
               (std::vector<bool>{false, true, true, true, true, true, true, true, true}));
+    // The pilot's share (1/2) too: the pilot in two halves of 8 spp, and every steered
+    // round planned ahead, the first from the pilot's first half.
+    p.plan_ahead = 1.0 / 2;
+    EXPECT_EQ(held_after_each_round(p), std::vector<bool>(10, true));
+}
+
+TEST(Optimal, ASplitPilotPlansTheFirstSteeredRoundFromItsFirstHalf) {
+    // The pilot's halves are uniform and the render spends its budget as an unsplit one
+    // does; the first steered round is the plan of a pilot of 8 spp with 8 more counted
+    // as had, so it is not the unsplit render's first steered round.
+    const SyntheticImage image = banded_image();
+    for (const bool cost_aware : {false, true}) {
+        SCOPED_TRACE(cost_aware ? "optimal-time" : "optimal");
+        StrategyParams p = optimal(4096 * 32, cost_aware ? "optimal-time" : "optimal");
+        p.plan_ahead = 1;
+        OptimalStrategy strategy(p, 64, 64, cost_aware);
+        Accumulator merged(64, 64);
+        std::vector<std::vector<uint32_t>> rounds;
+        run_synthetic(
+            strategy, image, merged, 100,
+            [&](const Round& r, const Accumulator&) { rounds.push_back(r.spp); });
+        ASSERT_GE(rounds.size(), 3u);
+        EXPECT_EQ(rounds[0], std::vector<uint32_t>(4096, 8));
+        EXPECT_EQ(rounds[1], std::vector<uint32_t>(4096, 8));
+        EXPECT_NE(*std::min_element(rounds[2].begin(), rounds[2].end()),
+                  *std::max_element(rounds[2].begin(), rounds[2].end()));
+        if (!cost_aware) {
+            EXPECT_EQ(merged.total_samples(), 4096u * 32);
+            EXPECT_EQ(rounds.size(), 10u);  // two halves and 8 steered rounds
+        } else {
+            EXPECT_NEAR(double(merged.total_rays()), strategy.ray_budget(),
+                        0.01 * strategy.ray_budget());
+        }
+        // A render whose pilot is below 4 spp keeps it whole: a half of one sample has no
+        // variance.
+        StrategyParams small = optimal(4096 * 3, cost_aware ? "optimal-time" : "optimal");
+        small.plan_ahead = 1;
+        OptimalStrategy whole(small, 64, 64, cost_aware);
+        Accumulator m(64, 64);
+        const std::optional<Round> first = whole.next_round(m);
+        ASSERT_TRUE(first);
+        EXPECT_EQ(first->spp, std::vector<uint32_t>(4096, 3));
+        EXPECT_FALSE(whole.holds_planned_round());
+    }
 }
 
 TEST(Optimal, ARoundPlannedAheadIsPlannedWithoutTheRoundOut) {
@@ -557,6 +601,40 @@ TEST(Optimal, ARoundPlannedAheadIsTheSameWhereverItsWorkRuns) {
     }
 }
 
+TEST(Optimal, ARestoredRoundPlannedAheadMustBeOneItsStateHoldsAndFitTheImage) {
+    const SyntheticImage image = banded_image();
+    StrategyParams p = optimal(4096 * 32);
+    p.plan_ahead = 1;
+    p.max_spp = 1000;
+    OptimalStrategy strategy(p, 64, 64, false);
+    Accumulator merged(64, 64);
+    ASSERT_TRUE(strategy.next_round(merged));  // the pilot's first half; the second held
+    const nlohmann::json held = strategy.save_state();
+    ASSERT_TRUE(held.contains("ahead"));
+    const std::vector<uint32_t> second = *strategy.round_planned_ahead();
+    OptimalStrategy fresh(p, 64, 64, false);
+    EXPECT_THROW(fresh.restore_planned_round(second), std::runtime_error);  // no state
+    fresh.restore_state(held);
+    EXPECT_THROW(fresh.restore_planned_round(std::vector<uint32_t>(4095, 8)),
+                 std::runtime_error);
+    std::vector<uint32_t> above_cap = second;
+    above_cap[7] = 1001;
+    EXPECT_THROW(fresh.restore_planned_round(above_cap), std::runtime_error);
+    // Without its counts the round is never made: an error, not a plan.
+    EXPECT_THROW(fresh.next_round(merged), std::logic_error);
+    fresh.restore_state(held);
+    fresh.restore_planned_round(second);
+    const std::optional<Round> round = fresh.next_round(merged);
+    ASSERT_TRUE(round);
+    EXPECT_EQ(round->spp, second);
+    // A method that plans nothing ahead has nothing to restore.
+    StrategyParams u;
+    u.spp = 4;
+    EXPECT_THROW(make_strategy(u, 64, 64)->restore_planned_round(second),
+                 std::runtime_error);
+    EXPECT_NO_THROW(make_strategy(u, 64, 64)->restore_planned_round({}));
+}
+
 TEST(Optimal, ARoundPlannedAheadWhoseWorkWasLostIsAnErrorNotAnotherPlan) {
     // Planning it from the buffers merged since would give other bytes than the render
     // whose plan was made; the session fails the render instead.
@@ -599,7 +677,7 @@ TEST(OptimalTime, NoRoundFollowsTheOneThatSpendsWhatIsLeft) {
             }
             ASSERT_LT(rounds, 20u);
         }
-        EXPECT_EQ(rounds, 9u);
+        EXPECT_EQ(rounds, plan_ahead == 1 ? 10u : 9u);  // at 1, the pilot in two halves
         EXPECT_NEAR(double(merged.total_rays()), strategy.ray_budget(),
                     1e-3 * strategy.ray_budget());
     }

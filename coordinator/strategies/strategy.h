@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -61,7 +62,9 @@ public:
     // taken is done by the next next_round. Empty when there is none.
     virtual std::function<void()> take_work_ahead() { return {}; }
     // Whether the strategy holds a round planned before the last round's results merged:
-    // its state then does not follow from the merged buffers, and is not checkpointed.
+    // its state then does not follow from the merged buffers alone. A checkpoint taken
+    // then holds that round's counts too (round_planned_ahead, once its work has run),
+    // given back by restore_planned_round after restore_state.
     virtual bool holds_planned_round() const { return false; }
     // The counts of the round planned ahead, once the work that plans it has run and
     // until the next_round that hands it out (which returns these very counts): a caller
@@ -77,6 +80,13 @@ public:
     // it with the checkpointed buffers makes exactly the decisions it would have made.
     virtual nlohmann::json save_state() const = 0;
     virtual void restore_state(const nlohmann::json& state) = 0;
+    // After restore_state of a state saved while a round planned ahead was held: that
+    // round's counts, as round_planned_ahead gave them. Throws std::runtime_error for
+    // counts the state does not expect (a damaged or foreign checkpoint).
+    virtual void restore_planned_round(std::vector<uint32_t> spp) {
+        if (!spp.empty())
+            throw std::runtime_error(name() + " plans no round ahead to restore");
+    }
 
     // Current buckets; empty for methods that allocate per pixel.
     virtual std::vector<Bucket> buckets() const { return {}; }

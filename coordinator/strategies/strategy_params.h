@@ -63,7 +63,10 @@ struct StrategyParams {
     // before it (the round out counted as had), so the farm does not wait for the plan
     // (0: every round planned after the one before has merged). 1/16 by default: the
     // rounds planned ahead then hold 1/16 of the budget, the last and shortest
-    // (docs/STRATEGIES.md, "Planning ahead"; docs/RESULTS.md).
+    // (docs/STRATEGIES.md, "Planning ahead"; docs/RESULTS.md). When the pilot's share is
+    // at most plan_ahead too (at least 1/2 with floor_fraction 0.5), the pilot is traced
+    // in two halves and the first steered round planned from the first: no round is then
+    // planned in place, what a large farm needs (docs/PERFORMANCE.md).
     double plan_ahead = 1.0 / 16;
 
     // cycles (Blender Cycles' adaptive sampling, with its defaults)
