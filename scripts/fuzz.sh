@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (fuzz/) with clang into build-fuzz/ and runs each for
-# SECONDS (default 12: about a minute for all five), starting from its committed corpus in
+# SECONDS (default 12: about a minute for all six), starting from its committed corpus in
 # fuzz/corpus/<target>. Non-zero if any target finds a crash, a hang, a leak or an
 # allocation past the limits below; the input that did it is in build-fuzz/artifacts/.
 # Usage: scripts/fuzz.sh [seconds-per-target] [target ...]
@@ -9,7 +9,8 @@ cd "$(dirname "$0")/.."
 seconds=${1:-12}
 shift || true
 targets=("$@")
-((${#targets[@]})) || targets=(scene_fuzz obj_fuzz study_fuzz render_request_fuzz job_result_fuzz)
+((${#targets[@]})) || targets=(scene_fuzz obj_fuzz study_fuzz render_request_fuzz job_result_fuzz
+    checkpoint_fuzz)
 
 bash scripts/install-deps.sh
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \

@@ -9,7 +9,10 @@ namespace aliquot {
 
 namespace {
 
-constexpr char kMagic[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '1'};
+// Version 2 adds the round planned ahead after the pixels; version 1's files (written
+// before, with none) still load.
+constexpr char kMagic[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '2'};
+constexpr char kMagicV1[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '1'};
 static_assert(std::is_trivially_copyable_v<PixelSums>);
 
 template <typename T>
@@ -41,6 +44,10 @@ void write_checkpoint_file(const std::filesystem::path& tmp, const Checkpoint& c
     if (const size_t n = cp.merged.pixel_count())
         out.write(reinterpret_cast<const char*>(&cp.merged.at(0)),
                   std::streamsize(n * sizeof(PixelSums)));
+    put(out, uint64_t(cp.planned_round.size()));
+    if (!cp.planned_round.empty())
+        out.write(reinterpret_cast<const char*>(cp.planned_round.data()),
+                  std::streamsize(cp.planned_round.size() * sizeof(uint32_t)));
     out.flush();
     if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
 }
@@ -69,7 +76,8 @@ std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path) {
     if (!in) return std::nullopt;
     char magic[8];
     in.read(magic, sizeof magic);
-    if (!in || std::memcmp(magic, kMagic, sizeof magic) != 0)
+    const bool v1 = in && std::memcmp(magic, kMagicV1, sizeof magic) == 0;
+    if (!in || (!v1 && std::memcmp(magic, kMagic, sizeof magic) != 0))
         throw std::runtime_error("checkpoint " + path.string() + " is not a checkpoint");
     uint32_t width = 0, height = 0;
     Checkpoint cp;
@@ -79,7 +87,16 @@ std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path) {
     get(in, cp.seconds);
     uint64_t state_size = 0;
     get(in, state_size);
-    if (!in || state_size > (uint64_t(1) << 30) || width > 65536 || height > 65536)
+    // Nothing is taken for more than the file holds: a damaged size must not ask for
+    // gigabytes (a 65536x65536 image's pixels, a state of 1 GB) before the read fails.
+    std::error_code error;
+    const uint64_t file_size = std::filesystem::file_size(path, error);
+    const uint64_t header = sizeof kMagic + 2 * sizeof(uint32_t) + sizeof cp.rounds_done +
+                            sizeof cp.seconds + sizeof state_size;
+    const uint64_t left = !error && file_size > header ? file_size - header : 0;
+    if (!in || state_size > (uint64_t(1) << 30) || width > 65536 || height > 65536 ||
+        state_size > left ||
+        uint64_t(width) * height * sizeof(PixelSums) > left - state_size)
         throw std::runtime_error("checkpoint " + path.string() + " is damaged");
     std::string state(state_size, '\0');
     in.read(state.data(), std::streamsize(state_size));
@@ -90,6 +107,15 @@ std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path) {
     all.rect = {0, 0, width, height};
     all.pixels.resize(size_t(width) * height);
     for (PixelSums& p : all.pixels) get(in, p);
+    uint64_t planned = 0;
+    if (!v1) get(in, planned);
+    if (!in) throw std::runtime_error("checkpoint " + path.string() + " is truncated");
+    // A round planned ahead covers the image, or there is none.
+    if (planned != 0 && planned != all.pixels.size())
+        throw std::runtime_error("checkpoint " + path.string() + " is damaged");
+    cp.planned_round.resize(planned);
+    in.read(reinterpret_cast<char*>(cp.planned_round.data()),
+            std::streamsize(planned * sizeof(uint32_t)));
     if (!in) throw std::runtime_error("checkpoint " + path.string() + " is truncated");
     cp.merged = Accumulator(width, height);
     cp.merged.merge(all);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <optional>
 #include <stdexcept>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -18,6 +19,10 @@ struct Checkpoint {
     nlohmann::json strategy_state;
     uint32_t rounds_done = 0;
     double seconds = 0;
+    // The counts of the round the strategy planned before these buffers' last round had
+    // merged (Strategy::round_planned_ahead), or empty: restored with the state, so the
+    // render goes on from a round end where a round was planned ahead as from any other.
+    std::vector<uint32_t> planned_round;
 };
 
 // Written to a temporary file and renamed over `path`: a crash leaves the old checkpoint

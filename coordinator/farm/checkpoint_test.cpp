@@ -5,6 +5,9 @@
 
 #include <cstring>
 #include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
 
 namespace aliquot {
 namespace {
@@ -27,7 +30,7 @@ TEST(Checkpoint, RestoresBuffersBitForBit) {
     }
     acc.merge(r);
     const auto path = temp_file("cp.bin");
-    save_checkpoint(path, {acc, {{"done_spp", 3}}, 4, 1.5});
+    save_checkpoint(path, {acc, {{"done_spp", 3}}, 4, 1.5, {}});
     const auto cp = load_checkpoint(path);
     ASSERT_TRUE(cp.has_value());
     EXPECT_EQ(cp->rounds_done, 4u);
@@ -35,6 +38,53 @@ TEST(Checkpoint, RestoresBuffersBitForBit) {
     EXPECT_EQ(cp->merged.total_samples(), acc.total_samples());
     for (size_t i = 0; i < 6; ++i)
         EXPECT_EQ(std::memcmp(&cp->merged.at(i), &acc.at(i), sizeof(PixelSums)), 0);
+    std::filesystem::remove(path);
+}
+
+TEST(Checkpoint, ARoundPlannedAheadRoundTripsAndAnOldFileHasNone) {
+    Accumulator merged(3, 2);
+    const auto path = temp_file("planned.bin");
+    save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0, {1, 0, 7, 3, 0, 2}});
+    EXPECT_EQ(load_checkpoint(path)->planned_round,
+              (std::vector<uint32_t>{1, 0, 7, 3, 0, 2}));
+    // Version 1 (before the round planned ahead was kept): no count after the pixels.
+    save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0, {}});
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    ASSERT_EQ(bytes[7], '2');
+    bytes[7] = '1';
+    bytes.resize(bytes.size() - sizeof(uint64_t));
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    const auto old = load_checkpoint(path);
+    ASSERT_TRUE(old.has_value());
+    EXPECT_EQ(old->rounds_done, 2u);
+    EXPECT_TRUE(old->planned_round.empty());
+    std::filesystem::remove(path);
+}
+
+TEST(Checkpoint, ARoundPlannedAheadThatIsNotTheImagesOrIsCutShortIsAnError) {
+    Accumulator merged(3, 2);
+    const auto path = temp_file("planned-bad.bin");
+    save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0, {1, 2, 3, 4, 5, 6}});
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    // Cut inside the counts, then a count of one pixel too many.
+    std::ofstream(path, std::ios::binary | std::ios::trunc)
+        << bytes.substr(0, bytes.size() - 2);
+    EXPECT_THROW(load_checkpoint(path), std::runtime_error);
+    std::string wrong = bytes;
+    const size_t count_at = bytes.size() - 6 * sizeof(uint32_t) - sizeof(uint64_t);
+    const uint64_t seven = 7;
+    wrong.replace(count_at, sizeof seven, reinterpret_cast<const char*>(&seven),
+                  sizeof seven);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << wrong;
+    EXPECT_THROW(load_checkpoint(path), std::runtime_error);
     std::filesystem::remove(path);
 }
 
@@ -52,9 +102,9 @@ TEST(Checkpoint, AFailedWriteLeavesNoTempFileAndKeepsTheLastCheckpoint) {
     const auto path = temp_file("full.bin");
     const std::filesystem::path tmp = path.string() + ".tmp";
     Accumulator merged(64, 64);
-    save_checkpoint(path, {merged, nlohmann::json::object(), 1, 0.5});
+    save_checkpoint(path, {merged, nlohmann::json::object(), 1, 0.5, {}});
     std::filesystem::create_symlink("/dev/full", tmp);
-    EXPECT_THROW(save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0}),
+    EXPECT_THROW(save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0, {}}),
                  std::runtime_error);
     EXPECT_FALSE(std::filesystem::exists(std::filesystem::symlink_status(tmp)));
     EXPECT_EQ(load_checkpoint(path)->rounds_done, 1u);

@@ -242,9 +242,11 @@ void Coordinator::record_round(RenderSlot& slot, const RoundSummary& round) {
 void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) {
     RenderSession& r = *slot.session;
     CheckpointTiming& timing = slot.checkpoint;
-    // A strategy holding a round it planned before this round's results cannot be
-    // restored from these buffers: the next checkpoint where it holds none covers them.
-    if (r.strategy().holds_planned_round()) return;
+    // A strategy holding a round it planned before this round's results is restored
+    // from these buffers with that round's counts (made by now: the round end waited for
+    // its plan).
+    const std::vector<uint32_t>* planned = r.strategy().round_planned_ahead();
+    if (r.strategy().holds_planned_round() && !planned) return;
     if (!timing.in_flight &&
         checkpoint_due(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - timing.ended)
@@ -259,6 +261,10 @@ void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) 
         const std::shared_ptr<CheckpointCopy> copy = slot.checkpoint_copy;
         copy->cp.merged.copy_from(r.merged());  // reuses the memory, copies in bands
         copy->cp.strategy_state = r.strategy().save_state();
+        if (planned)
+            copy->cp.planned_round.assign(planned->begin(), planned->end());
+        else
+            copy->cp.planned_round.clear();
         copy->cp.rounds_done = r.rounds_done();
         copy->cp.seconds = round.seconds;
         copy->saved = false;
@@ -426,7 +432,8 @@ void Coordinator::resume_unfinished() {
             auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
                 session->restore(std::move(cp->merged), cp->strategy_state,
-                                 cp->rounds_done, cp->seconds);
+                                 cp->rounds_done, cp->seconds,
+                                 std::move(cp->planned_round));
             std::lock_guard lock(mutex_);  // the backlog's thread may evict meanwhile
             attach(std::move(session));
         } catch (const std::exception& e) {
@@ -1333,7 +1340,8 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
     const uint64_t pixels = uint64_t(width) * height;
     uint64_t per_pixel =
         Accumulator::kBytesPerPixel      // the accumulator
-        + Accumulator::kBytesPerPixel    // the copy a checkpoint is written from
+        + Accumulator::kBytesPerPixel    // the copy a checkpoint is written from,
+        + 4                              // with the counts of a round planned ahead
         + 12                             // a round's jobs: counts, first indices
         + 16                             // the round's spp; a strategy's per pixel
         + 72                             // optimal's planning, the round ahead

@@ -25,7 +25,8 @@ RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms
       merged_(spec_.width, spec_.height) {}
 
 void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_state,
-                            uint32_t rounds_done, double seconds_before) {
+                            uint32_t rounds_done, double seconds_before,
+                            std::vector<uint32_t> planned_round) {
     // A checkpoint of another size (damaged, or another render's) would index the
     // buffers out of bounds in every round after it: refused, the render cannot resume.
     if (merged.width() != spec_.width || merged.height() != spec_.height)
@@ -35,6 +36,7 @@ void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_s
                                  std::to_string(spec_.height));
     merged_ = std::move(merged);
     strategy_->restore_state(strategy_state);
+    strategy_->restore_planned_round(std::move(planned_round));
     rounds_done_ = rounds_done;
     round_index_ = rounds_done;
     seconds_before_ = seconds_before;

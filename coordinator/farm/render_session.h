@@ -54,9 +54,11 @@ public:
                   std::unique_ptr<Strategy> strategy);
 
     // Continues from a checkpoint taken at a round boundary: the merged buffers and the
-    // strategy's state then. Call before start().
+    // strategy's state then, with the round it had planned ahead, if any
+    // (Checkpoint::planned_round). Call before start().
     void restore(Accumulator merged, const nlohmann::json& strategy_state,
-                 uint32_t rounds_done, double seconds_before);
+                 uint32_t rounds_done, double seconds_before,
+                 std::vector<uint32_t> planned_round = {});
     // Plans the first (or next, after restore) round; the render is then Running or Done.
     void start();
 

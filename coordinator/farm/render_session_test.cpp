@@ -264,54 +264,72 @@ TEST_F(RenderSessionTest, RestoredSessionPlansTheSameRoundsAsAnUninterruptedOne)
 TEST_F(RenderSessionTest, RoundsPlannedAheadGiveTheBuffersOfAStrategyThatPlansInPlace) {
     // The session runs optimal's work ahead on its own thread while the round out
     // merges; the buffers must be those of the strategy driven round by round. A
-    // checkpoint is offered only where no round is planned ahead, and resuming from the
-    // last of them gives the same buffers again.
+    // checkpoint taken at any round end, one where a round is planned ahead too (with
+    // that round's counts), resumes to the same buffers again. plan_ahead 1 splits the
+    // pilot: a checkpoint after its first half holds the second as the round planned.
     const SyntheticImage image(40, 40, 7, {0.5, 0.3, 1, 0.01, 20});
-    for (const char* method : {"optimal", "optimal-time"}) {
-        SCOPED_TRACE(method);
-        plan(method, 1.0 / 8);
-        const Accumulator in_place = round_by_round(image);
-        const auto render = [&](const std::optional<Checkpoint>& from,
-                                std::optional<Checkpoint>* last) {
-            RenderSession s("r", spec, 0);
-            uint32_t held = 0;
-            s.on_round = [&](RenderSession& r, const RoundSummary&) {
-                if (r.strategy().holds_planned_round()) {
-                    ++held;
-                } else if (last) {
-                    last->emplace();
-                    (*last)->merged.copy_from(r.merged());
-                    (*last)->strategy_state = r.strategy().save_state();
-                    (*last)->rounds_done = r.rounds_done();
+    for (const char* method : {"optimal", "optimal-time"})
+        for (const double plan_ahead : {1.0 / 8, 1.0}) {
+            SCOPED_TRACE(std::string(method) + " " + std::to_string(plan_ahead));
+            plan(method, plan_ahead);
+            const Accumulator in_place = round_by_round(image);
+            const auto render = [&](const Checkpoint* from,
+                                    std::vector<Checkpoint>* taken) {
+                RenderSession s("r", spec, 0);
+                uint32_t held = 0;
+                s.on_round = [&](RenderSession& r, const RoundSummary&) {
+                    const std::vector<uint32_t>* planned =
+                        r.strategy().round_planned_ahead();
+                    // Held and none: the plan ahead found the budget spent, and this
+                    // round end is the render's (the coordinator takes no checkpoint).
+                    if (r.strategy().holds_planned_round() && ++held && !planned) return;
+                    if (!taken) return;
+                    Checkpoint& cp = taken->emplace_back();
+                    cp.merged.copy_from(r.merged());
+                    cp.strategy_state = r.strategy().save_state();
+                    cp.rounds_done = r.rounds_done();
+                    if (planned) cp.planned_round = *planned;
+                };
+                if (from) {
+                    Accumulator copy;
+                    copy.copy_from(from->merged);
+                    s.restore(std::move(copy), from->strategy_state, from->rounds_done, 0,
+                              from->planned_round);
                 }
+                s.start();
+                uint64_t lease = 1;
+                while (auto job = s.issue(lease, "w", far))
+                    EXPECT_EQ(s.complete(lease++, "w", image.trace(*job)).status,
+                              CompleteStatus::Merged);
+                EXPECT_EQ(s.state(), RenderState::Done);
+                if (!from) {
+                    EXPECT_GT(held, 2u);
+                }
+                Accumulator out;
+                out.copy_from(s.merged());
+                return out;
             };
-            if (from) {
-                Accumulator copy;
-                copy.copy_from(from->merged);
-                s.restore(std::move(copy), from->strategy_state, from->rounds_done, 0);
+            std::vector<Checkpoint> taken;
+            const Accumulator whole = render(nullptr, &taken);
+            ASSERT_GT(taken.size(), 3u);
+            for (size_t i = 0; i < in_place.pixel_count(); ++i)
+                ASSERT_EQ(whole.at(i), in_place.at(i)) << i;
+            // Resumed with a round planned ahead: at several round ends, and at 1 after
+            // the pilot's first half, whose second half is the round held.
+            EXPECT_GT(std::count_if(
+                          taken.begin(), taken.end(),
+                          [](const Checkpoint& cp) { return !cp.planned_round.empty(); }),
+                      2);
+            if (plan_ahead == 1) {
+                EXPECT_FALSE(taken[0].planned_round.empty());
             }
-            s.start();
-            uint64_t lease = 1;
-            while (auto job = s.issue(lease, "w", far))
-                EXPECT_EQ(s.complete(lease++, "w", image.trace(*job)).status,
-                          CompleteStatus::Merged);
-            EXPECT_EQ(s.state(), RenderState::Done);
-            if (!from) {
-                EXPECT_GT(held, 2u);
+            for (size_t c = 0; c < taken.size(); ++c) {
+                SCOPED_TRACE("resumed after round " + std::to_string(c));
+                const Accumulator resumed = render(&taken[c], nullptr);
+                for (size_t i = 0; i < in_place.pixel_count(); ++i)
+                    ASSERT_EQ(resumed.at(i), in_place.at(i)) << i;
             }
-            Accumulator out;
-            out.copy_from(s.merged());
-            return out;
-        };
-        std::optional<Checkpoint> last;
-        const Accumulator whole = render(std::nullopt, &last);
-        ASSERT_TRUE(last);
-        const Accumulator resumed = render(last, nullptr);
-        for (size_t i = 0; i < in_place.pixel_count(); ++i) {
-            ASSERT_EQ(whole.at(i), in_place.at(i)) << i;
-            ASSERT_EQ(resumed.at(i), in_place.at(i)) << i;
         }
-    }
 }
 
 // Two rounds out: once every job of a round is leased, the round planned ahead opens and
