@@ -244,8 +244,9 @@ void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) 
     CheckpointTiming& timing = slot.checkpoint;
     // A strategy holding a round it planned before this round's results is restored
     // from these buffers with that round's counts (made by now: the round end waited for
-    // its plan).
-    const std::vector<uint32_t>* planned = r.strategy().round_planned_ahead();
+    // its plan). uniform's round ahead follows from its state: nothing to keep.
+    const std::vector<uint32_t>* planned =
+        r.strategy().holds_planned_round() ? r.strategy().round_planned_ahead() : nullptr;
     if (r.strategy().holds_planned_round() && !planned) return;
     if (!timing.in_flight &&
         checkpoint_due(

@@ -400,6 +400,44 @@ TEST_F(RenderSessionTest, TheRoundAfterIsTracedWhileTheRoundOutsLastJobIs) {
     }
 }
 
+// uniform's rounds follow from its state alone: each is handed to the farm while the one
+// before it is out, so a round end is never waited through, and the buffers are those of
+// the strategy driven round by round.
+TEST_F(RenderSessionTest, UniformOpensEachRoundWhileTheRoundBeforeIsOut) {
+    spec.width = 512;  // two rounds of 32 spp: uniform's rounds start at 2^22 samples
+    spec.height = 256;
+    spec.strategy.spp = 64;
+    const SyntheticImage image(512, 256, 3, {0.5, 0.2});
+    const Accumulator in_place = round_by_round(image);
+    RenderSession s("r", spec, 0);
+    s.start();
+    std::vector<std::pair<uint64_t, SampleJob>> out;
+    uint64_t lease = 1;
+    while (auto job = s.issue(lease, "w", far))
+        out.emplace_back(lease++, std::move(*job));
+    ASSERT_GT(out.size(), 1u);
+    // All of round 0 but its last job merge; the round after opens once its counts are
+    // made (off the caller's thread).
+    for (size_t j = 0; j + 1 < out.size(); ++j)
+        ASSERT_EQ(s.complete(out[j].first, "w", image.trace(out[j].second)).status,
+                  CompleteStatus::Merged);
+    std::optional<SampleJob> next;
+    for (int spin = 0; spin < 2000 && !(next = s.issue(lease, "w", far)); ++spin)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    ASSERT_TRUE(next.has_value());
+    const uint64_t next_lease = lease++;
+    ASSERT_EQ(s.complete(out.back().first, "w", image.trace(out.back().second)).status,
+              CompleteStatus::Merged);
+    EXPECT_TRUE(s.round_opened_ahead());
+    ASSERT_EQ(s.complete(next_lease, "w", image.trace(*next)).status,
+              CompleteStatus::Merged);
+    while (auto job = s.issue(lease, "w", far))
+        ASSERT_EQ(s.complete(lease++, "w", image.trace(*job)).status,
+                  CompleteStatus::Merged);
+    EXPECT_EQ(s.state(), RenderState::Done);
+    expect_same_buffers(s.merged(), in_place);
+}
+
 // optimal planning every steered round ahead on a banded image, and the buffers it must
 // give.
 class TwoRoundsOutTest : public RenderSessionTest {

@@ -1,6 +1,7 @@
 #include "uniform_strategy.h"
 
 #include <algorithm>
+#include <utility>
 
 namespace aliquot {
 
@@ -22,10 +23,25 @@ uint32_t UniformStrategy::round_spp(uint32_t done, uint32_t spp, size_t pixels) 
 }
 
 std::optional<Round> UniformStrategy::next_round(const Accumulator&) {
+    if (work_ahead_) std::exchange(work_ahead_, nullptr)();  // not taken: done here
     if (done_ >= spp_) return std::nullopt;
     const uint32_t n = round_spp(done_, spp_, pixels_);
     done_ += n;
-    return Round{rounds_++, std::vector<uint32_t>(pixels_, n)};
+    Round round{rounds_++, {}};
+    // The very vector made ahead, whose jobs may be out already.
+    if (ahead_.empty())
+        round.spp.assign(pixels_, n);
+    else
+        round.spp = std::exchange(ahead_, {});
+    if (done_ < spp_)
+        work_ahead_ = [this, next = round_spp(done_, spp_, pixels_)] {
+            ahead_.assign(pixels_, next);
+        };
+    return round;
+}
+
+std::function<void()> UniformStrategy::take_work_ahead() {
+    return std::exchange(work_ahead_, nullptr);
 }
 
 }  // namespace aliquot
@@ -39,6 +55,8 @@ nlohmann::json UniformStrategy::save_state() const {
 void UniformStrategy::restore_state(const nlohmann::json& state) {
     done_ = state.at("done_spp").get<uint32_t>();
     rounds_ = state.at("rounds").get<uint32_t>();
+    work_ahead_ = nullptr;
+    ahead_.clear();
 }
 
 }  // namespace aliquot

@@ -17,6 +17,15 @@ public:
     nlohmann::json save_state() const override;
     void restore_state(const nlohmann::json& state) override;
 
+    // The next round's counts never depend on the results, so each round hands the farm
+    // the one after it as work ahead: its jobs are leased while the round out's last job
+    // is traced, and no round end is waited through (docs/FARM.md, "Two rounds out"). The
+    // state alone says what that round is, so it is not a planned round to checkpoint.
+    std::function<void()> take_work_ahead() override;
+    const std::vector<uint32_t>* round_planned_ahead() const override {
+        return ahead_.empty() ? nullptr : &ahead_;
+    }
+
     // Samples per pixel of the next round after `done` of `spp`: rounds double from
     // about kFirstRoundSamples up to about kRoundSamples samples.
     static uint32_t round_spp(uint32_t done, uint32_t spp, size_t pixels);
@@ -26,6 +35,8 @@ private:
     size_t pixels_;
     uint32_t done_ = 0;
     uint32_t rounds_ = 0;
+    std::function<void()> work_ahead_;  // fills ahead_ with the next round's counts
+    std::vector<uint32_t> ahead_;       // the round after the one out, once made
 };
 
 }  // namespace aliquot
