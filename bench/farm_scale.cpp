@@ -12,10 +12,22 @@
 // which the next round had not been opened ahead (docs/FARM.md, "Two rounds out"). One
 // JSON object per line.
 //
-// Usage: farm_scale [WxH] [seconds] [workers,...] [method,...]
+// With a RATE (samples a second), each simulated worker takes as long as a worker core
+// that traces at that rate would (it sleeps out the rest of samples ÷ RATE after making
+// the result): N of them are a farm of N such cores that costs this machine no tracing,
+// and the wait shares are those of a real farm of that size. largest_round_wait_share is
+// then the round that waited on the coordinator the most: the waited round end that
+// opened it ÷ its seconds, that round end included (read by polling the coordinator's
+// counters every 2 ms, as bench/round_end_share.sh does every 20), and farm_efficiency
+// the samples merged a second ÷ (N × RATE): what the farm traced of what it could have,
+// every idle moment counted (round ends, a round planned ahead that is late, a round's
+// last jobs, and this process's own CPU for the synthetic results).
+//
+// Usage: farm_scale [WxH] [seconds] [workers,...] [method,...] [rate]
 //        (defaults: 1920x1080 10 1,16,64,256
-//        uniform,dammertz,adaptive,optimal,optimal-time)
-// A method written `optimal:K` (or `optimal-time:K`) runs with steer_rounds K.
+//        uniform,dammertz,adaptive,optimal,optimal-time 0)
+// A method written `optimal:K` (or `optimal-time:K`) runs with steer_rounds K, and
+// `optimal/P` with plan_ahead P (both: `optimal:K/P`).
 #include <unistd.h>
 
 #include <algorithm>
@@ -63,10 +75,34 @@ struct Run {
     double round_end_seconds = 0, round_end_cpu_seconds = 0, round_end_wait_seconds = 0;
     std::string state;
     std::vector<double> lease_ms, complete_ms;
+    double largest_round_wait_share = 0;
 };
 
+// "optimal:K/P": the method, steer_rounds K and plan_ahead P, each optional.
+void parse_method(const std::string& text, StrategyParams& p) {
+    const size_t slash = text.find('/');
+    const std::string head = text.substr(0, slash);
+    const size_t colon = head.find(':');
+    p.method = head.substr(0, colon);
+    if (colon != std::string::npos) {
+        const std::string k = head.substr(colon + 1);
+        if (k.empty() || k.size() > 2 ||
+            k.find_first_not_of("0123456789") != std::string::npos)
+            throw std::invalid_argument("in " + text +
+                                        ", K (steer_rounds) must be 0 to 99");
+        p.steer_rounds = uint32_t(std::stoul(k));
+    }
+    if (slash != std::string::npos) {
+        size_t used = 0;
+        const std::string f = text.substr(slash + 1);
+        p.plan_ahead = std::stod(f, &used);
+        if (used != f.size() || !(p.plan_ahead >= 0 && p.plan_ahead <= 1))
+            throw std::invalid_argument("in " + text + ", P (plan_ahead) must be 0 to 1");
+    }
+}
+
 Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
-        double seconds) {
+        double seconds, double rate) {
     namespace fs = std::filesystem;
     const fs::path dir =
         fs::temp_directory_path() / ("aliquot-farm-scale-" + std::to_string(getpid()));
@@ -83,16 +119,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         spec.scene_json = self_contained_scene_json("cornell-box");
         spec.width = width;
         spec.height = height;
-        const size_t colon = method.find(':');
-        spec.strategy.method = method.substr(0, colon);
-        if (colon != std::string::npos) {
-            const std::string k = method.substr(colon + 1);
-            if (k.empty() || k.size() > 2 ||
-                k.find_first_not_of("0123456789") != std::string::npos)
-                throw std::invalid_argument("in " + method +
-                                            ", K (steer_rounds) must be 0 to 99");
-            spec.strategy.steer_rounds = uint32_t(std::stoul(k));
-        }
+        parse_method(method, spec.strategy);
         spec.strategy.budget = uint64_t(64) * width * height;  // 64 spp on average
         spec.strategy.max_variance = 1e-4;  // dammertz: keep splitting past a few rounds
         const std::string id = coordinator.submit(spec);
@@ -113,6 +140,11 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                     if (!grant) continue;
                     const auto granted = Clock::now();
                     const SampleJobResult result = bench::synthetic_result(*grant);
+                    if (rate > 0)
+                        std::this_thread::sleep_until(
+                            granted + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(
+                                              double(result.total_samples()) / rate)));
                     const auto sent = Clock::now();
                     coordinator.complete(session, grant->lease_id, result);
                     const auto done = Clock::now();
@@ -128,9 +160,32 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                                        completes.end());
             });
         uint64_t seen = 0;
+        uint32_t rounds_seen = 0;
+        double waited = 0;        // the waited round-end seconds counted so far
+        double opening_wait = 0;  // of the round end that opened the round out
+        auto round_began = start;
         while (Clock::now() - start < std::chrono::duration<double>(seconds) &&
-               !is_terminal(coordinator.info(id)->state))
-            seen = coordinator.wait_for_change(seen, std::chrono::milliseconds(50));
+               !is_terminal(coordinator.info(id)->state)) {
+            seen = coordinator.wait_for_change(seen, std::chrono::milliseconds(2));
+            const uint32_t rounds = coordinator.info(id)->rounds_done;
+            if (rounds == rounds_seen) continue;
+            // A round has ended (and the round end has run: info waits for the render's
+            // lock). Its seconds include the waited round end that opened it.
+            const auto now = Clock::now();
+            if (rounds_seen > 0)
+                out.largest_round_wait_share = std::max(
+                    out.largest_round_wait_share,
+                    opening_wait /
+                        (std::chrono::duration<double>(now - round_began).count() +
+                         opening_wait));
+            // The counter is added to just after the render's lock is let go.
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            const double counted = coordinator.round_end_wait_seconds();
+            opening_wait = counted - waited;
+            waited = counted;
+            round_began = now;
+            rounds_seen = rounds;
+        }
         out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
         const RenderInfo info = *coordinator.info(id);
         stop = true;
@@ -158,9 +213,10 @@ int main(int argc, char** argv) try {
         counts.push_back(std::max(1, std::atoi(n.c_str())));
     const std::vector<std::string> methods =
         split(argc > 4 ? argv[4] : "uniform,dammertz,adaptive,optimal,optimal-time");
+    const double rate = argc > 5 ? std::atof(argv[5]) : 0;
     for (const std::string& method : methods)
         for (const int workers : counts) {
-            const Run r = run(size.width, size.height, method, workers, seconds);
+            const Run r = run(size.width, size.height, method, workers, seconds, rate);
             std::printf(
                 "{\"image\": \"%ux%u\", \"method\": \"%s\", \"workers\": %d, "
                 "\"seconds\": %.2f, \"state\": \"%s\", \"rounds\": %u, "
@@ -169,7 +225,8 @@ int main(int argc, char** argv) try {
                 "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f, "
                 "\"round_end_share\": %.4f, \"round_end_ms\": %.1f, "
                 "\"round_end_cpu_ms\": %.1f, \"round_end_wait_share\": %.4f, "
-                "\"round_end_wait_ms\": %.1f}\n",
+                "\"round_end_wait_ms\": %.1f, \"largest_round_wait_share\": %.4f, "
+                "\"farm_efficiency\": %.3f}\n",
                 size.width, size.height, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
@@ -178,13 +235,15 @@ int main(int argc, char** argv) try {
                 r.rounds ? 1e3 * r.round_end_seconds / r.rounds : 0.0,
                 r.rounds ? 1e3 * r.round_end_cpu_seconds / r.rounds : 0.0,
                 r.round_end_wait_seconds / r.seconds,
-                r.rounds ? 1e3 * r.round_end_wait_seconds / r.rounds : 0.0);
+                r.rounds ? 1e3 * r.round_end_wait_seconds / r.rounds : 0.0,
+                r.largest_round_wait_share,
+                rate > 0 ? double(r.samples) / r.seconds / (workers * rate) : 0.0);
             std::fflush(stdout);
         }
 } catch (const std::exception& e) {
     std::fprintf(stderr,
                  "farm_scale: %s\nusage: farm_scale [WxH] [seconds] [workers,...] "
-                 "[method[:K],...]\n",
+                 "[method[:K][/P],...] [rate]\n",
                  e.what());
     return 2;
 }
