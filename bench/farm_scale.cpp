@@ -15,9 +15,12 @@
 // With a RATE (samples a second), each simulated worker takes as long as a worker core
 // that traces at that rate would (it sleeps out the rest of samples ÷ RATE after making
 // the result): N of them are a farm of N such cores that costs this machine no tracing,
-// and the wait shares are those of a real farm of that size. largest_round_wait_share is
-// then the round that waited on the coordinator the most: the waited round end that
-// opened it ÷ its seconds, that round end included (read by polling the coordinator's
+// and the wait shares are those of a real farm of that size. plan_wait_share is the time
+// the render had no job to lease because a plan made ahead was late (every job of the
+// round out leased: RenderSession::plan_wait_seconds) ÷ the render's; with the waited
+// round ends, what the farm waited on the coordinator. largest_round_wait_share is then
+// the round that waited on it the most: the waited round end that opened it and its late
+// plan ÷ its seconds, that round end included (read by polling the coordinator's
 // counters every 2 ms, as bench/round_end_share.sh does every 20), and farm_efficiency
 // the samples merged a second ÷ (N × RATE): what the farm traced of what it could have,
 // every idle moment counted (round ends, a round planned ahead that is late, a round's
@@ -73,6 +76,7 @@ struct Run {
     uint64_t samples = 0, leases = 0;
     uint32_t rounds = 0;
     double round_end_seconds = 0, round_end_cpu_seconds = 0, round_end_wait_seconds = 0;
+    double plan_wait_seconds = 0;
     std::string state;
     std::vector<double> lease_ms, complete_ms;
     double largest_round_wait_share = 0;
@@ -178,9 +182,11 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                     opening_wait /
                         (std::chrono::duration<double>(now - round_began).count() +
                          opening_wait));
-            // The counter is added to just after the render's lock is let go.
+            // The counter is added to just after the render's lock is let go. A round's
+            // wait on the coordinator is also the plan made ahead that was late.
             std::this_thread::sleep_for(std::chrono::milliseconds(1));
-            const double counted = coordinator.round_end_wait_seconds();
+            const double counted = coordinator.round_end_wait_seconds() +
+                                   coordinator.plan_wait_seconds(id).value_or(0);
             opening_wait = counted - waited;
             waited = counted;
             round_began = now;
@@ -188,6 +194,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         }
         out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
         const RenderInfo info = *coordinator.info(id);
+        out.plan_wait_seconds = coordinator.plan_wait_seconds(id).value_or(0);
         stop = true;
         coordinator.stop();
         for (std::thread& t : threads) t.join();
@@ -225,8 +232,8 @@ int main(int argc, char** argv) try {
                 "\"complete_ms_p50\": %.3f, \"complete_ms_p99\": %.3f, "
                 "\"round_end_share\": %.4f, \"round_end_ms\": %.1f, "
                 "\"round_end_cpu_ms\": %.1f, \"round_end_wait_share\": %.4f, "
-                "\"round_end_wait_ms\": %.1f, \"largest_round_wait_share\": %.4f, "
-                "\"farm_efficiency\": %.3f}\n",
+                "\"round_end_wait_ms\": %.1f, \"plan_wait_share\": %.4f, "
+                "\"largest_round_wait_share\": %.4f, \"farm_efficiency\": %.3f}\n",
                 size.width, size.height, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
@@ -236,7 +243,7 @@ int main(int argc, char** argv) try {
                 r.rounds ? 1e3 * r.round_end_cpu_seconds / r.rounds : 0.0,
                 r.round_end_wait_seconds / r.seconds,
                 r.rounds ? 1e3 * r.round_end_wait_seconds / r.rounds : 0.0,
-                r.largest_round_wait_share,
+                r.plan_wait_seconds / r.seconds, r.largest_round_wait_share,
                 rate > 0 ? double(r.samples) / r.seconds / (workers * rate) : 0.0);
             std::fflush(stdout);
         }

@@ -478,6 +478,17 @@ RenderInfo Coordinator::info_of(const RenderSlot& slot, int32_t priority) const 
     return info;
 }
 
+std::optional<double> Coordinator::plan_wait_seconds(const std::string& id) {
+    SlotPtr slot;
+    {
+        std::lock_guard lock(mutex_);
+        slot = slot_of(id);
+    }
+    if (!slot) return std::nullopt;
+    std::lock_guard lock(slot->mutex);
+    return slot->session->plan_wait_seconds();
+}
+
 std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     SlotPtr slot;
     int32_t priority = 0;

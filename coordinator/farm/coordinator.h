@@ -124,6 +124,8 @@ public:
     // MemoryBudgetError.
     std::string submit(RenderSpec spec);
     std::optional<RenderInfo> info(const std::string& id);
+    // RenderSession::plan_wait_seconds of a render in memory (bench/farm_scale).
+    std::optional<double> plan_wait_seconds(const std::string& id);
     std::vector<RenderInfo> list(size_t limit);
     std::optional<RenderInfo> cancel(const std::string& id);
     // Changes a queued or running render's priority: its next leases follow it. Nullopt

@@ -166,9 +166,10 @@ void RenderSession::open_next_round() {
         return;
     }
     const std::vector<uint32_t>* spp = strategy_->round_planned_ahead();
-    if (!spp) return;
     const std::vector<PixelRect> rects =
-        round_tiles(*spp, merged_.width(), merged_.height());
+        spp ? round_tiles(*spp, merged_.width(), merged_.height())
+            : std::vector<PixelRect>{};
+    end_plan_wait(!rects.empty());
     if (rects.empty()) return;
     next_spp_ = spp;
     next_data_ = spp->data();
@@ -178,6 +179,16 @@ void RenderSession::open_next_round() {
         slot.job.rect = rect;
         jobs_.push_back(std::move(slot));
     }
+}
+
+void RenderSession::end_plan_wait(bool a_round_came) {
+    if (!plan_wait_since_) return;
+    // A plan that brought no round (the buffers taken after the pilot, or the budget
+    // spent) kept no worker from a job: the round end was coming anyway.
+    if (a_round_came)
+        plan_wait_seconds_ +=
+            std::chrono::duration<double>(Clock::now() - *plan_wait_since_).count();
+    plan_wait_since_.reset();
 }
 
 std::vector<const SampleJob*> RenderSession::unmerged_jobs() const {
@@ -223,8 +234,12 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
                                               const FailurePolicy& policy) {
     if (state_ != RenderState::Running) return std::nullopt;
     if (pending_.empty()) open_next_round();
-    if (state_ != RenderState::Running || (pending_.empty() && next_pending_.empty()))
+    if (state_ != RenderState::Running || (pending_.empty() && next_pending_.empty())) {
+        if (state_ == RenderState::Running && pending_.empty() && !next_spp_ &&
+            !next_tried_ && work_ahead_.valid() && !plan_wait_since_)
+            plan_wait_since_ = Clock::now();
         return std::nullopt;
+    }
     if (blocklisted(worker, policy) &&
         std::any_of(alive.begin(), alive.end(), [&](const std::string& other) {
             return other != worker && !blocklisted(other, policy);
@@ -348,6 +363,8 @@ void RenderSession::end_rounds(const std::set<std::string>& alive,
         } catch (const std::exception& e) {
             return planning_failed(e);
         }
+        // From here the round end's own time, which the coordinator counts.
+        end_plan_wait(strategy_->round_planned_ahead() != nullptr);
         ++rounds_done_;
         RoundSummary summary;
         summary.index = round_index_;

@@ -130,6 +130,11 @@ public:
     // Whether the round out was opened ahead: its jobs were leased before the round
     // before it ended, so that round's end held up none of its workers.
     bool round_opened_ahead() const { return opened_ahead_; }
+    // Seconds the render had no job to lease because the round after the one out was
+    // still being planned ahead (every job of the round out leased, the plan not made):
+    // the workers that asked then waited on the coordinator, as through a round end that
+    // is waited through (which is not counted here). bench/farm_scale.
+    double plan_wait_seconds() const { return plan_wait_seconds_; }
     uint64_t samples_planned() const { return strategy_->planned_samples(); }
     double seconds() const;
     double error_estimate() const { return last_round_.error_estimate; }
@@ -226,6 +231,12 @@ private:
     double seconds_before_ = 0;
     std::optional<Clock::time_point> started_;
     std::optional<double> final_seconds_;
+
+    // Since when a lease found nothing while a plan made ahead was still being made.
+    std::optional<Clock::time_point> plan_wait_since_;
+    double plan_wait_seconds_ = 0;
+    // Ends that wait: counted when a round planned ahead came of the plan.
+    void end_plan_wait(bool a_round_came);
 
     // The strategy's work ahead, running on its own thread while the round's results
     // merge (it reads only what the strategy copied). Last, so that it is waited for

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <deque>
+#include <future>
 #include <thread>
 
 #include "checkpoint.h"
@@ -576,6 +577,67 @@ TEST_F(RenderSessionTest, APlanThatThrowsAheadFailsTheRenderWithTheReason) {
     EXPECT_EQ(s.state(), RenderState::Failed);
     EXPECT_EQ(s.error(), "cannot plan round 1: out of memory, say");
     EXPECT_EQ(s.merged().total_samples(), 40u * 40);  // what merged is kept
+}
+
+// Two rounds of one sample a pixel, the second planned ahead by work that waits until the
+// test lets it go: a plan that is late for the leases.
+class LateAhead : public Strategy {
+public:
+    std::string name() const override { return "late"; }
+    std::optional<Round> next_round(const Accumulator& merged) override {
+        if (rounds_ == 2) return std::nullopt;
+        if (rounds_++ == 0)
+            return Round{0, std::vector<uint32_t>(merged.pixel_count(), 1)};
+        return Round{1, std::move(ahead_)};
+    }
+    std::function<void()> take_work_ahead() override {
+        if (rounds_ != 1 || taken_) return {};
+        taken_ = true;
+        return [this] {
+            released_.get_future().wait();
+            ahead_.assign(40 * 40, 1);
+        };
+    }
+    const std::vector<uint32_t>* round_planned_ahead() const override {
+        return ahead_.empty() ? nullptr : &ahead_;
+    }
+    uint64_t planned_samples() const override { return 2 * 40 * 40; }
+    nlohmann::json save_state() const override { return nlohmann::json::object(); }
+    void restore_state(const nlohmann::json&) override {}
+    std::promise<void> released_;
+
+private:
+    int rounds_ = 0;
+    bool taken_ = false;
+    std::vector<uint32_t> ahead_;
+};
+
+TEST_F(RenderSessionTest, ALatePlanAheadIsTimedAsAWaitOnTheCoordinator) {
+    auto strategy = std::make_unique<LateAhead>();
+    LateAhead& late = *strategy;
+    RenderSession s("r", spec, 0, std::move(strategy));
+    s.start();
+    std::vector<std::pair<uint64_t, SampleJob>> out;
+    uint64_t lease = 1;
+    while (auto job = s.issue(lease, "w", far))
+        out.emplace_back(lease++, std::move(*job));
+    EXPECT_EQ(s.plan_wait_seconds(), 0.0);  // asked, found nothing: the clock runs
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    late.released_.set_value();
+    std::optional<SampleJob> next;
+    for (int spin = 0; spin < 2000 && !(next = s.issue(lease, "w", far)); ++spin)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    ASSERT_TRUE(next.has_value());
+    EXPECT_GE(s.plan_wait_seconds(), 0.03);
+    const double waited = s.plan_wait_seconds();
+    for (const auto& [l, job] : out)
+        ASSERT_EQ(s.complete(l, "w", fake_result(job)).status, CompleteStatus::Merged);
+    ASSERT_EQ(s.complete(lease, "w", fake_result(*next)).status, CompleteStatus::Merged);
+    while (auto job = s.issue(++lease, "w", far))
+        ASSERT_EQ(s.complete(lease, "w", fake_result(*job)).status,
+                  CompleteStatus::Merged);
+    EXPECT_EQ(s.state(), RenderState::Done);
+    EXPECT_EQ(s.plan_wait_seconds(), waited);  // the round ends were not counted here
 }
 
 // Issue 12, item 5: a job a worker cannot trace goes to another worker; failures count
