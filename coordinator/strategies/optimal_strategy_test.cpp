@@ -31,6 +31,16 @@ SyntheticImage banded_image() {
     return image;
 }
 
+// The counts of every round `strategy` gives, driven round by round on `image`.
+std::vector<std::vector<uint32_t>> rounds_of(OptimalStrategy& strategy,
+                                             const SyntheticImage& image,
+                                             Accumulator& merged) {
+    std::vector<std::vector<uint32_t>> rounds;
+    run_synthetic(strategy, image, merged, 100,
+                  [&](const Round& r, const Accumulator&) { rounds.push_back(r.spp); });
+    return rounds;
+}
+
 // sum_i sigma_i / sqrt(n_i): the expected mean absolute error up to a constant.
 double expected_error(const Accumulator& merged, const SyntheticImage& image) {
     double f = 0;
@@ -439,10 +449,7 @@ TEST(Optimal, RestoredStateMakesTheSameDecisions) {
         SCOPED_TRACE(cost_aware ? "optimal-time" : "optimal");
         OptimalStrategy whole(optimal(4096 * 40), 64, 64, cost_aware);
         Accumulator a(64, 64);
-        std::vector<std::vector<uint32_t>> rounds;
-        run_synthetic(whole, image, a, 100, [&](const Round& r, const Accumulator&) {
-            rounds.push_back(r.spp);
-        });
+        const std::vector<std::vector<uint32_t>> rounds = rounds_of(whole, image, a);
         ASSERT_GT(rounds.size(), 4u);
         OptimalStrategy first(optimal(4096 * 40), 64, 64, cost_aware);
         Accumulator b(64, 64);
@@ -510,10 +517,8 @@ TEST(Optimal, ASplitPilotPlansTheFirstSteeredRoundFromItsFirstHalf) {
         p.plan_ahead = 1;
         OptimalStrategy strategy(p, 64, 64, cost_aware);
         Accumulator merged(64, 64);
-        std::vector<std::vector<uint32_t>> rounds;
-        run_synthetic(
-            strategy, image, merged, 100,
-            [&](const Round& r, const Accumulator&) { rounds.push_back(r.spp); });
+        const std::vector<std::vector<uint32_t>> rounds =
+            rounds_of(strategy, image, merged);
         ASSERT_GE(rounds.size(), 3u);
         EXPECT_EQ(rounds[0], std::vector<uint32_t>(4096, 8));
         EXPECT_EQ(rounds[1], std::vector<uint32_t>(4096, 8));
@@ -591,10 +596,7 @@ TEST(Optimal, ARoundPlannedAheadIsTheSameWhereverItsWorkRuns) {
         p.plan_ahead = 1;
         OptimalStrategy here(p, 64, 64, cost_aware);
         Accumulator a(64, 64);
-        std::vector<std::vector<uint32_t>> rounds;
-        run_synthetic(here, image, a, 100, [&](const Round& r, const Accumulator&) {
-            rounds.push_back(r.spp);
-        });
+        const std::vector<std::vector<uint32_t>> rounds = rounds_of(here, image, a);
         OptimalStrategy elsewhere(p, 64, 64, cost_aware);
         Accumulator b(64, 64);
         size_t r = 0, taken = 0;
