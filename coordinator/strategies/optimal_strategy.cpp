@@ -447,9 +447,8 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     if (work_ahead_) std::exchange(work_ahead_, nullptr)();  // not taken: done here
     if (finished_) return std::nullopt;
     Round round{rounds_, {}};
-    double share = 0;         // what a steered round spends of the limit
-    bool read_here = false;   // planning_ holds what `merged` holds now
-    bool pilot_half = false;  // the pilot's second half: the first plan is made ahead
+    double share = 0;        // what a steered round spends of the limit
+    bool read_here = false;  // planning_ holds what `merged` holds now
     if (!piloted_) {
         round.spp = pilot_round();
         // The first steered round end would take its ~150 MB of buffers (at 1920x1080)
@@ -483,7 +482,6 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
         round.spp = std::move(steered.spp);
         share = steered.share;
         out_spends_rest_ = steered.spends_rest;
-        pilot_half = steered.pilot;
     }
     const uint64_t total = round.total();
     if (total == 0) {
@@ -492,6 +490,8 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
     }
     issued_ += total;
     ++rounds_;
+    // The pilot's second half (round 1 of a split pilot): the first plan is made ahead.
+    const bool pilot_half = split_pilot_ && round.index == 1;
     if (pilot_half || (share > 0 && share <= plan_ahead_ * limit())) {
         // A round planned here leaves in planning_ what the next plan would read again
         // (its only change, non-finite variances made the largest, is one the next plan
@@ -535,7 +535,6 @@ std::vector<uint32_t> OptimalStrategy::pilot_round() {
         const uint64_t first = pilot / 2;
         Steered second;
         second.spp.assign(pixels, uint32_t(pilot - first));
-        second.pilot = true;
         ahead_ = std::move(second);
         ahead_pending_ = true;
         return std::vector<uint32_t>(pixels, uint32_t(first));
@@ -675,9 +674,7 @@ nlohmann::json OptimalStrategy::save_state() const {
     // A round planned ahead and made: what it spends; its counts are the checkpoint's
     // (round_planned_ahead), too large for this state.
     if (ahead_pending_ && ahead_)
-        state["ahead"] = {{"share", ahead_->share},
-                          {"spends_rest", ahead_->spends_rest},
-                          {"pilot", ahead_->pilot}};
+        state["ahead"] = {{"share", ahead_->share}, {"spends_rest", ahead_->spends_rest}};
     return state;
 }
 
@@ -699,7 +696,6 @@ void OptimalStrategy::restore_state(const nlohmann::json& state) {
         Steered meta;
         meta.share = a.at("share").get<double>();
         meta.spends_rest = a.at("spends_rest").get<bool>();
-        meta.pilot = a.at("pilot").get<bool>();
         restored_ahead_ = std::move(meta);
     }
     // States saved before it existed: a round end that follows the last round then

@@ -78,7 +78,6 @@ private:
         std::vector<uint32_t> spp;
         double share = 0;
         bool spends_rest = false;  // share is all that was left
-        bool pilot = false;        // the pilot's second half, planned by no one
     };
 
     // Copies what a plan reads of `merged` into `b`, with `in_flight` (a round out, or
