@@ -245,9 +245,10 @@ void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) 
     // A strategy holding a round it planned before this round's results is restored
     // from these buffers with that round's counts (made by now: the round end waited for
     // its plan). uniform's round ahead follows from its state: nothing to keep.
+    const bool holds = r.strategy().holds_planned_round();
     const std::vector<uint32_t>* planned =
-        r.strategy().holds_planned_round() ? r.strategy().round_planned_ahead() : nullptr;
-    if (r.strategy().holds_planned_round() && !planned) return;
+        holds ? r.strategy().round_planned_ahead() : nullptr;
+    if (holds && !planned) return;
     if (!timing.in_flight &&
         checkpoint_due(
             std::chrono::duration<double>(std::chrono::steady_clock::now() - timing.ended)
@@ -1357,7 +1358,7 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + 12                             // a round's jobs: counts, first indices
         + 16                             // the round's spp; a strategy's per pixel
         + 72                             // optimal's planning, the round ahead
-        + 24                             // optimal's weights kept, with their sigma, cost
+        + 8                              // optimal's weights kept
         + (sizeof(PixelSums) + 12) / 4   // a round opened ahead: held results, jobs
         + 20;                            // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it

@@ -235,8 +235,8 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
     if (state_ != RenderState::Running) return std::nullopt;
     if (pending_.empty()) open_next_round();
     if (state_ != RenderState::Running || (pending_.empty() && next_pending_.empty())) {
-        if (state_ == RenderState::Running && pending_.empty() && !next_spp_ &&
-            !next_tried_ && work_ahead_.valid() && !plan_wait_since_)
+        if (state_ == RenderState::Running && pending_.empty() && plan_coming() &&
+            !plan_wait_since_)
             plan_wait_since_ = Clock::now();
         return std::nullopt;
     }

@@ -98,8 +98,7 @@ public:
     // Whether a job may be there to issue: one pending, or a round planned ahead that
     // may open (issue says for certain).
     bool has_pending() const {
-        return !pending_.empty() || !next_pending_.empty() ||
-               (!next_spp_ && !next_tried_ && work_ahead_.valid());
+        return !pending_.empty() || !next_pending_.empty() || plan_coming();
     }
     // True once a round, when the next issue would look at a plan made ahead that is
     // now done (every job of the round out leased, the plan's work ended). Nothing else
@@ -235,6 +234,8 @@ private:
     // Since when a lease found nothing while a plan made ahead was still being made.
     std::optional<Clock::time_point> plan_wait_since_;
     double plan_wait_seconds_ = 0;
+    // A plan made ahead is running or done, and the round it may bring is not open yet.
+    bool plan_coming() const { return !next_spp_ && !next_tried_ && work_ahead_.valid(); }
     // Ends that wait: counted when a round planned ahead came of the plan.
     void end_plan_wait(bool a_round_came);
 
