@@ -17,6 +17,13 @@ struct PixelRect {
     bool operator==(const PixelRect&) const = default;
 };
 
+// The tracer batches a round's samples by cells of kCellSide x kCellSide pixels, on a
+// grid from the image's origin clipped at its edges (worker/tracer/trace_job.cpp), so
+// that its batches are full when pixels get few samples. Which samples share a batch
+// changes a sample's last bits (Embree's packets), so rounds are cut into jobs on cell
+// boundaries (round_cutter.h): then how a round is cut changes no bit.
+inline constexpr uint32_t kCellSide = 8;
+
 struct SampleJob {
     PixelRect rect;
     std::vector<uint32_t> counts;  // per pixel of rect, row-major

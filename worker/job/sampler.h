@@ -1,9 +1,9 @@
 // SampleRng: the random numbers of one pixel sample. Seeded by a hash of
 // (render seed, x, y, sample index) and nothing else, so a sample draws the same numbers
 // wherever it is traced, and a render is the same bytes however its pixels are split
-// among threads, jobs and workers. (Its last bits may also depend on which of its pixel's
-// samples share its camera-ray packet, see sample_job.cpp: the render's rounds fix that,
-// not the workers.)
+// among threads, jobs and workers. (Its last bits may also depend on which samples share
+// its batch and so Embree's packets, see kCellSide in sample_job.h: the render's rounds
+// and a fixed grid of cells fix that, not the workers.)
 #pragma once
 
 #include <cstdint>

@@ -2,13 +2,12 @@
 
 #include <stdexcept>
 
-#include "path_lanes.h"
 #include "simd_clones.h"
 
 namespace aliquot {
 
-ALIQUOT_SIMD_CLONES void camera_rays(const CameraModel& camera, uint64_t seed, uint32_t x,
-                                     uint32_t y, uint64_t k0, int n, Vec3* dirs,
+ALIQUOT_SIMD_CLONES void camera_rays(const CameraModel& camera, uint64_t seed,
+                                     const SampleLanes& samples, int n, Vec3* dirs,
                                      SampleRng* rngs) {
     constexpr int kMax = PathLanes::kMax;
     if (n < 0 || n > kMax)
@@ -17,10 +16,13 @@ ALIQUOT_SIMD_CLONES void camera_rays(const CameraModel& camera, uint64_t seed, u
     float dx[kMax], dy[kMax], dz[kMax];
     const CameraModel cam = camera;  // a local copy: nothing the loop stores can alias it
     for (int j = 0; j < n; ++j) {
+        const uint32_t x = samples.x[j], y = samples.y[j];
         uint64_t s, i;
-        seed_pcg(seed, x, y, k0 + uint64_t(j), s, i);
-        const float px = float(x) + unit_float(pcg32_step(s, i));
-        const float py = float(y) + unit_float(pcg32_step(s, i));
+        seed_pcg(seed, x, y, samples.k[j], s, i);
+        // Through int32: a signed conversion is one vector instruction, an unsigned one
+        // is several without AVX-512; a pixel's coordinates are far below 2^31.
+        const float px = float(int32_t(x)) + unit_float(pcg32_step(s, i));
+        const float py = float(int32_t(y)) + unit_float(pcg32_step(s, i));
         const Vec3 d = cam.direction(px, py);
         state[j] = s;
         inc[j] = i;

@@ -14,7 +14,7 @@ namespace {
 
 // The loop gives each sample what seeding its own SampleRng and drawing the pixel point
 // from it would: the same ray to the bit and a generator in the same state, for every
-// batch size (whole SIMD vectors and the remainder alike).
+// batch size (whole SIMD vectors and the remainder alike) and lanes from many pixels.
 TEST(CameraRays, EachSampleGetsWhatItsOwnGeneratorWouldDraw) {
     const Scene scene = load_scene("cornell-box");
     const CameraModel camera(scene.camera, 97, 61);
@@ -22,13 +22,18 @@ TEST(CameraRays, EachSampleGetsWhatItsOwnGeneratorWouldDraw) {
         const size_t count = static_cast<size_t>(n);
         std::vector<Vec3> dirs(count);
         std::vector<SampleRng> rngs(count, SampleRng(0, 0, 0, 0));
-        const uint64_t seed = 12345, k0 = 1000 + uint64_t(n);
-        const uint32_t x = 41, y = 17;
-        camera_rays(camera, seed, x, y, k0, n, dirs.data(), rngs.data());
+        const uint64_t seed = 12345;
+        SampleLanes lanes;
+        for (int j = 0; j < n; ++j) {  // a few samples of each of several pixels
+            lanes.x[j] = 40 + uint32_t(j / 3) % 8;
+            lanes.y[j] = 17 + uint32_t(j / 24);
+            lanes.k[j] = 1000 + uint64_t(n) + uint64_t(j % 3);
+        }
+        camera_rays(camera, seed, lanes, n, dirs.data(), rngs.data());
         for (int j = 0; j < n; ++j) {
-            SampleRng own(seed, x, y, k0 + uint64_t(j));
-            const float px = float(x) + own.next_float();
-            const float py = float(y) + own.next_float();
+            SampleRng own(seed, lanes.x[j], lanes.y[j], lanes.k[j]);
+            const float px = float(lanes.x[j]) + own.next_float();
+            const float py = float(lanes.y[j]) + own.next_float();
             const Vec3 dir = camera.direction(px, py);
             EXPECT_EQ(std::memcmp(&dirs[size_t(j)], &dir, sizeof dir), 0)
                 << n << ", " << j;
@@ -43,9 +48,9 @@ TEST(CameraRays, RefusesMoreSamplesThanABatch) {
     const CameraModel camera(scene.camera, 8, 8);
     std::vector<Vec3> dirs(PathLanes::kMax + 1);
     std::vector<SampleRng> rngs(PathLanes::kMax + 1, SampleRng(0, 0, 0, 0));
-    EXPECT_THROW(
-        camera_rays(camera, 1, 0, 0, 0, PathLanes::kMax + 1, dirs.data(), rngs.data()),
-        std::invalid_argument);
+    EXPECT_THROW(camera_rays(camera, 1, SampleLanes{}, PathLanes::kMax + 1, dirs.data(),
+                             rngs.data()),
+                 std::invalid_argument);
 }
 
 }  // namespace

@@ -4,46 +4,59 @@
 #include <array>
 #include <atomic>
 #include <chrono>
-#include <optional>
+#include <exception>
 #include <stdexcept>
 #include <thread>
 #include <vector>
 
 #include "camera_model.h"
 #include "camera_rays.h"
+#include "cell_batches.h"
 
 namespace aliquot {
 
 namespace {
 
-void trace_row(const PathTracer& tracer, const CameraModel& camera,
-               const RenderGeometry& geometry, const SampleJob& job, uint32_t row,
-               SampleJobResult& result) {
-    constexpr int kBatch = PathTracer::kBatch;
-    const PixelRect& r = job.rect;
-    std::vector<SampleRng> rngs(kBatch, SampleRng::at(0, 1));  // camera_rays seeds them
-    std::array<Vec3, kBatch> dirs;
-    std::array<Radiance, kBatch> radiance;
-    for (uint32_t col = 0; col < r.width; ++col) {
-        const size_t i = size_t(row) * r.width + col;
-        const uint32_t x = r.x + col, y = r.y + row;
-        PixelSums& sums = result.pixels[i];
-        const uint64_t first = job.first_sample[i], end = first + job.counts[i];
-        // The pixel's samples are traced together, kBatch at a time, cut from its first
-        // sample here. A job holds all of a pixel's samples of its round, so which
-        // samples share a batch (and so Embree's packets) follows from the render's
-        // rounds, never from how rounds are cut into jobs or jobs spread over threads and
-        // workers.
-        for (uint64_t k0 = first; k0 < end; k0 += kBatch) {
-            const int n = int(std::min<uint64_t>(kBatch, end - k0));
-            camera_rays(camera, geometry.seed, x, y, k0, n, dirs.data(), rngs.data());
-            tracer.radiance_batch(camera.origin(), dirs.data(), n, rngs.data(),
-                                  radiance.data());
-            for (int j = 0; j < n; ++j)
-                add_sample(sums, k0 + j, radiance[j].value, radiance[j].rays);
-        }
+// One thread's tracing of cells: their batches (cell_batches.h), each pixel's samples
+// added to its sums in index order, as its batches come in order.
+class CellTracer {
+public:
+    CellTracer(const PathTracer& tracer, const CameraModel& camera,
+               const RenderGeometry& geometry, const SampleJob& job,
+               SampleJobResult& result)
+        : tracer_(tracer),
+          camera_(camera),
+          geometry_(geometry),
+          job_(job),
+          result_(result) {}
+
+    void trace(const PixelRect& cell) {
+        for_each_batch(job_, cell, batch_,
+                       [this](const SampleBatch& b) { trace_batch(b); });
     }
-}
+
+private:
+    void trace_batch(const SampleBatch& b) {
+        camera_rays(camera_, geometry_.seed, b.samples, b.count, dirs_.data(),
+                    rngs_.data());
+        tracer_.radiance_batch(camera_.origin(), dirs_.data(), b.count, rngs_.data(),
+                               radiance_.data());
+        for (int j = 0; j < b.count; ++j)
+            add_sample(result_.pixels[b.pixel[j]], b.samples.k[j], radiance_[j].value,
+                       radiance_[j].rays);
+    }
+
+    const PathTracer& tracer_;
+    const CameraModel& camera_;
+    const RenderGeometry& geometry_;
+    const SampleJob& job_;
+    SampleJobResult& result_;
+    SampleBatch batch_;
+    std::array<Vec3, SampleBatch::kMax> dirs_;
+    std::vector<SampleRng> rngs_ = std::vector<SampleRng>(
+        SampleBatch::kMax, SampleRng::at(0, 1));  // camera_rays seeds them
+    std::array<Radiance, SampleBatch::kMax> radiance_;
+};
 
 }  // namespace
 
@@ -55,7 +68,8 @@ SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry&
     if (job.counts.size() != r.size() || job.first_sample.size() != r.size())
         throw std::invalid_argument(
             "sample job: per-pixel arrays do not match its rectangle");
-    if (r.x + r.width > geometry.width || r.y + r.height > geometry.height)
+    if (r.x > geometry.width || r.width > geometry.width - r.x || r.y > geometry.height ||
+        r.height > geometry.height - r.y)
         throw std::invalid_argument("sample job: rectangle lies outside the image");
 
     SampleJobResult result;
@@ -63,19 +77,44 @@ SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry&
     result.pixels.resize(r.size());
     const CameraModel camera(tracer.scene().camera, geometry.width, geometry.height);
 
-    std::atomic<uint32_t> next_row{0};
+    // Threads take whole cells, so each batch is traced by one thread as one batch.
+    const JobCells cells(r);
+    std::atomic<size_t> next_cell{0};
+    std::atomic<bool> failed{false};
     auto work = [&] {
         enable_flush_to_zero();
-        for (uint32_t row; (row = next_row.fetch_add(1)) < r.height;) {
-            if (cancel && cancel->load()) return;
-            trace_row(tracer, camera, geometry, job, row, result);
+        CellTracer cell_tracer(tracer, camera, geometry, job, result);
+        for (size_t c; (c = next_cell.fetch_add(1)) < cells.count();) {
+            if ((cancel && cancel->load()) || failed.load()) return;
+            cell_tracer.trace(cells[c]);
         }
     };
-    const int extra = std::max(0, std::min<int>(threads, int(r.height)) - 1);
+    // No exception may leave a thread: the first one is thrown here once all have joined.
+    const size_t extra = std::min<size_t>(size_t(std::max(threads, 1)),
+                                          std::max<size_t>(cells.count(), 1)) -
+                         1;
+    std::vector<std::exception_ptr> errors(extra);
     std::vector<std::jthread> pool;
-    for (int t = 0; t < extra; ++t) pool.emplace_back(work);
-    work();
+    for (size_t t = 0; t < extra; ++t)
+        pool.emplace_back([&, t] {
+            try {
+                work();
+            } catch (...) {
+                errors[t] = std::current_exception();
+                failed = true;
+            }
+        });
+    std::exception_ptr own;
+    try {
+        work();
+    } catch (...) {
+        own = std::current_exception();
+        failed = true;
+    }
     pool.clear();  // joins
+    if (own) std::rethrow_exception(own);
+    for (const std::exception_ptr& e : errors)
+        if (e) std::rethrow_exception(e);
     if (cancel && cancel->load()) throw JobCancelled();
 
     result.wall_seconds =
