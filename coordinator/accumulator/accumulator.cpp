@@ -12,13 +12,26 @@ namespace aliquot {
 
 namespace {
 
-// No physical pixel's sum comes near this, and its square (the variance estimate squares
-// sums) stays finite: a result that would push a merged sum past it is refused whole.
-constexpr double kMaxMergedSum = 1e100;
+// A merged pixel's sums stay within this many times its sample count: its mean and its
+// halves' means stay below 3e30 (each half holds at least a third of the samples from two
+// on), far inside float32 (3.4e38), the type of the EXR; so does its mean's variance (the
+// "variance.Y" layer), which is at most sum_sq_luminance / (n (n - 1)). No physical
+// radiance comes near it, and a pixel's sum cannot pass 1e30 x 2^64 = 2e49, whose square
+// (the variance estimate squares sums) is a finite double. A sum under such a bound can
+// still give an infinite float when divided by a sample count of 1: the bound is on the
+// mean, not on the sum.
+constexpr double kMaxMeanPerSample = 1e30;
 
-bool stays_finite(double merged, double added) {
-    const double sum = merged + added;
-    return std::isfinite(added) && std::isfinite(sum) && std::abs(sum) <= kMaxMergedSum;
+// Whether merging `src` into `dst` keeps every sum finite and within the bound. NaN and
+// infinities fail the comparisons. No branches: the pass over a result vectorises.
+bool stays_bounded(const PixelSums& dst, const PixelSums& src) {
+    const double bound = kMaxMeanPerSample * double(dst.samples + src.samples);
+    bool ok = std::abs(dst.sum_sq_luminance + src.sum_sq_luminance) <= bound;
+    for (int c = 0; c < 3; ++c) {
+        ok &= std::abs(dst.even[c] + src.even[c]) <= bound;
+        ok &= std::abs(dst.odd[c] + src.odd[c]) <= bound;
+    }
+    return ok;
 }
 
 }  // namespace
@@ -67,21 +80,24 @@ void Accumulator::merge(const SampleJobResult& result) {
 
 void Accumulator::check_finite_after(const SampleJobResult& result) const {
     const PixelRect& r = result.rect;
+    // One pass that only looks, the result's pixels checked as a whole before any is
+    // added: a refused result leaves the buffers exactly as they were.
+    bool ok = true;
     for (uint32_t row = 0; row < r.height; ++row) {
-        for (uint32_t col = 0; col < r.width; ++col) {
-            const PixelSums& src = result.pixels[size_t(row) * r.width + col];
-            const PixelSums& dst = pixels_[size_t(r.y + row) * width_ + r.x + col];
-            bool ok = stays_finite(dst.sum_sq_luminance, src.sum_sq_luminance);
-            for (int c = 0; c < 3; ++c)
-                ok = ok && stays_finite(dst.even[c], src.even[c]) &&
-                     stays_finite(dst.odd[c], src.odd[c]);
-            if (!ok)
+        const PixelSums* src = result.pixels.data() + size_t(row) * r.width;
+        const PixelSums* dst = pixels_.data() + size_t(r.y + row) * width_ + r.x;
+        for (uint32_t col = 0; col < r.width; ++col)
+            ok &= stays_bounded(dst[col], src[col]);
+    }
+    if (ok) return;
+    for (uint32_t row = 0; row < r.height; ++row)
+        for (uint32_t col = 0; col < r.width; ++col)
+            if (!stays_bounded(pixels_[size_t(r.y + row) * width_ + r.x + col],
+                               result.pixels[size_t(row) * r.width + col]))
                 throw MergeError("merging would make pixel (" +
                                  std::to_string(r.x + col) + ", " +
                                  std::to_string(r.y + row) +
-                                 ")'s sums non-finite or larger than 1e100");
-        }
-    }
+                                 ")'s sums non-finite or larger than 1e30 a sample");
 }
 
 void Accumulator::mean(size_t i, double rgb[3]) const {

@@ -36,7 +36,8 @@ public:
 
     // Adds a job's sums. Throws MergeError, touching nothing, when the result does not
     // fit the image (rectangle outside it, wrong pixel count) or would make a merged sum
-    // non-finite or absurdly large: the buffers stay finite whatever a worker sends.
+    // non-finite or larger than 1e30 times the pixel's samples: the buffers stay finite,
+    // and so does every float of the image made from them, whatever a worker sends.
     void merge(const SampleJobResult& result);
 
     const PixelSums& at(size_t i) const { return pixels_[i]; }

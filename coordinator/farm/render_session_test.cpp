@@ -117,13 +117,48 @@ TEST_F(RenderSessionTest, AResultThatWouldOverflowTheSumsIsRejectedAndTheJobReis
     huge.pixels[0].even[0] = 1.7e308;
     const CompleteOutcome out = s.complete(1, "w", huge);
     EXPECT_EQ(out.status, CompleteStatus::Rejected);
-    EXPECT_NE(out.message.find("non-finite or larger than 1e100"), std::string::npos)
+    EXPECT_NE(out.message.find("non-finite or larger than 1e30"), std::string::npos)
         << out.message;
     EXPECT_EQ(s.merged().total_samples(), 0u);
     auto again = s.issue(2, "w", far);
     ASSERT_TRUE(again);
     EXPECT_EQ(again->rect, job->rect);
     EXPECT_EQ(s.complete(2, "w", fake_result(*again)).status, CompleteStatus::Merged);
+}
+
+// Issue 30, item 8: the lease holder's sums of 9e99 stayed under the old cap of 1e100,
+// merged, and the finished 32x32 image held +inf wherever a pixel had one sample, with
+// an error estimate of 0. Such a result is refused whole and counted as a failed job,
+// which is traced again; the render ends with every pixel finite.
+TEST_F(RenderSessionTest,
+       AResultWhoseMeanOverflowsAFloatIsRefusedAndTheImageStaysFinite) {
+    spec.width = spec.height = 32;
+    spec.strategy.spp = 1;
+    RenderSession s("r", spec, 0);
+    s.start();
+    uint64_t lease = 0;
+    bool poisoned = false;
+    // Another worker after the refusal: the one refused may be kept off the job.
+    while (auto job = s.issue(++lease, poisoned ? "v" : "w", far)) {
+        SampleJobResult r = fake_result(*job);
+        if (!poisoned) {
+            SampleJobResult huge = r;
+            for (PixelSums& p : huge.pixels) p.even[0] = p.odd[1] = 9e99;
+            const CompleteOutcome out = s.complete(lease, "w", huge);
+            EXPECT_EQ(out.status, CompleteStatus::Rejected);
+            EXPECT_NE(out.message.find("larger than 1e30 a sample"), std::string::npos)
+                << out.message;
+            poisoned = true;
+            continue;  // the job comes back with the next lease
+        }
+        ASSERT_EQ(s.complete(lease, "v", r).status, CompleteStatus::Merged);
+    }
+    ASSERT_EQ(s.state(), RenderState::Done);
+    const Image image = s.image(true);
+    for (float v : image.rgb) ASSERT_TRUE(std::isfinite(v));
+    for (const Image::Channel& c : image.extra)
+        for (float v : c.values) ASSERT_TRUE(std::isfinite(v)) << c.name;
+    EXPECT_EQ(s.merged().total_samples(), 32u * 32u);
 }
 
 TEST_F(RenderSessionTest, APixelWithoutSamplesMustComeBackEmpty) {
