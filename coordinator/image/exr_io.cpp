@@ -8,8 +8,10 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfTileDescriptionAttribute.h>
 #include <OpenEXR/ImfVersion.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -100,15 +102,31 @@ void write_to(Imf::OStream& stream, const Image& image) {
     file.writePixels(int(image.height));
 }
 
-// Reads R, G, B and every other channel from an OpenEXR stream; `path` (a file, or what
-// the bytes came from) goes into errors. The one reader of files and memory.
-Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
-                const ExrSize* expected = nullptr) {
-    Imf::InputFile file(stream);
-    const Imath::Box2i dw = file.header().dataWindow();
+std::string mib(uint64_t bytes) { return std::to_string(bytes >> 20) + " MiB"; }
+
+// The header alone, read before any pixel is: what it claims decides whether the pixels
+// are read at all. (Opening an Imf::InputFile already sizes its buffers by the header.)
+Imf::Header read_header(Imf::IStream& stream, const std::filesystem::path& path) {
+    char start[8];
+    stream.read(start, sizeof start);
+    int version =  // readFrom takes it by reference
+        int(uint32_t(uint8_t(start[4])) | uint32_t(uint8_t(start[5])) << 8 |
+            uint32_t(uint8_t(start[6])) << 16 | uint32_t(uint8_t(start[7])) << 24);
+    if (Imf::isMultiPart(version) || Imf::isNonImage(version))
+        fail("read", path, "only single-part images are read (no multi-part, no deep)");
+    Imf::Header header;
+    header.readFrom(stream, version);
+    stream.seekg(0);
+    return header;
+}
+
+// Refuses what the header claims before anything is allocated by it: a few kilobytes
+// (or a few megabytes of ZIP) can claim gigabytes of pixels.
+void check_claims(const Imf::Header& header, const std::filesystem::path& path,
+                  const ExrSize* expected, uint64_t max_bytes) {
+    const Imath::Box2i dw = header.dataWindow();
     const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
     const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
-    // A header may claim any size; bytes from the network must not make us allocate it.
     if (w < 1 || h < 1 || w > kMaxSide || h > kMaxSide)
         fail("read", path,
              "data window " + std::to_string(w) + "x" + std::to_string(h) +
@@ -118,7 +136,7 @@ Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
              "it is " + std::to_string(w) + "x" + std::to_string(h) + ", expected " +
                  std::to_string(expected->width) + "x" +
                  std::to_string(expected->height));
-    const Imf::ChannelList& channels = file.header().channels();
+    const Imf::ChannelList& channels = header.channels();
     size_t channel_count = 0;
     for (auto it = channels.begin(); it != channels.end(); ++it) ++channel_count;
     // Each channel is a full float plane: the count is bounded as the size is.
@@ -126,6 +144,24 @@ Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
         fail("read", path,
              std::to_string(channel_count) + " channels, more than " +
                  std::to_string(kMaxChannels));
+    const uint64_t pixel_bytes =
+        uint64_t(w) * uint64_t(h) * channel_count * sizeof(float);
+    if (max_bytes > 0 && pixel_bytes > max_bytes)
+        throw ImageTooLarge("cannot read " + path.string() + ": " +
+                            std::to_string(channel_count) + " channels of " +
+                            std::to_string(w) + "x" + std::to_string(h) + " take " +
+                            mib(pixel_bytes) + " decoded, more than " + mib(max_bytes) +
+                            " the memory budget leaves for it");
+    // A tiled file's reader holds a tile's pixels at once: no tile much larger than the
+    // image (small images may keep the usual 64x64 tiles, or larger ones up to 256).
+    if (header.hasTileDescription()) {
+        const Imf::TileDescription& tile = header.tileDescription();
+        if (int64_t(tile.xSize) > std::max<int64_t>(w, 256) ||
+            int64_t(tile.ySize) > std::max<int64_t>(h, 256))
+            fail("read", path,
+                 "tiles of " + std::to_string(tile.xSize) + "x" +
+                     std::to_string(tile.ySize) + " are larger than the image");
+    }
     for (const char* name : kRgb)
         if (!channels.findChannel(name))
             fail("read", path, std::string("no channel ") + name);
@@ -133,6 +169,18 @@ Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
         if (it.channel().xSampling != 1 || it.channel().ySampling != 1)
             fail("read", path,
                  std::string("subsampled channel ") + it.name() + " is not supported");
+}
+
+// Reads R, G, B and every other channel from an OpenEXR stream; `path` (a file, or what
+// the bytes came from) goes into errors. The one reader of files and memory.
+Image read_from(Imf::IStream& stream, const std::filesystem::path& path,
+                const ExrSize* expected = nullptr, uint64_t max_bytes = 0) {
+    check_claims(read_header(stream, path), path, expected, max_bytes);
+    Imf::InputFile file(stream);
+    const Imath::Box2i dw = file.header().dataWindow();
+    const int64_t w = int64_t(dw.max.x) - dw.min.x + 1;
+    const int64_t h = int64_t(dw.max.y) - dw.min.y + 1;
+    const Imf::ChannelList& channels = file.header().channels();
 
     Image image{uint32_t(w), uint32_t(h)};
     Imf::FrameBuffer frame;
@@ -245,13 +293,13 @@ std::string encode_exr(const Image& image) {
 }
 
 Image decode_exr(const std::string& bytes, const std::string& name,
-                 std::optional<ExrSize> expected) {
+                 std::optional<ExrSize> expected, uint64_t max_bytes) {
     if (bytes.size() < 4 || !Imf::isImfMagic(bytes.data()))
         fail("read", name, "not an OpenEXR file");
     return reading(name, [&] {
         Imf::StdISStream stream;
         stream.str(bytes);
-        return read_from(stream, name, expected ? &*expected : nullptr);
+        return read_from(stream, name, expected ? &*expected : nullptr, max_bytes);
     });
 }
 

@@ -17,6 +17,13 @@ public:
     using std::runtime_error::runtime_error;
 };
 
+// decode_exr's refusal of bytes whose pixels would take more than its max_bytes: a
+// matter of memory, not of a broken file.
+class ImageTooLarge : public ImageFileError {
+public:
+    using ImageFileError::ImageFileError;
+};
+
 // Writes float R, G, B plus every extra channel (FLOAT, ZIP compression). Throws
 // ImageFileError naming the path when the file cannot be written.
 void write_exr(const std::filesystem::path& path, const Image& image);
@@ -28,12 +35,15 @@ Image read_exr(const std::filesystem::path& path);
 // cross the network never touch a file (a predictable temporary name is an attack).
 // `name` says in errors where the bytes came from.
 // With `expected`, bytes whose header claims another size are refused before any pixel
-// is allocated (a few kilobytes could otherwise claim gigabytes).
+// is allocated (a few kilobytes could otherwise claim gigabytes); with `max_bytes`, so
+// are bytes whose channels would take more than that decoded (4 bytes a pixel a channel).
+// The header is read alone first: nothing it claims is allocated or decompressed unless
+// it passes.
 struct ExrSize {
     int64_t width = 0, height = 0;
 };
 std::string encode_exr(const Image& image);
 Image decode_exr(const std::string& bytes, const std::string& name,
-                 std::optional<ExrSize> expected = std::nullopt);
+                 std::optional<ExrSize> expected = std::nullopt, uint64_t max_bytes = 0);
 
 }  // namespace aliquot

@@ -8,7 +8,9 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStdIO.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <fstream>
@@ -288,6 +290,44 @@ TEST_F(ExrIo, BytesOfAnotherSizeOrTooManyChannelsAreRefusedBeforeAllocating) {
     for (int c = 0; c < 14; ++c)
         many.extra.push_back({"c" + std::to_string(c), std::vector<float>(16, 0.0f)});
     EXPECT_THROW(decode_exr(encode_exr(many), "ref"), ImageFileError);
+}
+
+// Issue 30, item 6: a valid 3.8 MB ZIP EXR of 8192x8192 with 14 channels, submitted as a
+// reference under --memory-limit 2G, was decoded (3.6 GB, 28 s of CPU) before the budget
+// refused the render. Its header alone now decides: these bytes are that header with no
+// pixels behind it, which a decoder reaching the pixels would have allocated 3.5 GiB for
+// (the planes are made before they are read) and then failed on.
+TEST_F(ExrIo, AHeaderClaimingMoreThanTheBudgetIsRefusedBeforeAnyPixel) {
+    Imf::Header header(8192, 8192);
+    header.compression() = Imf::ZIP_COMPRESSION;
+    for (const char* name : {"R", "G", "B", "A", "Z", "N.X", "N.Y", "N.Z", "albedo.R",
+                             "albedo.G", "albedo.B", "sampleCount.Y", "variance.Y", "id"})
+        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    Imf::StdOSStream out;
+    { Imf::OutputFile file(out, header); }  // the header and an empty offset table
+    const std::string bytes = out.str();
+    ASSERT_LT(bytes.size(), 64u * 1024);
+    rusage before{};
+    getrusage(RUSAGE_SELF, &before);
+    try {
+        decode_exr(bytes, "ref", ExrSize{8192, 8192}, uint64_t(2) << 30);
+        FAIL() << "expected ImageTooLarge";
+    } catch (const ImageTooLarge& e) {
+        EXPECT_NE(std::string(e.what()).find("14 channels of 8192x8192 take 3584 MiB "
+                                             "decoded, more than 2048 MiB"),
+                  std::string::npos)
+            << e.what();
+    }
+    rusage after{};
+    getrusage(RUSAGE_SELF, &after);
+    EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "KiB more at the peak";
+    // Exactly at the bound a small image decodes; a byte less and it does not.
+    const Image small = patterned(64, 64);
+    EXPECT_NO_THROW(
+        decode_exr(encode_exr(small), "ref", ExrSize{64, 64}, 64 * 64 * 5 * 4));
+    EXPECT_THROW(
+        decode_exr(encode_exr(small), "ref", ExrSize{64, 64}, 64 * 64 * 5 * 4 - 1),
+        ImageTooLarge);
 }
 
 }  // namespace
