@@ -243,7 +243,8 @@ public:
             return {StatusCode::INVALID_ARGUMENT, "a worker name is 1 to 128 bytes"};
         Registration r;
         try {
-            r = c_.register_worker(req->name(), req->threads());
+            // Failures count against the caller's host, never a name it chose.
+            r = c_.register_worker(req->name(), req->threads(), ctx->peer());
         } catch (const TooManyWorkers& e) {
             return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
         }

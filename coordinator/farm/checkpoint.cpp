@@ -58,6 +58,9 @@ void save_checkpoint(const std::filesystem::path& path, const Checkpoint& cp) {
     const std::filesystem::path tmp = path.string() + ".tmp";
     try {
         write_checkpoint_file(tmp, cp);
+        // A render's buffers are its user's: 0600 whatever the umask (docs/SECURITY.md).
+        std::filesystem::permissions(tmp, std::filesystem::perms::owner_read |
+                                              std::filesystem::perms::owner_write);
         std::filesystem::rename(tmp, path);
     } catch (...) {
         // A half-written temp file on a full disk holds the space the next try needs.

@@ -1,9 +1,12 @@
 #include "coordinator.h"
 
+#include <fcntl.h>
 #include <malloc.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -42,11 +45,54 @@ void log_error(const std::string& what) {
     std::fprintf(stderr, "coordinator: %s\n", what.c_str());
 }
 
+// The data directory holds every scene, image and checkpoint of the farm's users: only
+// the coordinator's user may read it, whatever the umask (docs/SECURITY.md, "Files").
+void make_private_dir(const std::filesystem::path& dir) {
+    std::filesystem::create_directories(dir);
+    std::filesystem::permissions(dir, std::filesystem::perms::owner_all);
+}
+
+// Creates `path` empty with mode 0600 (or makes an existing file 0600), so that a write
+// that then opens it with the umask's mode (write_exr) keeps it private from the start.
+void create_private_file(const std::filesystem::path& path) {
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0600);
+    if (fd < 0)
+        throw std::runtime_error("cannot create " + path.string() + ": " +
+                                 std::strerror(errno));
+    const bool ok = ::fchmod(fd, 0600) == 0;
+    const int error = errno;
+    ::close(fd);
+    if (!ok)
+        throw std::runtime_error("cannot make " + path.string() +
+                                 " private: " + std::strerror(error));
+}
+
+// The host a network peer called from, without its port ("ipv4:10.0.0.5:41234" ->
+// "ipv4:10.0.0.5", "ipv6:%5B::1%5D:41234" -> "ipv6:%5B::1%5D"): what failures count
+// against. The port is the caller's to choose with each connection; the host is not.
+std::string host_of_peer(const std::string& peer) {
+    if (peer.empty()) return "unknown peer";
+    const bool ip = peer.rfind("ipv4:", 0) == 0 || peer.rfind("ipv6:", 0) == 0;
+    const size_t colon = peer.rfind(':');
+    if (!ip || colon <= 5 || colon + 1 == peer.size()) return peer;
+    for (size_t i = colon + 1; i < peer.size(); ++i)
+        if (!std::isdigit(static_cast<unsigned char>(peer[i]))) return peer;
+    return peer.substr(0, colon);
+}
+
+// A host no session has (peers are "ipv4:...", "ipv6:...", "unix:...", in-process
+// workers "process:NAME"): added to the live hosts a failure is counted with, it makes
+// RenderSession see another host that could take the job, so that failures alone on
+// one host never fail the render (fail_on_fewer_hosts). Jobs are issued with the true
+// set.
+constexpr const char* kAnotherHost = "\x01another host";
+
 }  // namespace
 
 Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(options)) {
     if (!options_.data_dir.empty()) {
-        std::filesystem::create_directories(options_.data_dir / "renders");
+        make_private_dir(options_.data_dir);
+        make_private_dir(options_.data_dir / "renders");
         store_ = std::make_unique<RunStore>(options_.data_dir);
         // Checkpoints, images and store writes run on the backlog's thread, in order,
         // not under mutex_ (a 2048x2048 checkpoint and EXR held it for 1.4 s).
@@ -313,6 +359,7 @@ void Coordinator::record_end(RenderSlot& slot) {
     // buffers; then this write drops it. A finished session changes no more, so the
     // backlog's thread reads it without the lock; only this write removes it.
     backlog_.submit("record the end of " + r.id(), [this, id = r.id(), done = &r] {
+        create_private_file(render_dir(id) / "image.exr");
         write_exr(render_dir(id) / "image.exr", done->image(true));
         // What info() reads back once the session is gone: the final samples, and
         // in the outcome the rays and seconds the store has no column for.
@@ -336,10 +383,13 @@ std::string Coordinator::claim_render_id() {
         char id_text[32];
         std::snprintf(id_text, sizeof id_text, "r-%06llu",
                       (unsigned long long)next_render_number_++);
-        // create_directory is the claim: an existing directory is some earlier render's,
-        // never to be overwritten, so its number is skipped.
-        if (!store_ || std::filesystem::create_directory(render_dir(id_text)))
-            return id_text;
+        // mkdir is the claim: an existing directory is some earlier render's, never to
+        // be overwritten, so its number is skipped. 0700 whatever the umask.
+        if (!store_) return id_text;
+        if (::mkdir(render_dir(id_text).c_str(), 0700) == 0) return id_text;
+        if (errno != EEXIST)
+            throw std::runtime_error("cannot create " + render_dir(id_text).string() +
+                                     ": " + std::strerror(errno));
     }
 }
 
@@ -352,6 +402,7 @@ std::string Coordinator::submit(RenderSpec spec) {
     const uint64_t needed =
         render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
     std::string id;
+    bool recorded = false;  // its row is in the store
     {
         std::lock_guard lock(mutex_);
         // Before anything is claimed or written: a refused render leaves no trace.
@@ -380,14 +431,25 @@ std::string Coordinator::submit(RenderSpec spec) {
             rec.priority = spec.priority;
             if (spec.reference) rec.reference_path = store_reference(*spec.reference);
             store_->create_render(rec);
+            recorded = true;
         }
         std::lock_guard lock(mutex_);
         reserved_memory_ -= needed;
         scenes_[hash] = spec.scene_json;
         attach(std::move(session));
     } catch (...) {
-        std::lock_guard lock(mutex_);
-        reserved_memory_ -= needed;
+        {
+            std::lock_guard lock(mutex_);
+            reserved_memory_ -= needed;
+            drop_scene_if_unused(hash);
+        }
+        // A submission that failed (a full disk) leaves no empty directory behind: one
+        // per refused submission would pile up, each a render id skipped. A render
+        // whose row was written keeps its directory, as the row points to it.
+        if (store_ && !recorded) {
+            std::error_code ignored;
+            std::filesystem::remove_all(render_dir(id), ignored);
+        }
         throw;
     }
     return id;
@@ -404,12 +466,19 @@ std::string Coordinator::store_reference(const Image& ref) const {
                       (key + "-" + std::to_string(ref.width) + "x" +
                        std::to_string(ref.height) + ".exr");
     if (!std::filesystem::exists(path)) {
-        std::filesystem::create_directories(path.parent_path());
+        make_private_dir(path.parent_path());
         Image rgb_only(ref.width, ref.height);
         rgb_only.rgb = ref.rgb;
         const auto partial = path.string() + ".partial-" + random_hex(8);
-        write_exr(partial, rgb_only);
-        std::filesystem::rename(partial, path);
+        try {
+            create_private_file(partial);
+            write_exr(partial, rgb_only);
+            std::filesystem::rename(partial, path);
+        } catch (...) {
+            std::error_code ignored;  // a full disk: nothing half-written stays
+            std::filesystem::remove(partial, ignored);
+            throw;
+        }
     }
     return path.string();
 }
@@ -430,13 +499,13 @@ void Coordinator::resume_unfinished() {
             if (!rec.reference_path.empty())
                 spec.reference = read_exr(rec.reference_path);
             spec.priority = int32_t(rec.priority);
-            scenes_[rec.scene_hash] = spec.scene_json;
             auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
                 session->restore(std::move(cp->merged), cp->strategy_state,
                                  cp->rounds_done, cp->seconds,
                                  std::move(cp->planned_round));
             std::lock_guard lock(mutex_);  // the backlog's thread may evict meanwhile
+            scenes_[rec.scene_hash] = spec.scene_json;
             attach(std::move(session));
         } catch (const std::exception& e) {
             log_error("cannot resume " + rec.id + ": " + e.what());
@@ -629,12 +698,21 @@ Coordinator::Removal Coordinator::remove(const std::string& id) {
             evict(id);
             return Removal::Removed;
         }
-        // Finished, and its end is being written (then it leaves memory): wait for that.
-        backlog_.wait_idle(std::chrono::seconds(30));
-        std::lock_guard lock(mutex_);
+        // Finished, and its end is being written (then it leaves memory): wait for that,
+        // but not for a disk that refuses it. The writes wait in order, and on a full
+        // disk they are retried for as long as it is full: waiting for the whole backlog
+        // held the caller (an HTTP thread) for 30 s, and then failed anyway.
+        std::unique_lock lock(mutex_);
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+        std::string failing;
+        while (slot_of(id) && !stopping_ && (failing = backlog_.warning()).empty() &&
+               std::chrono::steady_clock::now() < deadline)
+            // evict() wakes this; the backlog failing does not, hence the period.
+            progress_.wait_for(lock, std::chrono::milliseconds(100));
         if (slot_of(id))
-            throw std::runtime_error("render " + id +
-                                     " is still being written to disk; try again later");
+            throw std::runtime_error("render " + id + " is still being written to disk" +
+                                     (failing.empty() ? "" : " (" + failing + ")") +
+                                     "; try again later");
     }
     if (!store_) return Removal::Unknown;
     const std::optional<RenderRecord> rec = store_->get_render(id);
@@ -694,6 +772,17 @@ std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
     return img;
 }
 
+std::optional<std::filesystem::path> Coordinator::image_file(const std::string& id) {
+    {
+        std::lock_guard lock(mutex_);
+        if (slot_of(id)) return std::nullopt;
+    }
+    if (!store_ || !store_->get_render(id)) return std::nullopt;
+    const auto path = render_dir(id) / "image.exr";
+    if (!std::filesystem::exists(path)) return std::nullopt;
+    return path;
+}
+
 uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds timeout) {
     std::unique_lock lock(mutex_);
     progress_.wait_for(lock, timeout, [&] { return version_ > seen || stopping_; });
@@ -722,11 +811,13 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     w.last_seen_ms = now;
     // A worker first heard of here gets its row now, so that marking it lost later has
     // a row to mark. (Since worker sessions, only register_worker meets a new name.)
-    if (is_new || w.lost)
+    if (is_new || w.lost) {
         queue_worker_write("record worker " + name,
                            [this, name, threads = w.threads, now] {
                                store_->upsert_worker(name, threads, now);
                            });
+        w.stored_seen_ms = now;
+    }
     w.lost = false;
     if (w.registered) set_alive(name, true);
     return w;
@@ -734,17 +825,35 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
 
 void Coordinator::set_alive(const std::string& name, bool alive) {
     const bool changed_set = alive ? alive_.insert(name).second : alive_.erase(name) > 0;
-    if (changed_set)
-        alive_snapshot_ = std::make_shared<const std::set<std::string>>(alive_);
+    if (changed_set) alive_dirty_ = true;
 }
 
-const std::string& Coordinator::worker_of_session(const std::string& session) {
+std::shared_ptr<const std::set<std::string>> Coordinator::alive_workers() {
+    if (alive_dirty_) {
+        std::set<std::string> hosts;
+        for (const auto& [session, entry] : worker_sessions_)
+            if (alive_.count(entry.worker)) hosts.insert(entry.identity);
+        alive_snapshot_ = std::make_shared<const std::set<std::string>>(hosts);
+        hosts.insert(kAnotherHost);
+        alive_and_another_ = std::make_shared<const std::set<std::string>>(hosts);
+        alive_dirty_ = false;
+    }
+    return alive_snapshot_;
+}
+
+std::shared_ptr<const std::set<std::string>> Coordinator::alive_for_failures_of(
+    const SessionEntry& caller) {
+    std::shared_ptr<const std::set<std::string>> alive = alive_workers();
+    return caller.trusted || options_.fail_on_fewer_hosts ? alive : alive_and_another_;
+}
+
+Coordinator::SessionEntry Coordinator::worker_of_session(const std::string& session) {
     const auto it = worker_sessions_.find(session);
     if (it == worker_sessions_.end())
         throw WorkerUnknown("unknown worker session: register again");
     it->second.last_seen_ms = unix_millis_now();
     touch_worker(it->second.worker);
-    return it->second.worker;
+    return it->second;
 }
 
 std::set<std::string> Coordinator::sessions_with_leases() const {
@@ -768,6 +877,37 @@ void Coordinator::make_room_for_a_session() {
                              " worker sessions, each holding a lease; try again later");
     // Its worker, if it is still there, is told to register again at its next call.
     worker_sessions_.erase(oldest);
+    alive_dirty_ = true;
+}
+
+void Coordinator::forget_worker(const std::string& name) {
+    std::erase_if(worker_sessions_,
+                  [&name](const auto& kv) { return kv.second.worker == name; });
+    set_alive(name, false);
+    alive_dirty_ = true;
+    workers_.erase(name);
+    queue_worker_write("forget worker " + name,
+                       [this, name] { store_->forget_worker(name); });
+}
+
+void Coordinator::make_room_for_a_worker(const std::string& name) {
+    if (workers_.size() < options_.max_workers || workers_.count(name)) return;
+    std::set<std::string> holding;  // names holding a lease
+    for (const std::string& session : sessions_with_leases())
+        if (const auto it = worker_sessions_.find(session); it != worker_sessions_.end())
+            holding.insert(it->second.worker);
+    auto oldest = workers_.end();
+    for (auto it = workers_.begin(); it != workers_.end(); ++it)
+        if (!holding.count(it->first) &&
+            (oldest == workers_.end() ||
+             it->second.last_seen_ms < oldest->second.last_seen_ms))
+            oldest = it;
+    if (oldest == workers_.end())
+        throw TooManyWorkers("the coordinator knows " + std::to_string(workers_.size()) +
+                             " workers, each holding a lease; try again later");
+    // Its samples not yet recorded go with it; if it is still there, it is told to
+    // register again at its next call.
+    forget_worker(std::string(oldest->first));
 }
 
 void Coordinator::forget_silent_workers(int64_t now_ms) {
@@ -777,20 +917,18 @@ void Coordinator::forget_silent_workers(int64_t now_ms) {
     for (auto it = worker_sessions_.begin(); it != worker_sessions_.end();) {
         if (now_ms - it->second.last_seen_ms > after && !holding.count(it->first)) {
             it = worker_sessions_.erase(it);
+            alive_dirty_ = true;
         } else {
             named.insert(it->second.worker);
             ++it;
         }
     }
-    for (auto it = workers_.begin(); it != workers_.end();) {
-        const WorkerEntry& w = it->second;
+    std::vector<std::string> gone;
+    for (const auto& [name, w] : workers_)
         if (w.lost && w.unrecorded == 0 && now_ms - w.last_seen_ms > after &&
-            !named.count(it->first))
-            it = workers_.erase(it);  // its row stays in the store, marked lost (and
-                                      // a lost worker is not in alive_)
-        else
-            ++it;
-    }
+            !named.count(name))
+            gone.push_back(name);  // a lost worker is not in alive_
+    for (const std::string& name : gone) forget_worker(name);
 }
 
 uint64_t Coordinator::new_lease_id() const {
@@ -805,8 +943,20 @@ uint64_t Coordinator::new_lease_id() const {
 }
 
 Registration Coordinator::register_worker(const std::string& name, uint32_t threads) {
+    return register_session(name, threads, "process:" + name, true);
+}
+
+Registration Coordinator::register_worker(const std::string& name, uint32_t threads,
+                                          const std::string& peer) {
+    return register_session(name, threads, host_of_peer(peer), false);
+}
+
+Registration Coordinator::register_session(const std::string& name, uint32_t threads,
+                                           std::string identity, bool trusted) {
     std::lock_guard lock(mutex_);
-    make_room_for_a_session();  // first: a refused registration changes nothing
+    // First: a refused registration changes nothing.
+    make_room_for_a_session();
+    make_room_for_a_worker(name);
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
     w.registered = true;
@@ -816,13 +966,16 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
                        [this, name, threads, now = w.last_seen_ms] {
                            store_->upsert_worker(name, threads, now);
                        });
+    w.stored_seen_ms = w.last_seen_ms;
     // A new session each time; earlier ones of the same name stay valid (their leases are
     // still theirs), so registering with a worker's name neither takes its leases nor
     // locks it out.
     std::string session;
     do session = random_hex(16);
     while (worker_sessions_.count(session));
-    worker_sessions_.emplace(session, SessionEntry{name, unix_millis_now()});
+    worker_sessions_.emplace(
+        session, SessionEntry{name, std::move(identity), trusted, unix_millis_now()});
+    alive_dirty_ = true;
     changed();
     return {session, uint32_t(options_.lease_time.count())};
 }
@@ -830,7 +983,10 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
 std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
                                              std::chrono::milliseconds wait) {
     std::unique_lock lock(mutex_);
-    const std::string worker = worker_of_session(session);
+    // Jobs are the session's host's to take: RenderSession counts failures, keeps hosts
+    // off jobs and checks lease ownership by this, and the Coordinator checks ownership
+    // by session before it asks.
+    const std::string worker = worker_of_session(session).identity;
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
         const uint64_t seen = version_;
@@ -897,12 +1053,12 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
 
 CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
                                       const SampleJobResult& result) {
-    std::string worker;
+    SessionEntry caller;
     SlotPtr slot;
     std::shared_ptr<const std::set<std::string>> alive;
     {
         std::lock_guard lock(mutex_);
-        worker = worker_of_session(session);
+        caller = worker_of_session(session);
         const auto it = lease_render_.find(lease_id);
         if (it == lease_render_.end() || it->second.render.empty())
             return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
@@ -913,7 +1069,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         slot = slot_of(it->second.render);
         lease_render_.erase(it);  // whatever the outcome, this lease has ended
         if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
-        alive = alive_workers();
+        alive = alive_for_failures_of(caller);  // a rejected result counts as a failure
     }
     // The merge, and when this is the round's last job the round's end, under the
     // render's lock alone.
@@ -931,7 +1087,8 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         // counts. Another render's round end running meanwhile would be counted here as
         // well; farm_scale runs one render.
         const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
-        outcome = s.complete(lease_id, worker, result, *alive, options_.failure_policy);
+        outcome = s.complete(lease_id, caller.identity, result, *alive,
+                             options_.failure_policy);
         // This result ended a round, or two: the round after it, opened ahead, may have
         // merged whole by then. The call's time counts as waited through when the round
         // it left out was not opened ahead.
@@ -955,7 +1112,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         samples_merged_ += result.total_samples();
         // The worker may have been forgotten meanwhile (it was silent for long): its
         // counts go with it.
-        if (const auto w_it = workers_.find(worker); w_it != workers_.end()) {
+        if (const auto w_it = workers_.find(caller.worker); w_it != workers_.end()) {
             WorkerEntry& w = w_it->second;
             const uint64_t samples = result.total_samples();
             w.samples += samples;
@@ -997,7 +1154,7 @@ Coordinator::SlotPtr Coordinator::held_render(const std::string& session,
 std::pair<std::string, Coordinator::SlotPtr> Coordinator::holder_and_render(
     const std::string& session, uint64_t lease_id) {
     std::lock_guard lock(mutex_);
-    std::string worker = worker_of_session(session);
+    std::string worker = worker_of_session(session).identity;
     return {std::move(worker), held_render(session, lease_id)};
 }
 
@@ -1029,9 +1186,10 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     std::shared_ptr<const std::set<std::string>> alive;
     {
         std::lock_guard lock(mutex_);
-        worker = worker_of_session(session);
+        const SessionEntry caller = worker_of_session(session);
+        worker = caller.identity;
         slot = held_render(session, lease_id);
-        alive = alive_workers();
+        alive = alive_for_failures_of(caller);
     }
     if (!slot) return false;
     bool render_failed = false;
@@ -1124,14 +1282,29 @@ std::vector<WorkerStatus> Coordinator::workers() {
         std::lock_guard lock(mutex_);
         slots = slots_in_order();
     }
-    std::map<std::string, std::vector<std::string>> leases;  // worker -> "render/job"
+    // A session knows its leases by host (the session's identity), "render/job" each:
+    // they are the host's workers', which lease_render_ names below.
+    using RenderHost = std::pair<std::string, std::string>;
+    std::map<RenderHost, std::vector<std::string>> labels;
     for (const SlotPtr& slot : slots) {
         std::lock_guard render(slot->mutex);
         if (slot->session->finished()) continue;
-        for (auto& [worker, label] : slot->session->leases())
-            leases[worker].push_back(std::move(label));
+        for (auto& [host, label] : slot->session->leases())
+            labels[{slot->session->id(), host}].push_back(std::move(label));
     }
     std::lock_guard lock(mutex_);
+    // Each of a host's leases on a render goes to one of its workers holding a lease
+    // there. Workers sharing a host may see each other's job numbers (which of them holds
+    // which job, RenderSession does not say), never another host's or a count not theirs.
+    std::map<std::string, std::vector<std::string>> leases;  // worker -> "render/job"
+    for (const auto& [lease, owner] : lease_render_) {
+        const auto it = worker_sessions_.find(owner.session);
+        if (owner.render.empty() || it == worker_sessions_.end()) continue;
+        std::vector<std::string>& left = labels[{owner.render, it->second.identity}];
+        if (left.empty()) continue;
+        leases[it->second.worker].push_back(std::move(left.back()));
+        left.pop_back();
+    }
     std::vector<WorkerStatus> out;
     for (const auto& [name, w] : workers_) {
         WorkerStatus st;
@@ -1195,6 +1368,17 @@ void Coordinator::tick() {
                         store_->record_worker_samples(name, samples, seen);
                     });
                 w.unrecorded = 0;
+                w.stored_seen_ms = w.last_seen_ms;
+            } else if (!w.lost && w.last_seen_ms - w.stored_seen_ms >
+                                      options_.forget_workers_after.count() / 4) {
+                // An idle worker's row is kept fresh, so that the sweep below takes only
+                // workers gone.
+                queue_worker_write(
+                    "record that " + name + " is still here",
+                    [this, name, threads = w.threads, seen = w.last_seen_ms] {
+                        store_->upsert_worker(name, threads, seen);
+                    });
+                w.stored_seen_ms = w.last_seen_ms;
             }
             if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
                 w.lost = true;
@@ -1206,6 +1390,15 @@ void Coordinator::tick() {
             }
         }
         forget_silent_workers(wall);
+        // Rows of workers silent as long, those of an earlier run of the coordinator
+        // included (it remembers no worker across a restart): at the first tick, then
+        // about once a minute.
+        if (ticks_ % 300 == 0)
+            queue_worker_write(
+                "forget workers silent since " + std::to_string(wall),
+                [this, before = wall - options_.forget_workers_after.count()] {
+                    store_->forget_workers_silent_since(before);
+                });
         if (any) changed();
         ++ticks_;
         wal_due = ticks_ % 50 == 0;
@@ -1392,16 +1585,40 @@ uint64_t Coordinator::memory_in_use() {
     return memory_in_use_locked();
 }
 
+uint64_t Coordinator::reference_allowance(uint32_t width, uint32_t height) {
+    if (options_.memory_limit == 0) return 0;
+    const uint64_t needed = render_memory_estimate(width, height, true);
+    std::lock_guard lock(mutex_);
+    const uint64_t in_use = memory_in_use_locked();
+    if (needed > options_.memory_limit || in_use > options_.memory_limit - needed)
+        throw MemoryBudgetError(needed, in_use, sessions_.size(), options_.memory_limit);
+    const uint64_t rgb = uint64_t(width) * height * 3 * sizeof(float);
+    return options_.memory_limit - in_use - needed + rgb;
+}
+
 size_t Coordinator::sessions_in_memory() {
     std::lock_guard lock(mutex_);
     return sessions_.size();
+}
+
+void Coordinator::drop_scene_if_unused(const std::string& hash) {
+    for (const auto& [id, slot] : sessions_)
+        if (slot->session->scene_hash() == hash) return;  // never changes: no render lock
+    scenes_.erase(hash);  // workers still tracing it fetch it from the store
+}
+
+size_t Coordinator::scenes_in_memory() {
+    std::lock_guard lock(mutex_);
+    return scenes_.size();
 }
 
 void Coordinator::evict(const std::string& id) {
     const auto it = sessions_.find(id);
     // Finished sessions change no more, so this reads its state without its lock.
     if (it == sessions_.end() || !it->second->session->finished()) return;
+    const std::string hash = it->second->session->scene_hash();
     sessions_.erase(it);  // a call that found the slot before keeps it until it is done
+    drop_scene_if_unused(hash);
     order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
     // Leases of a cancelled render that workers still hold: their results are now
     // answered as unknown, which is what they were (ignored) before.

@@ -64,16 +64,27 @@ struct CoordinatorOptions {
     // submission past it throws MemoryBudgetError. 0: no limit.
     uint64_t memory_limit = default_memory_limit();
     // Jobs workers cannot trace: how many failures fail a render, when a worker is kept
-    // off one (docs/FARM.md).
+    // off one (docs/FARM.md). Failures count per worker host (the address its connection
+    // came from), not per name: a name is the client's to choose, so one holder of the
+    // worker token registering under three names is still one host.
     FailurePolicy failure_policy;
+    // Whether a job that failed max_job_failures times fails its render when fewer hosts
+    // than that failed it and no other live host could take it (a farm on fewer machines
+    // than max_job_failures). Off, only max_job_failures distinct hosts fail a render, so
+    // that no single holder of the worker token can fail one alone; such a job is then
+    // retried until the render is cancelled. Workers in this process (the embedded
+    // render) are trusted: for them the rule always holds.
+    bool fail_on_fewer_hosts = false;
     // Worker sessions are forgotten after this long unheard while they hold no lease (a
     // worker that comes back is told to register again), and so are workers lost this
-    // long; at most max_worker_sessions exist at once (registering past it drops the
-    // longest-silent one holding no lease, or is refused with TooManyWorkers). Every
-    // registration is remembered otherwise, and anyone with the worker token could
+    // long, in memory and in the store; at most max_worker_sessions sessions and
+    // max_workers workers (names) are remembered at once: registering past either drops
+    // the longest-silent one holding no lease, or is refused with TooManyWorkers.
+    // Every registration is remembered otherwise, and anyone with the worker token could
     // register without end.
-    std::chrono::milliseconds forget_workers_after{std::chrono::minutes(10)};
+    std::chrono::milliseconds forget_workers_after{std::chrono::hours(1)};
     size_t max_worker_sessions = 4096;
+    size_t max_workers = 4096;
     // Finished renders are deleted (files, rows, memory) this long after they finished;
     // zero keeps them for ever. Checked once a minute (tick), or every quarter of it when
     // that is shorter.
@@ -140,6 +151,9 @@ public:
     // many. tick() calls it about once a minute.
     size_t remove_expired(int64_t now_ms);
     std::optional<Image> image(const std::string& id, bool aovs);
+    // The stored EXR (every layer) of a finished render that has left memory; nullopt
+    // while it is in memory, or when there is none: what FetchImage sends as it reads.
+    std::optional<std::filesystem::path> image_file(const std::string& id);
     std::vector<WorkerStatus> workers();
     // A counter that grows whenever any render changes; waits up to `timeout` for it to
     // pass `seen` and returns it.
@@ -149,7 +163,13 @@ public:
     // call; every other call takes one and throws WorkerUnknown for a session it did not
     // issue. A lease is its session's: complete/renew/abandon/fail from another session
     // are refused and change nothing (docs/SECURITY.md, "Lease ownership").
+    // In this process: the worker is trusted, and its name is its identity.
     Registration register_worker(const std::string& name, uint32_t threads) override;
+    // Over the network: `peer` is where the call came from as the transport saw it
+    // (gRPC's ServerContext::peer(), "ipv4:10.0.0.5:41234"); its host, without the port,
+    // is the identity failures count against (FailurePolicy).
+    Registration register_worker(const std::string& name, uint32_t threads,
+                                 const std::string& peer);
     std::optional<LeaseGrant> lease(const std::string& session,
                                     std::chrono::milliseconds wait) override;
     CompleteOutcome complete(const std::string& session, uint64_t lease_id,
@@ -168,6 +188,8 @@ public:
     size_t leases_out();
     // Worker sessions remembered now: for tests.
     size_t worker_sessions();
+    // Submitted scenes held in memory now (those of the renders in memory): for tests.
+    size_t scenes_in_memory();
     // Wall seconds, over all renders, of the Complete calls that ended a round (the last
     // job's merge, the error estimate, the record, the checkpoint copy, planning and
     // cutting the next round), under the render's lock and with none of the round's jobs
@@ -198,6 +220,12 @@ public:
     // state); its info, image, rounds and buckets are then read from the store and disk.
     size_t sessions_in_memory();
     uint64_t memory_in_use();
+    // What a decoded reference for a width x height render may take (decode_exr's
+    // max_bytes): the budget left beside the render's own estimate, plus the estimate's
+    // share for the reference's RGB; 0 (no bound) without a budget. Throws
+    // MemoryBudgetError when the render itself does not fit now. Asked before a reference
+    // is decoded: its header alone can claim gigabytes.
+    uint64_t reference_allowance(uint32_t width, uint32_t height);
 
     // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls
     // it.
@@ -252,6 +280,9 @@ private:
         double rate = 0;          // samples/s, smoothed over recent jobs
         bool lost = false;
         bool registered = false;  // called register_worker here (not only heard from)
+        // last_seen_ms as the store last has it: refreshed now and then (tick), so that
+        // a row silent for forget_workers_after is a worker gone, not an idle one.
+        int64_t stored_seen_ms = 0;
     };
 
     void resume_unfinished();
@@ -283,9 +314,18 @@ private:
     WorkerEntry& touch_worker(const std::string& name);
     // Queues a write of workers' rows on the backlog (no-op without a store).
     void queue_worker_write(std::string what, std::function<void()> write);
-    // The name of the worker holding `session`, touched (heard from now); throws
-    // WorkerUnknown for a session this coordinator did not issue.
-    const std::string& worker_of_session(const std::string& session);
+    struct SessionEntry {
+        std::string worker;    // its name
+        std::string identity;  // whom its failures count against (FailurePolicy)
+        bool trusted = false;  // in this process (register_worker without a peer)
+        int64_t last_seen_ms = 0;
+    };
+    Registration register_session(const std::string& name, uint32_t threads,
+                                  std::string identity, bool trusted);
+    // The session `session`, its worker touched (heard from now); throws WorkerUnknown
+    // for a session this coordinator did not issue. A copy: the entry may go as soon as
+    // the lock is let go.
+    SessionEntry worker_of_session(const std::string& session);
     // The render whose lease `lease_id` `session` holds; null when it holds none.
     SlotPtr held_render(const std::string& session, uint64_t lease_id);
     // The worker holding `session` (touched, or WorkerUnknown) and held_render, under
@@ -294,14 +334,25 @@ private:
                                                       uint64_t lease_id);
     // A random lease id, not 0 and not one out now.
     uint64_t new_lease_id() const;
-    // Workers registered here and not lost: those a job may go to (RenderSession::issue).
-    // Kept up to date as workers register, are lost and come back, rather than built on
-    // every lease and result (at 256 workers building it was 256 string copies a job);
-    // an immutable snapshot, so a call can use it under its render's lock alone.
-    std::shared_ptr<const std::set<std::string>> alive_workers() const {
-        return alive_snapshot_;
-    }
+    // The identities of the sessions of workers registered here and not lost: those a
+    // job may go to (RenderSession::issue). Rebuilt only when workers register, are lost,
+    // come back or are forgotten, rather than on every lease and result (at 256 workers
+    // building it was 256 string copies a job); an immutable snapshot, so a call can use
+    // it under its render's lock alone. Under `mutex_`.
+    std::shared_ptr<const std::set<std::string>> alive_workers();
+    // The same with one host more that could take any job: what a failure of `caller` is
+    // counted with when the rule for farms of fewer hosts must not apply to it
+    // (fail_on_fewer_hosts), since that rule is "no other live host could take it".
+    std::shared_ptr<const std::set<std::string>> alive_for_failures_of(
+        const SessionEntry& caller);
     void set_alive(const std::string& name, bool alive);
+    // Drops `name` and its sessions from memory, and its row from the store.
+    void forget_worker(const std::string& name);
+    // Makes room for one more worker (a name not yet known) under max_workers, or throws
+    // TooManyWorkers.
+    void make_room_for_a_worker(const std::string& name);
+    // Drops the submitted scene `hash` when no render in memory uses it; under `mutex_`.
+    void drop_scene_if_unused(const std::string& hash);
     // Drops lease_render_ entries of leases that ended (`ended`) and of renders that are
     // finished or gone.
     void forget_ended_leases(const std::vector<uint64_t>& ended,
@@ -336,17 +387,19 @@ private:
         std::string render;   // render id
         std::string session;  // the worker session that leased it: the only one heard
     };
-    std::unordered_map<uint64_t, LeaseOwner> lease_render_;  // lease -> owner
-    struct SessionEntry {
-        std::string worker;  // its name
-        int64_t last_seen_ms = 0;
-    };
+    std::unordered_map<uint64_t, LeaseOwner> lease_render_;          // lease -> owner
     std::unordered_map<std::string, SessionEntry> worker_sessions_;  // by session
-    std::map<std::string, std::string> scenes_;                      // hash -> json
+    // Scenes of the renders in memory, for workers' fetch_scene: dropped with the last
+    // render that uses it (a scene is 1 MB or more, and submissions never end).
+    std::map<std::string, std::string> scenes_;  // hash -> json
     std::map<std::string, WorkerEntry> workers_;
     std::set<std::string> alive_;  // names in workers_ that registered and are not lost
+    // alive_workers() and alive_for_failures_of(), rebuilt when alive_dirty_.
     std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
-        std::make_shared<const std::set<std::string>>();  // a copy of alive_
+        std::make_shared<const std::set<std::string>>();
+    std::shared_ptr<const std::set<std::string>> alive_and_another_ =
+        std::make_shared<const std::set<std::string>>();
+    bool alive_dirty_ = false;
     int ticks_ = 0;
     std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
     double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0,

@@ -664,5 +664,230 @@ TEST_F(CoordinatorTest, RendersFinishedLongerAgoThanKeptAreDeleted) {
     EXPECT_TRUE(c.info(running)) << "a running render is never deleted";
 }
 
+// Issue 30, item 5: the submitted scenes were never dropped (200 submit, cancel and
+// delete cycles of distinct 1 MB scenes took the coordinator from 28 to 261 MB, the
+// database empty). A scene is kept while a render in memory uses it, and dropped after.
+TEST_F(CoordinatorTest, ScenesLeaveMemoryWithTheLastRenderThatUsesThem) {
+    Coordinator c(options);
+    const std::string worker = c.register_worker("w", 1).session;
+    for (int i = 0; i < 200; ++i) {
+        RenderSpec spec = small_spec();
+        spec.scene_json += std::string(size_t(i + 1), ' ');  // distinct: its own hash
+        const std::string id = c.submit(spec);
+        ASSERT_EQ(c.scenes_in_memory(), 1u) << i;
+        EXPECT_EQ(c.fetch_scene(worker, scene_hash(spec.scene_json)), spec.scene_json);
+        c.cancel(id);
+        ASSERT_TRUE(wait_for_sessions(c, 0)) << i;  // its end recorded, it leaves memory
+        ASSERT_EQ(c.remove(id), Coordinator::Removal::Removed) << i;
+    }
+    EXPECT_EQ(c.scenes_in_memory(), 0u);
+
+    // Two renders of one scene: it stays until the second leaves memory, and a worker
+    // still tracing a job of the first reads it from the store meanwhile.
+    const RenderSpec spec = small_spec();
+    const std::string first = c.submit(spec), second = c.submit(spec);
+    c.cancel(first);
+    ASSERT_TRUE(wait_for_sessions(c, 1));
+    EXPECT_EQ(c.scenes_in_memory(), 1u);
+    c.cancel(second);
+    ASSERT_TRUE(wait_for_sessions(c, 0));
+    EXPECT_EQ(c.scenes_in_memory(), 0u);
+    EXPECT_EQ(c.fetch_scene(worker, scene_hash(spec.scene_json)), spec.scene_json);
+
+    // In memory only (no store), deleting the render drops its scene.
+    CoordinatorOptions in_memory = options;
+    in_memory.data_dir.clear();
+    Coordinator m(in_memory);
+    const std::string id = m.submit(spec);
+    m.cancel(id);
+    EXPECT_EQ(m.scenes_in_memory(), 1u);
+    EXPECT_EQ(m.remove(id), Coordinator::Removal::Removed);
+    EXPECT_EQ(m.scenes_in_memory(), 0u);
+}
+
+// Issue 30, item 5: 10,000 Registers left 10,001 workers in memory and in the store.
+// Workers (names) are bounded as sessions are: registering past the bound forgets the
+// longest-silent worker holding no lease, in memory and in the store.
+TEST_F(CoordinatorTest, WorkersAreBoundedInMemoryAndInTheStore) {
+    options.max_workers = 16;
+    options.worker_lost_after = std::chrono::minutes(1);
+    {
+        Coordinator c(options);
+        c.submit(small_spec());
+        const std::string holder =
+            c.register_worker("holder", 1, "ipv4:10.0.0.1:5").session;
+        const auto grant = c.lease(holder, std::chrono::milliseconds(0));
+        ASSERT_TRUE(grant);
+        for (int i = 0; i < 1000; ++i)
+            c.register_worker("flood-" + std::to_string(i), 1, "ipv4:10.0.0.2:6");
+        EXPECT_LE(c.workers().size(), 16u);
+        EXPECT_TRUE(c.knows_worker("holder"));
+        EXPECT_TRUE(c.knows_worker("flood-999"));
+        EXPECT_FALSE(c.knows_worker("flood-0"));
+        EXPECT_EQ(c.complete(holder, grant->lease_id, zero_result(*grant)).status,
+                  CompleteStatus::Merged);
+    }  // what waits is written
+    RunStore store(dir);
+    EXPECT_LE(store.workers().size(), 16u);
+
+    // When every worker holds a lease, a new name is refused and nothing changes.
+    options.max_workers = 1;
+    Coordinator c(options);
+    c.submit(small_spec());
+    const std::string holder = c.register_worker("holder", 1, "ipv4:10.0.0.1:5").session;
+    ASSERT_TRUE(c.lease(holder, std::chrono::milliseconds(0)));
+    EXPECT_THROW(c.register_worker("late", 1, "ipv4:10.0.0.3:7"), TooManyWorkers);
+    EXPECT_FALSE(c.knows_worker("late"));
+    EXPECT_NO_THROW(c.register_worker("holder", 1, "ipv4:10.0.0.1:8"));  // known name
+}
+
+// Issue 30, item 5: a worker forgotten in memory kept its row in the store for ever, and
+// so did every worker of an earlier run. Rows silent for forget_workers_after go.
+TEST_F(CoordinatorTest, ForgottenWorkersLeaveTheStoreToo) {
+    {
+        RunStore store(dir);
+        store.upsert_worker("earlier-run", 4, unix_millis_now() - 2 * 3600 * 1000);
+        store.upsert_worker("recent", 4, unix_millis_now());
+    }
+    options.forget_workers_after = std::chrono::hours(1);
+    {
+        Coordinator c(options);
+        c.tick();
+    }
+    {
+        RunStore store(dir);
+        const std::vector<WorkerRecord> rows = store.workers();
+        ASSERT_EQ(rows.size(), 1u);
+        EXPECT_EQ(rows[0].name, "recent");
+    }
+    options.forget_workers_after = std::chrono::milliseconds(0);
+    {
+        Coordinator c(options);
+        c.register_worker("gone", 1);
+        std::this_thread::sleep_for(std::chrono::milliseconds(30));  // lost after 20 ms
+        c.tick();                                                    // lost
+        c.tick();                                                    // and forgotten
+        EXPECT_FALSE(c.knows_worker("gone"));
+    }
+    RunStore store(dir);
+    EXPECT_TRUE(store.workers().empty());
+}
+
+// Issue 30, item 9: one holder of the worker token registered under three names, leased
+// and failed the job three times: "failed on 3 workers", the render dead. Names prove
+// nothing; failures count per host the calls came from.
+TEST_F(CoordinatorTest, FailuresCountPerHostNotPerName) {
+    Coordinator c(options);
+    const std::string id = c.submit(small_spec());  // one job
+    auto lease_and_fail = [&](const std::string& session) {
+        const auto grant = c.lease(session, std::chrono::milliseconds(0));
+        ASSERT_TRUE(grant);
+        ASSERT_TRUE(c.fail(session, grant->lease_id, "cannot open mesh.obj"));
+    };
+    // One host, three names, each on a connection of its own (another port).
+    for (int round = 0; round < 3; ++round)
+        for (const char* name : {"a", "b", "c"})
+            lease_and_fail(c.register_worker(
+                                name, 1, "ipv4:10.0.0.9:" + std::to_string(40000 + round))
+                               .session);
+    EXPECT_EQ(c.info(id)->state, RenderState::Running);
+    EXPECT_EQ(c.info(id)->error, "");
+    // Two more hosts fail it too: three hosts, the operator's bound.
+    lease_and_fail(c.register_worker("d", 1, "ipv6:%5B::1%5D:40001").session);
+    EXPECT_EQ(c.info(id)->state, RenderState::Running);
+    lease_and_fail(c.register_worker("e", 1, "ipv4:10.0.0.10:40002").session);
+    EXPECT_EQ(c.info(id)->state, RenderState::Failed);
+    EXPECT_EQ(c.info(id)->error,
+              "job 0,0 4x4 failed 11 times on 3 workers: cannot open mesh.obj");
+}
+
+// ... unless the operator says a farm of fewer hosts may fail a render (a farm on one
+// machine, whose workers all call from one host).
+TEST_F(CoordinatorTest, OneHostFailsARenderOnlyWhenTheOperatorSaysSo) {
+    options.fail_on_fewer_hosts = true;
+    Coordinator c(options);
+    const std::string id = c.submit(small_spec());
+    for (const char* name : {"a", "b", "c"}) {
+        const std::string session =
+            c.register_worker(name, 1, "ipv4:127.0.0.1:1").session;
+        const auto grant = c.lease(session, std::chrono::milliseconds(0));
+        ASSERT_TRUE(grant);
+        ASSERT_TRUE(c.fail(session, grant->lease_id, "boom"));
+    }
+    EXPECT_EQ(c.info(id)->state, RenderState::Failed);
+    EXPECT_EQ(c.info(id)->error, "job 0,0 4x4 failed 3 times on 1 worker: boom");
+}
+
+// Issue 30, item 10: with umask 022 the data directory was 0755 and aliquot.db, the EXRs
+// and the checkpoints 0644: any local user could read every scene and image. Now
+// directories are 0700 and files 0600 whatever the umask.
+TEST_F(CoordinatorTest, TheDataDirectoryIsPrivateWhateverTheUmask) {
+    const mode_t before = ::umask(0);  // as permissive as it gets
+    Coordinator c(options);
+    RenderSpec spec = small_spec();
+    spec.reference = Image(4, 4);
+    const std::string id = c.submit(spec);
+    fake_render(c);
+    ASSERT_TRUE(wait_for_sessions(c, 0));  // its image written
+    ::umask(before);
+    EXPECT_TRUE(fs::exists(dir / "renders" / id / "image.exr"));
+    EXPECT_TRUE(fs::exists(dir / "renders" / id / "checkpoint.bin"));
+    EXPECT_TRUE(fs::exists(dir / "aliquot.db-wal"));
+    size_t files = 0;
+    const auto mode = [](const fs::path& p) { return fs::status(p).permissions(); };
+    EXPECT_EQ(mode(dir), fs::perms::owner_all);
+    for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+        if (entry.is_directory()) {
+            EXPECT_EQ(mode(entry.path()), fs::perms::owner_all) << entry.path();
+        } else {
+            ++files;
+            EXPECT_EQ(mode(entry.path()), fs::perms::owner_read | fs::perms::owner_write)
+                << entry.path();
+        }
+    }
+    EXPECT_GE(files, 6u);  // aliquot.db, -wal, -shm, the image, checkpoint, reference
+}
+
+// Issue 30, item 11: a submission that failed for want of disk space left its empty
+// render directory behind. (The references directory made a file stands for the full
+// disk: the reference cannot be written, for root as for a user.)
+TEST_F(CoordinatorTest, ASubmissionThatCannotBeWrittenLeavesNoDirectory) {
+    Coordinator c(options);
+    { std::ofstream(dir / "references") << "not a directory"; }
+    RenderSpec spec = small_spec();
+    spec.reference = Image(4, 4);
+    for (int i = 0; i < 3; ++i) EXPECT_ANY_THROW(c.submit(spec));
+    EXPECT_TRUE(fs::is_empty(dir / "renders"));
+    EXPECT_EQ(c.sessions_in_memory(), 0u);
+    EXPECT_EQ(c.scenes_in_memory(), 0u);
+    fs::remove(dir / "references");
+    EXPECT_EQ(c.submit(spec), "r-000004");  // the numbers tried are not reused
+}
+
+// Issue 30, item 11: DELETE of a render whose end could not be written (a full disk)
+// waited 30 s for the whole record to be written, holding an HTTP thread, then failed.
+// It now says at once why it cannot be deleted yet.
+TEST_F(CoordinatorTest, DeletingARenderTheDiskRefusesAnswersAtOnceWithTheReason) {
+    Coordinator c(options);
+    const std::string id = c.submit(small_spec());
+    fs::remove_all(dir / "renders" / id);
+    { std::ofstream(dir / "renders" / id) << "not a directory"; }
+    fake_render(c);
+    ASSERT_EQ(c.info(id)->state, RenderState::Done);
+    // The backlog's thread makes the failing write: wait for it (a generous deadline,
+    // not a timing check).
+    for (int i = 0; i < 600 && c.storage_warning().empty(); ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const std::string warning = c.storage_warning();
+    ASSERT_NE(warning, "");
+    try {
+        c.remove(id);
+        ADD_FAILURE() << "removed a render whose end is not written";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find(warning), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(c.info(id));
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -2,11 +2,16 @@
 // migrations. The schema and the reasons for the pragmas are in docs/STORE.md.
 #include "store.h"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <concepts>
+#include <cstring>
 #include <system_error>
 #include <unordered_map>
 
@@ -320,6 +325,23 @@ RunStore::RunStore(const std::filesystem::path& data_dir)
     if (ec)
         throw StoreError("store: cannot create data directory " + data_dir.string() +
                          ": " + ec.message());
+
+    // The record is the farm's users' scenes and renders: the owner's alone, whatever
+    // the umask. SQLite creates the database with 0644 less the umask and gives its -wal
+    // and -shm files the database's mode, so it is made 0600 first; a database an older
+    // coordinator made, and its -wal and -shm, are put right. By path, never through a
+    // descriptor of an existing file: closing one would drop the POSIX locks another
+    // connection of this process holds on it.
+    const int fd =
+        ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, S_IRUSR | S_IWUSR);
+    if (fd >= 0)
+        ::close(fd);  // new and empty: SQLite makes it a database
+    else if (errno != EEXIST)
+        throw StoreError("store: cannot create " + path_.string() + ": " +
+                         std::strerror(errno));
+    // Best effort on a file another user owns: its mode is theirs to keep.
+    for (const char* suffix : {"", "-wal", "-shm"})
+        ::chmod((path_.string() + suffix).c_str(), S_IRUSR | S_IWUSR);
 
     // The connection is used by one thread at a time (mutex_), so SQLite's own mutex
     // would only cost.
@@ -797,6 +819,19 @@ void RunStore::mark_worker_state(const std::string& name, const std::string& sta
     Query q = query("UPDATE workers SET state = ? WHERE name = ?",
                     "mark worker " + name + " " + state);
     if (q.bind(state).bind(name).run() == 0) q.refuse("no such worker");
+}
+
+void RunStore::forget_worker(const std::string& name) {
+    std::lock_guard lock(mutex_);
+    query("DELETE FROM workers WHERE name = ?", "forget worker " + name).bind(name).run();
+}
+
+size_t RunStore::forget_workers_silent_since(int64_t before_ms) {
+    std::lock_guard lock(mutex_);
+    return size_t(query("DELETE FROM workers WHERE last_seen < ?",
+                        "forget workers silent since " + std::to_string(before_ms))
+                      .bind(before_ms)
+                      .run());
 }
 
 std::vector<WorkerRecord> RunStore::workers() {

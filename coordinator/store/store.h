@@ -124,8 +124,10 @@ struct StudyResult {
 class RunStore {
 public:
     // Opens (creating if needed) `data_dir`/aliquot.db, sets WAL, foreign keys, busy
-    // timeout and synchronous=NORMAL, refuses a database whose integrity check fails or
-    // whose schema is newer than this build, and applies pending migrations.
+    // timeout and synchronous=NORMAL, makes the database and its -wal and -shm files
+    // mode 0600 whatever the umask (SQLite gives those two the database's mode), refuses
+    // a database whose integrity check fails or whose schema is newer than this build,
+    // and applies pending migrations.
     explicit RunStore(const std::filesystem::path& data_dir);
     ~RunStore();
     RunStore(const RunStore&) = delete;
@@ -199,6 +201,10 @@ public:
     void mark_worker_state(const std::string& name, const std::string& state);
     // By name.
     std::vector<WorkerRecord> workers();
+    // Deletes a worker's row (the coordinator forgot it); nothing when there is none.
+    void forget_worker(const std::string& name);
+    // Deletes the rows of workers last seen before `before_ms`; how many.
+    size_t forget_workers_silent_since(int64_t before_ms);
 
 private:
     class Query;
