@@ -1,6 +1,10 @@
 // aliquot coordinator: the long-running farm process. Stops cleanly on SIGTERM / SIGINT.
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -74,6 +78,35 @@ uint64_t parse_bytes(const std::string& text) {
     return uint64_t(n) << shift;
 }
 
+// "90s", "30m", "1h", "2d" or plain seconds: how long workers are remembered unheard.
+std::chrono::milliseconds parse_duration(const std::string& text, const char* option) {
+    const std::string why = std::string(option) +
+                            ": expected a duration like 90s, 30m, 1h or 2d (plain: "
+                            "seconds), got '" +
+                            text + "'";
+    if (text.empty() || !std::isdigit(static_cast<unsigned char>(text[0])))
+        throw UsageError(why);
+    char* end = nullptr;
+    errno = 0;
+    const double n = std::strtod(text.c_str(), &end);
+    const std::string unit(end);
+    double seconds = 0;
+    if (unit.empty() || unit == "s")
+        seconds = n;
+    else if (unit == "m")
+        seconds = n * 60;
+    else if (unit == "h")
+        seconds = n * 3600;
+    else if (unit == "d")
+        seconds = n * 86400;
+    else
+        throw UsageError(why);
+    // At most a year: a longer one is "for ever" in effect, and the milliseconds must
+    // not overflow.
+    if (errno != 0 || !(seconds > 0) || seconds > 366.0 * 86400) throw UsageError(why);
+    return std::chrono::milliseconds(int64_t(seconds * 1000));
+}
+
 // The whole of a PEM file named by `option`.
 std::string read_pem(const std::string& path, const char* option) {
     std::ifstream in(path, std::ios::binary);
@@ -116,6 +149,9 @@ struct CoordinatorCommand {
     uint32_t max_side = 8192;
     std::string memory_limit;  // empty: default_memory_limit()
     uint32_t max_job_failures = FailurePolicy{}.max_job_failures;
+    bool fail_on_fewer_hosts = false;
+    std::string forget_workers = "1h";
+    size_t max_workers = CoordinatorOptions{}.max_workers;
     double keep_days = 0;  // 0: finished renders are kept for ever
     bool grpc_reflection = false;
 
@@ -126,6 +162,9 @@ struct CoordinatorCommand {
         if (max_side == 0) throw UsageError("--max-resolution: must be 1 or more");
         if (max_job_failures == 0)
             throw UsageError("--max-job-failures: must be 1 or more");
+        if (max_workers == 0) throw UsageError("--max-workers: must be 1 or more");
+        const std::chrono::milliseconds forget_after =
+            parse_duration(forget_workers, "--forget-workers");
         if (!(keep_days >= 0 && keep_days <= 36500))
             throw UsageError("--keep-days: must be 0 (keep for ever) to 36500");
         const uint64_t memory =
@@ -139,8 +178,14 @@ struct CoordinatorCommand {
 
         if (tls_cert.empty() != tls_key.empty())
             throw UsageError("--tls-cert and --tls-key go together");
+        // Everything the coordinator writes (record, images, checkpoints, tokens, study
+        // reports) is its users' business: the owner's alone, whatever umask it was
+        // started with. The Coordinator also sets the modes of what it makes, for
+        // callers that keep their umask.
+        ::umask(077);
         std::error_code ec;
         fs::create_directories(data_dir, ec);
+        fs::permissions(data_dir, fs::perms::owner_all, ec);
         GrpcSecurity security;
         security.tokens = {role_token(client_token_file, data_dir, Role::Client),
                            role_token(worker_token_file, data_dir, Role::Worker)};
@@ -157,6 +202,10 @@ struct CoordinatorCommand {
         options.max_side = max_side;
         options.memory_limit = memory;
         options.failure_policy.max_job_failures = max_job_failures;
+        options.fail_on_fewer_hosts = fail_on_fewer_hosts;
+        options.forget_workers_after = forget_after;
+        options.max_workers = max_workers;
+        options.max_worker_sessions = std::max(options.max_worker_sessions, max_workers);
         options.keep_finished =
             std::chrono::milliseconds(int64_t(keep_days * 24 * 3600 * 1000.0));
         Coordinator coordinator(options);
@@ -264,7 +313,22 @@ void register_coordinator(CLI::App& app) {
                   "serve gRPC server reflection (grpcurl, grpc_cli), without a token: it "
                   "tells the services' schema only (docs/SECURITY.md)");
     cmd->add_option("--max-job-failures", c->max_job_failures,
-                    "workers a job may fail on before its render fails (docs/FARM.md)")
+                    "worker hosts (the addresses workers call from, not their names) a "
+                    "job may fail on before its render fails (docs/FARM.md)")
+        ->check(whole_number())
+        ->capture_default_str();
+    cmd->add_flag("--fail-on-fewer-hosts", c->fail_on_fewer_hosts,
+                  "let a job that failed --max-job-failures times fail its render when "
+                  "no other live host could take it, so that a farm on fewer machines "
+                  "fails a render no worker can trace; off, one host (one holder of the "
+                  "worker token) never fails a render alone (docs/SECURITY.md)");
+    cmd->add_option("--forget-workers", c->forget_workers,
+                    "forget workers (in memory and in the record) unheard this long: "
+                    "90s, 30m, 1h, 2d")
+        ->capture_default_str();
+    cmd->add_option("--max-workers", c->max_workers,
+                    "workers remembered at once; registering past it forgets the "
+                    "longest-silent one holding no lease")
         ->check(whole_number())
         ->capture_default_str();
     cmd->add_option(

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sqlite3.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -544,6 +545,40 @@ TEST_F(RunStoreTest, FinishedBeforeListsOnlyFinishedRendersOldestFirst) {
     EXPECT_EQ(store.finished_before(500, 10), (std::vector<std::string>{"r-2", "r-3"}));
     EXPECT_EQ(store.finished_before(500, 1), (std::vector<std::string>{"r-2"}));
     EXPECT_TRUE(store.finished_before(100, 10).empty());
+}
+
+// Issue 30, item 5: a worker the coordinator forgot kept its row for ever.
+TEST_F(RunStoreTest, ForgottenWorkersLoseTheirRows) {
+    RunStore store(dir);
+    store.upsert_worker("old", 1, 1000);
+    store.upsert_worker("new", 1, 5000);
+    store.upsert_worker("named", 1, 5000);
+    EXPECT_EQ(store.forget_workers_silent_since(2000), 1u);
+    store.forget_worker("named");
+    store.forget_worker("never-there");  // nothing to do: no error
+    const std::vector<WorkerRecord> rows = store.workers();
+    ASSERT_EQ(rows.size(), 1u);
+    EXPECT_EQ(rows[0].name, "new");
+}
+
+// Issue 30, item 10: under umask 022 aliquot.db and its -wal and -shm were 0644, readable
+// by every local user. They are 0600 whatever the umask, and an older database is put
+// right when it is opened.
+TEST_F(RunStoreTest, TheDatabaseIsTheOwnersAloneWhateverTheUmask) {
+    const mode_t before = ::umask(0);
+    const auto private_file = fs::perms::owner_read | fs::perms::owner_write;
+    {
+        RunStore store(dir);
+        store.upsert_worker("w", 1, 1000);  // the WAL and its index exist now
+        for (const fs::path& p : {db(), wal(), fs::path(db().string() + "-shm")}) {
+            ASSERT_TRUE(fs::exists(p)) << p;
+            EXPECT_EQ(fs::status(p).permissions(), private_file) << p;
+        }
+    }
+    fs::permissions(db(), fs::perms::all);  // as an older coordinator left it
+    RunStore again(dir);
+    EXPECT_EQ(fs::status(db()).permissions(), private_file);
+    ::umask(before);
 }
 
 }  // namespace
