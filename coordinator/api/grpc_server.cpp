@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <new>
 
 #include "access.h"
 #include "aliquot.grpc.pb.h"
@@ -74,15 +75,25 @@ public:
             spec.priority = req->priority();
             spec.strategy = nlohmann::json::parse(
                 req->strategy_json().empty() ? "{}" : req->strategy_json());
+            // The render must fit the budget before its reference is decoded, and the
+            // reference what the budget leaves: its header alone can claim gigabytes.
             if (!req->reference_exr().empty())
                 spec.reference =
                     decode_exr(req->reference_exr(), "the submitted reference",
-                               ExrSize{req->width(), req->height()});
+                               ExrSize{req->width(), req->height()},
+                               c_.reference_allowance(req->width(), req->height()));
             const std::string id = c_.submit(std::move(spec));
             to_proto(*c_.info(id), *reply);
             return Status::OK;
         } catch (const MemoryBudgetError& e) {
             return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
+        } catch (const ImageTooLarge& e) {
+            return {StatusCode::RESOURCE_EXHAUSTED,
+                    std::string("reference: ") + e.what()};
+        } catch (const std::bad_alloc&) {
+            // Parsing the scene or decoding the reference ran out: the request fails,
+            // the coordinator goes on (what was allocated for it is freed by now).
+            return {StatusCode::RESOURCE_EXHAUSTED, "out of memory reading the request"};
         } catch (const nlohmann::json::exception& e) {
             return {StatusCode::INVALID_ARGUMENT, std::string("strategy: ") + e.what()};
         } catch (const std::invalid_argument& e) {

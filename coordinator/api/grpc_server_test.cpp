@@ -6,8 +6,10 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -241,6 +243,66 @@ TEST(ClientServiceMemory, ASubmissionPastTheMemoryBudgetIsResourceExhausted) {
     EXPECT_NE(status.error_message().find("--memory-limit"), std::string::npos)
         << status.error_message();
     EXPECT_TRUE(coordinator.list(10).empty());
+}
+
+// `image`'s bytes with the header's data window claiming side x side and no pixels
+// behind it: what a hostile client sends to make the coordinator allocate.
+std::string claiming(const Image& image, int32_t side) {
+    std::string bytes = encode_exr(image);
+    const std::string key("dataWindow\0box2i\0", 17);
+    const size_t at = bytes.find(key) + key.size() + 4;  // past the attribute's size
+    const int32_t window[4] = {0, 0, side - 1, side - 1};
+    std::memcpy(&bytes[at], window, sizeof window);  // little-endian, as EXR is
+    return bytes;
+}
+
+// Issue 30, item 6: an 8192x8192 reference of 14 channels under --memory-limit 2G was
+// decoded (3.6 GB) before the budget refused its render. The render's budget and the
+// reference's header are checked first: refused at once, nothing allocated.
+TEST(ClientServiceMemory, AReferencePastTheBudgetIsRefusedBeforeItIsDecoded) {
+    CoordinatorOptions options;
+    options.memory_limit = uint64_t(2) << 30;
+    Coordinator coordinator(options);
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
+    Image many(1, 1);
+    for (int c = 0; c < 11; ++c) many.extra.push_back({"c" + std::to_string(c), {0.0f}});
+    rusage before{};
+    getrusage(RUSAGE_SELF, &before);
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::SubmitRequest req =
+            testing::small_submission(self_contained_scene_json("cornell-box"), 8192);
+        req.set_reference_exr(claiming(many, 8192));
+        v1::RenderInfo reply;
+        const grpc::Status status = stub->Submit(&ctx, req, &reply);
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+        EXPECT_NE(status.error_message().find("--memory-limit"), std::string::npos)
+            << status.error_message();
+    }
+    rusage after{};
+    getrusage(RUSAGE_SELF, &after);
+    EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "KiB more at the peak";
+    // A render that fits, with a reference whose extra layers do not fit beside it.
+    CoordinatorOptions tight;
+    tight.memory_limit = render_memory_estimate(64, 64, true);
+    Coordinator small(tight);
+    GrpcServer small_server(small, "127.0.0.1:0", testing::test_security());
+    auto small_stub =
+        v1::ClientService::NewStub(testing::loopback_channel(small_server.port()));
+    for (const bool layers : {true, false}) {
+        testing::TokenContext ctx(Role::Client);
+        v1::SubmitRequest req =
+            testing::small_submission(self_contained_scene_json("cornell-box"), 64);
+        Image reference(64, 64);
+        if (layers) reference.extra.push_back({"Z", std::vector<float>(64 * 64, 0.0f)});
+        req.set_reference_exr(encode_exr(reference));
+        v1::RenderInfo reply;
+        const grpc::Status status = small_stub->Submit(&ctx, req, &reply);
+        EXPECT_EQ(status.error_code(),
+                  layers ? grpc::StatusCode::RESOURCE_EXHAUSTED : grpc::StatusCode::OK)
+            << status.error_message();
+    }
 }
 
 // Issue 12, item 9: a worker a restarted coordinator does not know is told to register.
