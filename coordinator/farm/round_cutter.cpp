@@ -56,10 +56,17 @@ size_t tile_count(uint32_t w, uint32_t h, uint32_t tile) {
     return size_t((w + tile - 1) / tile) * ((h + tile - 1) / tile);
 }
 
+// Where a tile's side is halved: at the first cell boundary at or after its middle, so
+// that a quadrant holds whole cells (the whole side when that boundary is its end).
+uint32_t half_on_cells(uint32_t side) {
+    const uint32_t half = (side + 1) / 2;
+    return std::min(side, (half + kCellSide - 1) / kCellSide * kCellSide);
+}
+
 // The quadrants of a tile, as the tail of a round is cut: top left, top right, bottom
-// left, bottom right (some empty when a side is 1).
+// left, bottom right (some empty when a side is a cell or less).
 std::array<PixelRect, 4> quadrants_of(const PixelRect& r) {
-    const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
+    const uint32_t hw = half_on_cells(r.width), hh = half_on_cells(r.height);
     return {PixelRect{r.x, r.y, hw, hh}, PixelRect{r.x + hw, r.y, r.width - hw, hh},
             PixelRect{r.x, r.y + hh, hw, r.height - hh},
             PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}};
@@ -90,6 +97,9 @@ std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
         // Enough jobs to keep several workers' threads busy even on a small image.
         while (tile > kMinAutoTile && tile_count(w, h, tile) < kMinJobsPerRound)
             tile /= 2;
+    } else {
+        tile = uint32_t(std::min<uint64_t>(
+            (uint64_t(tile) + kCellSide - 1) / kCellSide * kCellSide, uint64_t(1) << 31));
     }
     const uint32_t across = (w + tile - 1) / tile, down = (h + tile - 1) / tile;
     const auto rect_of = [&](size_t t) {
@@ -105,10 +115,10 @@ std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
             const uint32_t y0 = uint32_t(ty) * tile, th = std::min(tile, h - y0);
             for (uint32_t y = y0; y < y0 + th; ++y) {
                 const uint32_t* row = &spp[size_t(y) * w];
-                const size_t lower = y - y0 < (th + 1) / 2 ? 0 : 2;
+                const size_t lower = y - y0 < half_on_cells(th) ? 0 : 2;
                 for (uint32_t tx = 0; tx < across; ++tx) {
                     const uint32_t x0 = tx * tile, tw = std::min(tile, w - x0);
-                    const uint32_t mid = x0 + (tw + 1) / 2;
+                    const uint32_t mid = x0 + half_on_cells(tw);
                     uint32_t left = 0, right = 0;
                     for (uint32_t x = x0; x < mid; ++x) left |= row[x];
                     for (uint32_t x = mid; x < x0 + tw; ++x) right |= row[x];

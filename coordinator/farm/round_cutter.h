@@ -14,6 +14,13 @@ namespace aliquot {
 // while the image has fewer than kMinJobsPerRound tiles. Jobs are in issue order; the
 // last quarter of the tiles is cut into quadrants so that the round's end waits on small
 // jobs.
+//
+// Every rectangle is cut on the grid of cells the tracer batches by (kCellSide in
+// sample_job.h), so that how a round is cut never changes a bit of the image: an explicit
+// `tile` is rounded up to a multiple of kCellSide (automatic tiles are powers of two of
+// at least 16 already), and a tile is halved into quadrants at the cell boundary at or
+// after its middle (tiles from 32 up are halved; a quadrant is at least a cell unless
+// the image's edge clips it).
 inline constexpr uint32_t kMinAutoTile = 16;
 inline constexpr size_t kMinJobsPerRound = 16;
 inline constexpr uint64_t kJobSamples = uint64_t(1) << 18;

@@ -94,7 +94,7 @@ TEST(RoundCutter, JobsCutIntoSpareJobsAreTheJobsCutAfresh) {
 // row by row, the last quarter of them as their quadrants that hold samples; and each
 // job cut alone is the job cut_round cuts.
 TEST(RoundCutter, RoundTilesAreTheTilesWithSamplesAndTheTailsQuadrants) {
-    for (const uint32_t tile : {0u, 16u, 32u, 33u, 64u}) {
+    for (const uint32_t tile : {0u, 16u, 20u, 32u, 33u, 64u}) {
         for (const auto& [w, h] :
              {std::pair{157u, 93u}, std::pair{64u, 64u}, std::pair{31u, 200u}}) {
             SCOPED_TRACE(std::to_string(tile) + " " + std::to_string(w) + "x" +
@@ -111,9 +111,11 @@ TEST(RoundCutter, RoundTilesAreTheTilesWithSamplesAndTheTailsQuadrants) {
             };
             const std::vector<SampleJob> jobs = cut_round(round, acc, tile);
             ASSERT_FALSE(jobs.empty());
-            // The side cut_round chose: the first job's, unless it was a quadrant.
+            // The side cut_round chose: the first job's, unless it was a quadrant; an
+            // explicit one rounded up to whole cells.
             const uint32_t side =
-                tile ? tile : std::max(jobs.front().rect.width, jobs.front().rect.height);
+                tile ? (tile + kCellSide - 1) / kCellSide * kCellSide
+                     : std::max(jobs.front().rect.width, jobs.front().rect.height);
             std::vector<PixelRect> tiles, want;
             for (uint32_t y = 0; y < h; y += side)
                 for (uint32_t x = 0; x < w; x += side) {
@@ -125,7 +127,12 @@ TEST(RoundCutter, RoundTilesAreTheTilesWithSamplesAndTheTailsQuadrants) {
             want.assign(tiles.begin(), tiles.begin() + whole);
             for (size_t k = whole; k < tiles.size(); ++k) {
                 const PixelRect& r = tiles[k];
-                const uint32_t hw = (r.width + 1) / 2, hh = (r.height + 1) / 2;
+                // Halved at the first cell boundary at or after the middle.
+                const auto half = [](uint32_t n) {
+                    const uint32_t cells = (n + 2 * kCellSide - 1) / (2 * kCellSide);
+                    return std::min(n, cells * kCellSide);
+                };
+                const uint32_t hw = half(r.width), hh = half(r.height);
                 for (const PixelRect& q :
                      {PixelRect{r.x, r.y, hw, hh},
                       PixelRect{r.x + hw, r.y, r.width - hw, hh},
@@ -145,6 +152,48 @@ TEST(RoundCutter, RoundTilesAreTheTilesWithSamplesAndTheTailsQuadrants) {
             }
         }
     }
+}
+
+// The tracer batches samples by cells (kCellSide), so a round cut on cells traces the
+// same bits however it is cut: every job's rectangle starts on a cell boundary and ends
+// on one or at the image's edge, whatever tile is asked for, quadrants included.
+TEST(RoundCutter, EveryJobIsCutOnTheCellGrid) {
+    for (const uint32_t tile : {0u, 1u, 5u, 8u, 12u, 16u, 33u, 40u, 64u, 100u}) {
+        for (const auto& [w, h] :
+             {std::pair{157u, 93u}, std::pair{31u, 200u}, std::pair{8u, 8u},
+              std::pair{7u, 3u}, std::pair{1920u, 1080u}}) {
+            SCOPED_TRACE(std::to_string(tile) + " " + std::to_string(w) + "x" +
+                         std::to_string(h));
+            const Round round{0, std::vector<uint32_t>(size_t(w) * h, 1)};
+            size_t pixels = 0;
+            for (const PixelRect& r : round_tiles(round, w, h, tile)) {
+                EXPECT_EQ(r.x % kCellSide, 0u);
+                EXPECT_EQ(r.y % kCellSide, 0u);
+                EXPECT_TRUE((r.x + r.width) % kCellSide == 0 || r.x + r.width == w);
+                EXPECT_TRUE((r.y + r.height) % kCellSide == 0 || r.y + r.height == h);
+                pixels += r.size();
+            }
+            EXPECT_EQ(pixels, size_t(w) * h);
+        }
+    }
+}
+
+// Quadrants split at a cell boundary: a tile of 40 in 24 and 16, one of 20 (clipped by
+// the image) in 16 and 4.
+TEST(RoundCutter, QuadrantsAreHalvedOnCells) {
+    // 160x40 in tiles of 40: 4 tiles, the last one in quadrants.
+    const Round wide{0, std::vector<uint32_t>(160 * 40, 1)};
+    std::vector<PixelRect> got = round_tiles(wide, 160, 40, 40);
+    ASSERT_EQ(got.size(), 3u + 4u);
+    EXPECT_EQ(got[3], (PixelRect{120, 0, 24, 24}));
+    EXPECT_EQ(got[4], (PixelRect{144, 0, 16, 24}));
+    EXPECT_EQ(got[5], (PixelRect{120, 24, 24, 16}));
+    EXPECT_EQ(got[6], (PixelRect{144, 24, 16, 16}));
+    const Round clipped{0, std::vector<uint32_t>(size_t(140) * 40, 1)};
+    got = round_tiles(clipped, 140, 40, 40);  // the last tile is 20 wide
+    ASSERT_EQ(got.size(), 3u + 4u);
+    EXPECT_EQ(got[3], (PixelRect{120, 0, 16, 24}));
+    EXPECT_EQ(got[4], (PixelRect{136, 0, 4, 24}));
 }
 
 // The largest power-of-two side up to 128 whose tile holds at most kJobSamples (2^18).
