@@ -2,18 +2,27 @@
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
-#include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/impl/server_builder_option.h>
+#include <grpcpp/resource_quota.h>
+#include <grpcpp/security/tls_credentials_options.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
 #include <new>
 
 #include "access.h"
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
+#include "health_service.h"
+#include "lease_polls.h"
+#include "listener_watchdog.h"
+#include "open_file_limit.h"
 #include "render_proto.h"
 #include "scene_loader.h"
+#include "stored_image.h"
 #include "wire.h"
 
 namespace aliquot {
@@ -40,13 +49,13 @@ Status admit(const ServerContext* ctx, const Tokens& tokens, Role role) {
             access_message(access, role)};
 }
 
-// At most kMaxStreams Watch and FetchImage calls at once; one more is refused rather than
-// given a thread and a buffer.
+// At most kMaxStreams Watch calls at once; one more is refused rather than given a
+// thread. FetchImage has caps of its own (GrpcLimits).
 constexpr int kMaxStreams = 32;
 class StreamSlot {
 public:
-    explicit StreamSlot(std::atomic<int>& open) : open_(open) {
-        taken_ = open_.fetch_add(1) < kMaxStreams;
+    explicit StreamSlot(std::atomic<int>& open, int max = kMaxStreams) : open_(open) {
+        taken_ = open_.fetch_add(1) < max;
     }
     ~StreamSlot() { open_.fetch_sub(1); }
     StreamSlot(const StreamSlot&) = delete;
@@ -58,9 +67,15 @@ private:
     bool taken_ = false;
 };
 
+Status too_many(const std::string& calls) {
+    return {StatusCode::RESOURCE_EXHAUSTED,
+            "too many open " + calls + " calls; try again later"};
+}
+
 class ClientServiceImpl final : public v1::ClientService::Service {
 public:
-    ClientServiceImpl(Coordinator& c, const Tokens& tokens) : c_(c), tokens_(tokens) {}
+    ClientServiceImpl(Coordinator& c, const Tokens& tokens, const GrpcLimits& limits)
+        : c_(c), tokens_(tokens), limits_(limits) {}
 
     Status Submit(ServerContext* ctx, const v1::SubmitRequest* req,
                   v1::RenderInfo* reply) override {
@@ -132,9 +147,7 @@ public:
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         // Each open stream holds one of the server's threads while it waits.
         StreamSlot slot(open_streams_);
-        if (!slot.taken())
-            return {StatusCode::RESOURCE_EXHAUSTED,
-                    "too many open Watch and FetchImage streams; try again later"};
+        if (!slot.taken()) return too_many("Watch");
         uint64_t seen = 0;
         while (!ctx->IsCancelled()) {
             const auto info = c_.info(req->id());
@@ -190,21 +203,46 @@ public:
     Status FetchImage(ServerContext* ctx, const v1::FetchImageRequest* req,
                       grpc::ServerWriter<v1::FileChunk>* writer) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
-        // Each holds an encoded EXR (up to ~1 GB at 8192x8192 with AOVs) while it sends.
-        StreamSlot slot(open_streams_);
-        if (!slot.taken())
-            return {StatusCode::RESOURCE_EXHAUSTED,
-                    "too many open Watch and FetchImage streams; try again later"};
-        const auto image = c_.image(req->id(), req->aovs());
-        if (!image) return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
-        const std::string bytes = encode_exr(*image);
-        constexpr size_t kChunk = 1 << 20;
-        for (size_t off = 0; off < bytes.size(); off += kChunk) {
-            v1::FileChunk chunk;
-            chunk.set_data(bytes.data() + off, std::min(kChunk, bytes.size() - off));
-            if (!writer->Write(chunk)) break;
+        // Each holds a server thread and a chunk while it sends.
+        StreamSlot fetch(open_fetches_, limits_.max_fetches);
+        if (!fetch.taken()) return too_many("FetchImage");
+        try {
+            // A finished render's stored file is sent as it is read.
+            if (const auto file = c_.image_file(req->id())) {
+                std::ifstream in(stored_image(*file, req->aovs()), std::ios::binary);
+                // Open, it stays readable even if the render is deleted meanwhile.
+                if (!in)
+                    return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
+                std::string buffer(kChunk, '\0');
+                while (in.read(buffer.data(), std::streamsize(buffer.size())) ||
+                       in.gcount() > 0) {
+                    v1::FileChunk chunk;
+                    chunk.set_data(buffer.data(), size_t(in.gcount()));
+                    if (!writer->Write(chunk)) break;
+                }
+                return Status::OK;
+            }
+            // A render in memory is encoded in memory: a copy of its image, then the
+            // encoded bytes while they are sent (up to ~1 GB at 8192x8192 with AOVs),
+            // hence a cap of its own.
+            StreamSlot from_memory(memory_fetches_, limits_.max_fetches_from_memory);
+            if (!from_memory.taken()) return too_many("FetchImage of a running render");
+            std::string bytes;
+            {
+                const auto image = c_.image(req->id(), req->aovs());
+                if (!image)
+                    return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
+                bytes = encode_exr(*image);
+            }
+            for (size_t off = 0; off < bytes.size(); off += kChunk) {
+                v1::FileChunk chunk;
+                chunk.set_data(bytes.data() + off, std::min(kChunk, bytes.size() - off));
+                if (!writer->Write(chunk)) break;
+            }
+            return Status::OK;
+        } catch (const ImageFileError& e) {
+            return {StatusCode::INTERNAL, e.what()};
         }
-        return Status::OK;
     }
 
     Status ListWorkers(ServerContext* ctx, const v1::ListWorkersRequest*,
@@ -232,9 +270,12 @@ public:
     }
 
 private:
+    static constexpr size_t kChunk = 1 << 20;
     Coordinator& c_;
     const Tokens& tokens_;
+    const GrpcLimits& limits_;
     std::atomic<int> open_streams_{0};
+    std::atomic<int> open_fetches_{0}, memory_fetches_{0};
 };
 
 // Every call but Register carries the worker's session; one the coordinator did not issue
@@ -243,8 +284,14 @@ private:
 // the Coordinator's to check: the same code answers the embedded render's threads.
 class WorkerServiceImpl final : public v1::WorkerService::Service {
 public:
-    WorkerServiceImpl(Coordinator& c, const Tokens& tokens, FarmMetrics* metrics)
-        : c_(c), tokens_(tokens), metrics_(metrics) {}
+    WorkerServiceImpl(Coordinator& c, const Tokens& tokens, FarmMetrics* metrics,
+                      const GrpcLimits& limits)
+        : c_(c),
+          tokens_(tokens),
+          metrics_(metrics),
+          polls_(limits.max_lease_polls, limits.max_lease_polls_per_session) {}
+
+    int lease_polls_waiting() { return polls_.waiting(); }
 
     Status Register(ServerContext* ctx, const v1::RegisterRequest* req,
                     v1::RegisterReply* reply) override {
@@ -339,10 +386,17 @@ public:
     }
 
 private:
-    // What Lease answers `session`, waiting up to `wait_ms` for work (at most 30 s).
+    // What Lease answers `session`, waiting up to `wait_ms` for work (at most 30 s), if
+    // a place to wait is free (LeasePolls); otherwise without waiting.
     void answer_lease(const std::string& session, uint32_t wait_ms,
                       v1::LeaseReply& reply) {
-        const auto wait = std::chrono::milliseconds(std::min<uint32_t>(wait_ms, 30000));
+        auto wait = std::chrono::milliseconds(std::min<uint32_t>(wait_ms, 30000));
+        std::optional<LeasePolls::Place> place;
+        if (wait.count() > 0) {
+            place.emplace(polls_, session);
+            if (!place->taken()) wait = std::chrono::milliseconds(0);
+        }
+        const bool turned_away = place && !place->taken();
         const auto began = std::chrono::steady_clock::now();
         std::optional<LeaseGrant> grant;
         try {
@@ -356,7 +410,8 @@ private:
             return;
         }
         if (!grant) {
-            reply.set_retry_after_ms(0);  // long-poll already waited; ask again at once
+            // A long-poll that waited asks again at once; one turned away, later.
+            reply.set_retry_after_ms(turned_away ? kRetryAfterMs : 0);
             return;
         }
         v1::Lease* l = reply.mutable_lease();
@@ -386,19 +441,30 @@ private:
         return Status::OK;
     }
 
+    // How long a Lease turned away by the caps is asked to wait before the next.
+    static constexpr uint32_t kRetryAfterMs = 1000;
     Coordinator& c_;
     const Tokens& tokens_;
     FarmMetrics* metrics_;
+    LeasePolls polls_;
 };
 
 }  // namespace
 
+// One server's services: a server started again by the watchdog gets new ones.
 struct GrpcServer::Services {
     Tokens tokens;
     ClientServiceImpl client;
     WorkerServiceImpl worker;
-    Services(Coordinator& c, Tokens t, FarmMetrics* metrics)
-        : tokens(std::move(t)), client(c, tokens), worker(c, tokens, metrics) {}
+    HealthService health;
+    Services(Coordinator& c, Tokens t, FarmMetrics* metrics, const GrpcLimits& limits)
+        : tokens(std::move(t)),
+          client(c, tokens, limits),
+          worker(c, tokens, metrics, limits),
+          // "" is the server as a whole, what a probe that names no service asks about.
+          health({"", v1::ClientService::service_full_name(),
+                  v1::WorkerService::service_full_name()},
+                 limits.max_health_watches) {}
 };
 
 namespace {
@@ -433,19 +499,52 @@ private:
 }  // namespace
 
 GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
-                       GrpcSecurity security, GrpcOptions options) {
-    check_tokens(security.tokens);
-    if (security.tls_cert_pem.empty() != security.tls_key_pem.empty())
+                       GrpcSecurity security, GrpcOptions options, GrpcLimits limits)
+    : coordinator_(coordinator),
+      security_(std::move(security)),
+      options_(options),
+      limits_(limits) {
+    check_tokens(security_.tokens);
+    if (security_.tls_cert_pem.empty() != security_.tls_key_pem.empty())
         throw std::invalid_argument("gRPC: TLS needs both a certificate and its key");
-    services_ = std::make_unique<Services>(coordinator, security.tokens, options.metrics);
-    // gRPC's own health service, read by every server built from here on; its Check and
-    // Watch need no token (Kubernetes' probes send none) and say only SERVING or not.
-    grpc::EnableDefaultHealthCheckService(true);
+    // Every connection holds a descriptor: the more a flood needs to exhaust them, the
+    // better (the watchdog below answers the rest).
+    raise_open_file_limit();
+    std::lock_guard lock(mutex_);
+    listen(address);
+    host_ = address.substr(0, address.rfind(':'));
+    if (limits_.watchdog_failures > 0)
+        watchdog_ = std::make_unique<ListenerWatchdog>(
+            limits_.watchdog_period, limits_.watchdog_failures,
+            [this] { return reachable(); }, [this] { listen_again(); });
+}
+
+void GrpcServer::listen(const std::string& address) {
+    const GrpcLimits& limits = limits_;
+    services_ = std::make_unique<Services>(coordinator_, security_.tokens,
+                                           options_.metrics, limits);
+    // gRPC's own health service is off: ours (health_service.h) caps Watch streams.
+    grpc::EnableDefaultHealthCheckService(false);
     grpc::ServerBuilder builder;
-    builder.SetOption(std::make_unique<ReflectionOption>(options.reflection));
-    builder.AddListeningPort(address, server_credentials(security), &port_);
+    builder.SetOption(std::make_unique<ReflectionOption>(options_.reflection));
+    int port = 0;
+    builder.AddListeningPort(address, server_credentials(security_), &port);
     builder.RegisterService(&services_->client);
     builder.RegisterService(&services_->worker);
+    builder.RegisterService(&services_->health);
+    // What a peer can make the server hold (docs/SECURITY.md, "gRPC limits"): threads
+    // (a call finding none is refused), buffers, streams per connection, and how long
+    // a connection that says nothing or has nothing open is kept.
+    grpc::ResourceQuota quota("aliquot-grpc");
+    quota.SetMaxThreads(limits.max_threads);
+    quota.Resize(limits.max_memory_bytes);
+    builder.SetResourceQuota(quota);
+    builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS,
+                               limits.max_streams_per_connection);
+    builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS,
+                               int(limits.handshake_timeout.count()));
+    builder.AddChannelArgument(GRPC_ARG_MAX_CONNECTION_IDLE_MS,
+                               int(limits.max_idle.count()));
     // Keepalive matched with the workers' channel settings (worker/grpc_link.cpp).
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, 20000);
     builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
@@ -454,26 +553,94 @@ GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
                                10000);
     builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PING_STRIKES, 0);
     server_ = builder.BuildAndStart();
-    if (!server_ || port_ == 0) throw std::runtime_error("cannot listen on " + address);
-    grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
-    if (!health) throw std::runtime_error("gRPC: the health service did not start");
-    // "" is the server as a whole, what a probe that names no service asks about.
-    for (const char* service : {"", v1::ClientService::service_full_name(),
-                                v1::WorkerService::service_full_name()})
-        health->SetServingStatus(service, true);
+    if (!server_ || port == 0) {
+        server_.reset();
+        throw std::runtime_error("cannot listen on " + address);
+    }
+    port_ = port;
+    if (!serving_) services_->health.stop_serving();
+}
+
+bool GrpcServer::reachable() {
+    // A channel of its own (no subchannel shared with another), hence a new connection:
+    // one already open goes on working after the listener stops accepting.
+    grpc::ChannelArguments args;
+    args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+    std::shared_ptr<grpc::ChannelCredentials> credentials;
+    if (security_.tls_cert_pem.empty()) {
+        credentials = grpc::InsecureChannelCredentials();
+    } else {
+        // The question is whether the port answers, not who: the server is this process.
+        grpc::experimental::TlsChannelCredentialsOptions tls;
+        tls.set_verify_server_certs(false);
+        tls.set_check_call_host(false);
+        credentials = grpc::experimental::TlsCredentials(tls);
+    }
+    const std::string wildcard[] = {"", "0.0.0.0", "[::]", "[::0]"};
+    const bool any =
+        std::find(std::begin(wildcard), std::end(wildcard), host_) != std::end(wildcard);
+    const std::string target = (any ? "localhost" : host_) + ":" + std::to_string(port_);
+    auto channel = grpc::CreateCustomChannel(target, credentials, args);
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() +
+                     std::max(limits_.watchdog_period, std::chrono::milliseconds(1000)));
+    grpc::health::v1::HealthCheckRequest req;
+    grpc::health::v1::HealthCheckResponse reply;
+    const Status status =
+        grpc::health::v1::Health::NewStub(channel)->Check(&ctx, req, &reply);
+    // Any answer from the server will do (NOT_SERVING while stopping, or threads
+    // exhausted): what is asked is whether a new connection is served at all.
+    return status.error_code() != StatusCode::DEADLINE_EXCEEDED &&
+           status.error_code() != StatusCode::UNAVAILABLE;
+}
+
+void GrpcServer::listen_again() {
+    std::lock_guard lock(mutex_);
+    if (stopped_) return;
+    std::fprintf(stderr,
+                 "coordinator: gRPC on port %d accepts no new connections (out of file "
+                 "descriptors?); listening again\n",
+                 port_);
+    // Calls in progress are cut off: their clients and workers retry on a new
+    // connection.
+    server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    server_.reset();
+    services_.reset();
+    try {
+        listen(host_ + ":" + std::to_string(port_));
+        ++restarts_;
+    } catch (const std::exception& e) {
+        // Up but deaf is worse than down: a supervisor restarts a process that exits.
+        std::fprintf(
+            stderr,
+            "coordinator: cannot listen on port %d again (%s); exiting so that a "
+            "supervisor restarts the coordinator\n",
+            port_, e.what());
+        std::fflush(stderr);
+        std::_Exit(75);
+    }
+}
+
+int GrpcServer::restarts() {
+    std::lock_guard lock(mutex_);
+    return restarts_;
 }
 
 GrpcServer::~GrpcServer() { shutdown(); }
 
 void GrpcServer::stop_serving() {
-    // The health service's Shutdown: NOT_SERVING for every service, and no later change.
-    if (server_)
-        if (grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService())
-            health->Shutdown();
+    // NOT_SERVING for every service, and no later change.
+    std::lock_guard lock(mutex_);
+    serving_ = false;
+    if (services_) services_->health.stop_serving();
 }
 
 void GrpcServer::shutdown() {
     stop_serving();
+    // First the watchdog, which could otherwise start the server again.
+    watchdog_.reset();
+    std::lock_guard lock(mutex_);
+    stopped_ = true;
     if (server_) {
         server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
         server_.reset();

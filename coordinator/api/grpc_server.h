@@ -4,7 +4,10 @@
 // probes call) and, when asked for, server reflection (docs/SECURITY.md says why).
 #pragma once
 
+#include <chrono>
+#include <cstddef>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "access.h"
@@ -17,11 +20,41 @@ class Server;
 
 namespace aliquot {
 
+class ListenerWatchdog;
+
 // Who may call (each service's role token) and, when a certificate is given, TLS.
 struct GrpcSecurity {
     Tokens tokens;             // both set, and different
     std::string tls_cert_pem;  // empty: plaintext
     std::string tls_key_pem;
+};
+
+// What a peer can make the server hold at once (docs/SECURITY.md, "gRPC limits"). A call
+// beyond a cap is answered at once: RESOURCE_EXHAUSTED, or for a Lease an empty reply.
+struct GrpcLimits {
+    // Server threads in all (gRPC's resource quota): a call that finds none free is
+    // refused with RESOURCE_EXHAUSTED rather than given a new thread.
+    int max_threads = 512;
+    // Buffers of gRPC's connections and calls (its memory quota).
+    size_t max_memory_bytes = size_t(1) << 30;
+    int max_streams_per_connection = 100;
+    // A connection that has sent nothing (not even HTTP/2's preface) is closed after
+    // this; one with no call open, after max_idle.
+    std::chrono::milliseconds handshake_timeout{10000};
+    std::chrono::milliseconds max_idle{std::chrono::minutes(30)};
+    int max_health_watches = 64;
+    // Lease calls waiting for work; a Lease beyond either cap does not wait.
+    int max_lease_polls = 256;
+    int max_lease_polls_per_session = 64;
+    // FetchImage calls at once; of them, those of a render still in memory, which are
+    // encoded in memory.
+    int max_fetches = 16;
+    int max_fetches_from_memory = 2;
+    // Every `watchdog_period` a new connection to the server's own port asks health
+    // Check; after `watchdog_failures` failures in a row the listener is started again,
+    // and if it cannot be, the process exits (ListenerWatchdog). 0 failures: no watchdog.
+    std::chrono::milliseconds watchdog_period{2000};
+    int watchdog_failures = 3;
 };
 
 struct GrpcOptions {
@@ -38,8 +71,9 @@ public:
     // Listens on `address` (host:port); throws std::runtime_error if it cannot, and
     // std::invalid_argument for unusable security settings. Health answers SERVING for
     // "" (the whole server), aliquot.v1.ClientService and aliquot.v1.WorkerService.
+    // First raises the process's open-file limit as far as it goes (open_file_limit.h).
     GrpcServer(Coordinator& coordinator, const std::string& address,
-               GrpcSecurity security, GrpcOptions options = {});
+               GrpcSecurity security, GrpcOptions options = {}, GrpcLimits limits = {});
     ~GrpcServer();
     int port() const { return port_; }
     // Health answers NOT_SERVING from now on, for every service, while calls are still
@@ -48,12 +82,31 @@ public:
     void stop_serving();
     // stop_serving(), then stops: calls still running get 2 s to end. Idempotent.
     void shutdown();
+    // How many times the watchdog started the listener again (for tests).
+    int restarts();
 
 private:
     struct Services;
+    // Builds and starts a server on `address` into server_; under mutex_.
+    void listen(const std::string& address);
+    // The watchdog's probe: whether a new connection's health Check is answered.
+    bool reachable();
+    // The watchdog found the listener deaf: stop the server, start another on the same
+    // port, or exit.
+    void listen_again();
+
+    Coordinator& coordinator_;
+    const GrpcSecurity security_;
+    const GrpcOptions options_;
+    const GrpcLimits limits_;
+    std::mutex mutex_;  // guards what follows (the watchdog's thread and the caller's)
     std::unique_ptr<Services> services_;
     std::unique_ptr<grpc::Server> server_;
     int port_ = 0;
+    std::string host_;  // as given, for listening again on the same port
+    bool serving_ = true, stopped_ = false;
+    int restarts_ = 0;
+    std::unique_ptr<ListenerWatchdog> watchdog_;
 };
 
 }  // namespace aliquot

@@ -10,6 +10,7 @@ protobuf-compiler (scripts/install-deps.sh). The farm's helpers are tests/farm/f
 """
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -182,6 +183,86 @@ def test_a_worker_health_file_stops_while_the_worker_is_stuck():
         r = run("worker", "--coordinator", farm.addr, "--health-file",
                 os.path.join(farm.dir, "no-such-dir", "h"), check=False, timeout=60)
         assert r.returncode != 0 and "--health-file" in r.stderr, r.stderr
+    finally:
+        farm.stop()
+
+
+def start_limited_coordinator(farm, nofile):
+    """The coordinator under `prlimit --nofile=SOFT[:HARD]`; returns its log's path."""
+    log = os.path.join(farm.dir, "coordinator.log")
+    args = farm_test.with_token(["coordinator", "--grpc", farm.addr,
+                                 "--data", os.path.join(farm.dir, "data")])
+    farm.coordinator = subprocess.Popen(["prlimit", f"--nofile={nofile}",
+                                         farm_test.ALIQUOT, *args],
+                                        stdout=open(log, "w"), stderr=subprocess.STDOUT)
+    farm_test.PROCS.append(farm.coordinator)
+    deadline = time.time() + 20
+    while time.time() < deadline:
+        try:
+            if grpc_probe.health(farm.addr, "", timeout=1) == "SERVING":
+                return log
+        except grpc.RpcError:
+            time.sleep(0.1)
+    raise AssertionError("coordinator did not start")
+
+
+def flood(farm, connections):
+    """Plain connect()s, no byte sent, all held at once, then closed."""
+    held = []
+    try:
+        for _ in range(connections):
+            s = socket.socket()
+            s.settimeout(5)
+            s.connect(("127.0.0.1", farm.port))
+            held.append(s)
+        time.sleep(1)  # the coordinator accepts them meanwhile
+    finally:
+        for s in held:
+            s.close()
+
+
+def answered_within(farm, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        try:
+            return grpc_probe.health(farm.addr, "", timeout=2) == "SERVING"
+        except grpc.RpcError:
+            time.sleep(0.5)
+    return False
+
+
+def test_a_connection_flood_past_a_low_soft_file_limit_is_absorbed():
+    # A soft limit below the hard one is raised at start: 1,000 connections fit.
+    farm = Farm("flood-soft")
+    try:
+        log = start_limited_coordinator(farm, "256:4096")
+        flood(farm, 1000)
+        assert answered_within(farm, 10), "a new connection is not answered"
+        assert farm.coordinator.poll() is None
+        with open(log) as f:
+            text = f.read()
+        assert "Failed accept4" not in text, text
+    finally:
+        farm.stop()
+
+
+def test_a_connection_flood_past_the_hard_file_limit_is_recovered_from():
+    # Issue 30: gRPC 1.51 stops accepting for good after one accept fails with EMFILE;
+    # the watchdog notices the deaf port and listens again (or the process exits non-zero
+    # for its supervisor to restart it). Either way nobody is locked out while it runs.
+    farm = Farm("flood-hard")
+    try:
+        log = start_limited_coordinator(farm, "256")
+        flood(farm, 1000)
+        answered = answered_within(farm, 60)
+        with open(log) as f:
+            text = f.read()
+        assert "Failed accept4" in text, "the flood did not exhaust descriptors: " + text
+        if farm.coordinator.poll() is None:
+            assert answered, "up but deaf: " + text
+            assert "listening again" in text, text
+        else:
+            assert farm.coordinator.returncode != 0, text
     finally:
         farm.stop()
 
