@@ -34,6 +34,9 @@ public:
         switch (event) {
             case json::parse_event_t::object_start:
             case json::parse_event_t::array_start:
+                if (frames_.size() == size_t(kMaxJsonDepth))
+                    throw JsonError(pointer_to_open(), "nested deeper than " +
+                                                           std::to_string(kMaxJsonDepth));
                 frames_.emplace_back().array = event == json::parse_event_t::array_start;
                 break;
             case json::parse_event_t::key: {
@@ -62,9 +65,12 @@ private:
         std::set<std::string> keys;
     };
     // The pointer of the innermost open object.
-    std::string pointer() const {
+    std::string pointer() const { return pointer_of(frames_.size() - 1); }
+    // The pointer of the value being opened, inside every open frame.
+    std::string pointer_to_open() const { return pointer_of(frames_.size()); }
+    std::string pointer_of(size_t frames) const {
         std::string out;
-        for (size_t i = 0; i + 1 < frames_.size(); ++i) {
+        for (size_t i = 0; i < frames; ++i) {
             out += '/';
             out += frames_[i].array ? std::to_string(frames_[i].index)
                                     : json_pointer_token(frames_[i].key);
@@ -75,16 +81,35 @@ private:
     std::vector<Frame> frames_;
 };
 
-}  // namespace
+// Empties `value` from the leaves up, so that no container is destroyed with anything
+// in it: nlohmann's destructor then has nothing to move onto its stack and allocates
+// nothing. The recursion is as deep as the document, at most kMaxJsonDepth.
+void take_apart(json& value) noexcept {
+    if (value.is_array()) {
+        json::array_t& array = *value.get_ptr<json::array_t*>();
+        while (!array.empty()) {
+            take_apart(array.back());
+            array.pop_back();
+        }
+    } else if (value.is_object()) {
+        json::object_t& object = *value.get_ptr<json::object_t*>();
+        while (!object.empty()) {
+            const auto last = std::prev(object.end());
+            take_apart(last->second);
+            object.erase(last);
+        }
+    }
+}
 
-JsonError::JsonError(std::optional<std::string> pointer, std::string reason)
-    : std::runtime_error(what_of(pointer, reason)),
-      pointer_(std::move(pointer)),
-      reason_(std::move(reason)) {}
-
-json parse_json(std::string_view text) {
+// Parses `text` into `root`, which the caller owns: on an error it holds what was built
+// so far, for the caller to take apart. nlohmann's json::parse builds into a value of its
+// own, destroyed inside it when the parse throws; its DOM builder is driven here instead.
+// Throws JsonError for text that is not JSON, or std::bad_alloc.
+void parse_into(std::string_view text, json& root) {
     try {
-        return json::parse(text.begin(), text.end(), DuplicateKeyCheck());
+        nlohmann::detail::json_sax_dom_callback_parser<json> builder(root,
+                                                                     DuplicateKeyCheck());
+        json::sax_parse(text.begin(), text.end(), &builder);
     } catch (const json::parse_error& e) {
         // nlohmann's message reads "... parse error at line L, column C: reason".
         const std::string what = e.what();
@@ -96,6 +121,35 @@ json parse_json(std::string_view text) {
         throw JsonError(std::nullopt, "invalid JSON: " + without_exception_id(e.what()));
     }
 }
+
+}  // namespace
+
+JsonError::JsonError(std::optional<std::string> pointer, std::string reason)
+    : std::runtime_error(what_of(pointer, reason)),
+      pointer_(std::move(pointer)),
+      reason_(std::move(reason)) {}
+
+json parse_json(std::string_view text) {
+    json root;
+    try {
+        parse_into(text, root);
+    } catch (...) {
+        take_apart(root);
+        throw;
+    }
+    return root;
+}
+
+JsonDocument::JsonDocument(std::string_view text) {
+    try {
+        parse_into(text, root_);
+    } catch (...) {
+        take_apart(root_);  // what was built before the error
+        throw;
+    }
+}
+
+JsonDocument::~JsonDocument() { take_apart(root_); }
 
 std::string json_pointer_token(std::string_view key) {
     std::string out;

@@ -34,6 +34,27 @@ private:
 // JsonError.
 nlohmann::json parse_json(std::string_view text);
 
+// How deeply arrays and objects may nest; parse_json refuses deeper text. No document
+// of ours comes near it, and it bounds JsonDocument's recursion.
+inline constexpr int kMaxJsonDepth = 256;
+
+// A document parsed as parse_json does, whose tree is taken apart without allocating
+// when it goes. nlohmann's destructor moves a tree's values onto a heap-allocated stack
+// (to bound recursion), and it is noexcept: when memory has run out, that allocation
+// aborts the process. A document from the network is held in this instead; out of
+// memory while parsing, it throws std::bad_alloc and leaves nothing behind.
+class JsonDocument {
+public:
+    explicit JsonDocument(std::string_view text);  // throws JsonError, std::bad_alloc
+    ~JsonDocument();
+    JsonDocument(const JsonDocument&) = delete;
+    JsonDocument& operator=(const JsonDocument&) = delete;
+    const nlohmann::json& root() const { return root_; }
+
+private:
+    nlohmann::json root_;
+};
+
 // A value inside a parsed document and its pointer. It refers to the document, which
 // must outlive it.
 class JsonField {

@@ -86,5 +86,29 @@ TEST(ParseJson, SyntaxErrorsSayWhereInTheText) {
     }
 }
 
+// JsonDocument takes its tree apart by recursion, so how deep a document nests is
+// bounded; nothing of ours nests more than a few levels.
+TEST(ParseJson, RefusesNestingDeeperThanTheLimit) {
+    const auto nested = [](int depth) {
+        return std::string(size_t(depth), '[') + std::string(size_t(depth), ']');
+    };
+    EXPECT_NO_THROW(parse_json(nested(kMaxJsonDepth)));
+    EXPECT_NO_THROW(JsonDocument(nested(kMaxJsonDepth)));
+    try {
+        JsonDocument doc(nested(kMaxJsonDepth + 1));
+        FAIL() << "expected JsonError";
+    } catch (const JsonError& e) {
+        EXPECT_EQ(e.reason(), "nested deeper than 256");
+        EXPECT_EQ(e.pointer()->size(), 2u * kMaxJsonDepth);  // "/0" at every level
+    }
+}
+
+TEST(ParseJson, ADocumentReadsAsParseJsonDoes) {
+    const std::string text = R"({"a": [1, {"b": null}], "c": "d"})";
+    EXPECT_EQ(JsonDocument(text).root(), parse_json(text));
+    EXPECT_THROW(JsonDocument(R"({"a": 1, "a": 2})"), JsonError);
+    EXPECT_THROW(JsonDocument("{"), JsonError);
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <functional>
+#include <new>
 #include <random>
 #include <thread>
 #include <utility>
@@ -332,6 +333,10 @@ WorkerLoop::Traced WorkerLoop::trace(const LeaseGrant& grant) {
     } catch (const LinkUnavailable& e) {
         log(std::string("lost the coordinator: ") + e.what());
         out.unreachable = true;
+    } catch (const std::bad_alloc&) {
+        // A scene too large for this worker's memory now (what it took is freed by now):
+        // reported as any other job it cannot trace. Short enough to need no allocation.
+        out.failure = "out of memory";
     } catch (const std::exception& e) {
         // A scene that does not load here, or tracing that threw: this worker cannot
         // trace the job. Reported by hand_back, so that another worker gets it and a job

@@ -3,6 +3,7 @@
 // it, and that it returns a result while it traces the next job.
 #include "worker_loop.h"
 
+#include "failing_allocator.h"
 #include "scene_loader.h"
 
 #include <gtest/gtest.h>
@@ -20,9 +21,31 @@ namespace {
 
 using Millis = std::chrono::milliseconds;
 
+// A valid scene of 20,000 triangles.
+std::string large_scene() {
+    static const std::string text = [] {
+        std::string t =
+            R"({"camera": {"position": [0, 0, 3.9], "target": [0, 0, 0], )"
+            R"("up": [0, 1, 0], "fov": 39}, "materials": {"white": {"type": )"
+            R"("diffuse", "reflectance": [0.5, 0.5, 0.5]}}, "shapes": [{"type": )"
+            R"("mesh", "material": "white", "emission": [1, 1, 1], )"
+            R"("positions": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [)";
+        for (int i = 0; i < 20000; ++i) t += i ? ",[0,1,2]" : "[0,1,2]";
+        return t + "]}]}";
+    }();
+    return text;
+}
+
 class FakeLink : public WorkerLink {
 public:
-    enum class Mode { BrokenScene, NothingAtOnce, ForgetsWorker, TokenRevoked };
+    // SceneTooLarge: the scene parses, but not within the memory this worker has.
+    enum class Mode {
+        BrokenScene,
+        NothingAtOnce,
+        ForgetsWorker,
+        TokenRevoked,
+        SceneTooLarge
+    };
     explicit FakeLink(Mode mode) : mode_(mode) {}
 
     Registration register_worker(const std::string&, uint32_t threads) override {
@@ -38,7 +61,7 @@ public:
             std::lock_guard lock(mutex_);
             ++leases;
             lease_sessions.insert(session);
-            if (mode_ == Mode::BrokenScene) {
+            if (mode_ == Mode::BrokenScene || mode_ == Mode::SceneTooLarge) {
                 LeaseGrant g;
                 g.lease_id = next_lease_++;
                 g.render_id = "r-000001";
@@ -63,6 +86,13 @@ public:
     }
     std::optional<std::string> fetch_scene(const std::string&,
                                            const std::string&) override {
+        if (mode_ == Mode::SceneTooLarge) {
+            std::string scene = large_scene();
+            // From here until the failure is reported, this thread's allocations past
+            // 64 KiB fail: the 20,000 triangles' JSON array is larger.
+            testing::allocation_cap = 64 << 10;
+            return scene;
+        }
         return std::string("{\"camera\": ");  // does not parse on this worker
     }
     bool renew(const std::string&, uint64_t) override { return true; }
@@ -73,6 +103,7 @@ public:
     }
     bool fail(const std::string& worker, uint64_t lease_id,
               const std::string& reason) override {
+        testing::allocation_cap = SIZE_MAX;
         std::lock_guard lock(mutex_);
         failures.push_back({worker, lease_id, reason, std::chrono::steady_clock::now()});
         return true;
@@ -144,6 +175,16 @@ TEST(WorkerLoopTest, ReportsAJobItCannotTraceWithTheReasonAndBacksOff) {
     };
     EXPECT_GE(gap(0), Millis(45));
     EXPECT_GE(gap(2), Millis(95));
+}
+
+// Issue 30, item 7: out of memory in its scene cache, a worker aborted (the half-parsed
+// scene's JSON allocated again as it was destroyed) instead of reporting the job.
+TEST(WorkerLoopTest, AScenePastItsMemoryFailsTheJobAndTheWorkerGoesOn) {
+    FakeLink link(FakeLink::Mode::SceneTooLarge);
+    run_for(link, options(1), Millis(600));
+    std::lock_guard lock(link.mutex_);
+    ASSERT_GE(link.failures.size(), 2u);  // reported, and leased again after the wait
+    for (const FakeLink::Failure& f : link.failures) EXPECT_EQ(f.reason, "out of memory");
 }
 
 // A coordinator shutting down answers a long-poll at once with nothing: the worker did

@@ -507,11 +507,13 @@ void inline_mesh_files(json& doc, const SceneSource& source) {
 
 }  // namespace
 
+// The document is a JsonDocument: out of memory, a scene fails with std::bad_alloc and
+// takes nothing down (a plain json's destructor could abort the process).
 Scene parse_scene(std::string_view json_text, const std::string& origin,
                   const std::filesystem::path& base_dir) {
-    const json doc = parse_scene_json(json_text, origin);
     try {
-        return SceneBuilder(base_dir).build(JsonField(doc), origin);
+        const JsonDocument doc(json_text);
+        return SceneBuilder(base_dir).build(JsonField(doc.root()), origin);
     } catch (const JsonError& e) {
         fail_scene(origin, e);
     }
@@ -519,9 +521,9 @@ Scene parse_scene(std::string_view json_text, const std::string& origin,
 
 Scene parse_submitted_scene(std::string_view json_text, const std::string& origin) {
     check_scene_size(json_text.size(), origin);
-    const json doc = parse_scene_json(json_text, origin);
     try {
-        return SceneBuilder({}, true).build(JsonField(doc), origin);
+        const JsonDocument doc(json_text);
+        return SceneBuilder({}, true).build(JsonField(doc.root()), origin);
     } catch (const JsonError& e) {
         fail_scene(origin, e);
     }
