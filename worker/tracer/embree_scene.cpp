@@ -8,6 +8,7 @@
 #include <xmmintrin.h>
 
 #include <cstdio>
+#include <exception>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -29,6 +30,29 @@ void throw_if_failed(RTCDevice device, const char* what) {
         throw std::runtime_error(std::string("embree failed to ") + what + " (error " +
                                  std::to_string(int(err)) + ")");
     }
+}
+
+// A geometry's new buffer. Out of memory, Embree calls the error function and returns
+// null, which is not to be written through: the geometry is released and this throws,
+// so that a worker reports the job it cannot trace instead of crashing.
+void* new_buffer(RTCDevice device, RTCGeometry geom, RTCBufferType type, RTCFormat format,
+                 size_t stride, size_t count) {
+    void* buffer = rtcSetNewGeometryBuffer(geom, type, 0, format, stride, count);
+    if (!buffer) {
+        rtcReleaseGeometry(geom);
+        throw_if_failed(device, "allocate a geometry buffer");
+        throw std::runtime_error("embree failed to allocate a geometry buffer");
+    }
+    return buffer;
+}
+
+RTCGeometry new_geometry(RTCDevice device, RTCGeometryType type) {
+    RTCGeometry geom = rtcNewGeometry(device, type);
+    if (!geom) {
+        throw_if_failed(device, "make a geometry");
+        throw std::runtime_error("embree failed to make a geometry");
+    }
+    return geom;
 }
 
 // Paths' rays go every which way: Embree is told so (it matters for its stream paths).
@@ -95,7 +119,21 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
     device_ = rtcNewDevice(nullptr);
     if (!device_) throw std::runtime_error("embree: cannot create a device");
     rtcSetDeviceErrorFunction(device_, on_embree_error, nullptr);
+    // No destructor runs for a constructor that throws (out of memory, in Embree or in
+    // a vector here): what was made so far is released on the way out.
+    struct ReleaseOnThrow {
+        EmbreeScene& self;
+        const int uncaught = std::uncaught_exceptions();
+        ~ReleaseOnThrow() {
+            if (std::uncaught_exceptions() == uncaught) return;
+            if (self.scene_) rtcReleaseScene(self.scene_);
+            rtcReleaseDevice(self.device_);
+            self.scene_ = nullptr;
+            self.device_ = nullptr;
+        }
+    } release_on_throw{*this};
     scene_ = rtcNewScene(device_);
+    if (!scene_) throw std::runtime_error("embree failed to make a scene");
     rtcSetSceneBuildQuality(
         scene_, two_level_bvh(scene) ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_HIGH);
 
@@ -113,11 +151,11 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
             normals.push_back(len > 0 ? n / len
                                       : Vec3(0, 0, 1));  // degenerate: never hit
         }
-        RTCGeometry geom = rtcNewGeometry(
+        RTCGeometry geom = new_geometry(
             device_, quads ? RTC_GEOMETRY_TYPE_QUAD : RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(
-            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                    3 * sizeof(float), mesh.positions.size()));
+        auto* v = static_cast<float*>(new_buffer(device_, geom, RTC_BUFFER_TYPE_VERTEX,
+                                                 RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                 mesh.positions.size()));
         for (size_t i = 0; i < mesh.positions.size(); ++i) {
             v[3 * i] = mesh.positions[i].x;
             v[3 * i + 1] = mesh.positions[i].y;
@@ -129,8 +167,8 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
             // the halves are exactly a and b, same vertices, winding and diagonal.
             const size_t count = mesh.triangles.size() / 2;
             auto* idx = static_cast<unsigned*>(
-                rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4,
-                                        4 * sizeof(unsigned), count));
+                new_buffer(device_, geom, RTC_BUFFER_TYPE_INDEX, RTC_FORMAT_UINT4,
+                           4 * sizeof(unsigned), count));
             for (size_t i = 0; i < count; ++i) {
                 const auto& a = mesh.triangles[2 * i];
                 const auto& b = mesh.triangles[2 * i + 1];
@@ -141,8 +179,8 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
             }
         } else {
             auto* idx = static_cast<unsigned*>(
-                rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                        3 * sizeof(unsigned), mesh.triangles.size()));
+                new_buffer(device_, geom, RTC_BUFFER_TYPE_INDEX, RTC_FORMAT_UINT3,
+                           3 * sizeof(unsigned), mesh.triangles.size()));
             for (size_t i = 0; i < mesh.triangles.size(); ++i)
                 for (int k = 0; k < 3; ++k) idx[3 * i + k] = mesh.triangles[i][k];
         }
@@ -160,10 +198,10 @@ EmbreeScene::EmbreeScene(const Scene& scene) {
     if (scene.spheres.size() <= kOwnSpheres) {
         spheres_ = scene.spheres;
     } else {
-        RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-        auto* v = static_cast<float*>(
-            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
-                                    4 * sizeof(float), scene.spheres.size()));
+        RTCGeometry geom = new_geometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        auto* v = static_cast<float*>(new_buffer(device_, geom, RTC_BUFFER_TYPE_VERTEX,
+                                                 RTC_FORMAT_FLOAT4, 4 * sizeof(float),
+                                                 scene.spheres.size()));
         for (size_t i = 0; i < scene.spheres.size(); ++i) {
             v[4 * i] = scene.spheres[i].center.x;
             v[4 * i + 1] = scene.spheres[i].center.y;
