@@ -60,6 +60,7 @@ struct BenchCommand {
 
     void run() {
         check_render_options(options);
+        check_fits_in_memory(options);
         const Scene scene = load_scene(options.scene);
         const PathTracer tracer(scene);
         const double raw = raw_embree_rays_per_second(tracer, scene, options.threads);

@@ -1,5 +1,6 @@
 #include "endpoint_options.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -9,6 +10,7 @@
 #include <thread>
 
 #include "commands.h"
+#include "port_probe.h"
 #include "token_file.h"
 
 namespace aliquot::cli {
@@ -89,6 +91,16 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
         } else if (const char* env = std::getenv("ALIQUOT_TOKEN"); env && *env) {
             endpoint.token = env;
             check_token(endpoint.token, "ALIQUOT_TOKEN");
+        } else if (std::filesystem::exists(local)) {
+            endpoint.token = read_token_file(local);
+        } else if (port_answers(endpoint.address,
+                                std::min(timeout, std::chrono::milliseconds(500)))) {
+            // A coordinator writes its tokens before it listens: one that answers
+            // keeps them somewhere else, and waiting here would only delay the news.
+            throw CommandError("no " + name + " token: the coordinator at " +
+                               endpoint.address + " answers, but this directory has no " +
+                               local.string() + "; pass --token-file PATH (its DATA/" +
+                               name + ".token) or set ALIQUOT_TOKEN");
         } else if (appears_by(local, until)) {
             endpoint.token = read_token_file(local);
         } else {

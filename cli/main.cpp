@@ -2,8 +2,10 @@
 // files.
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "commands.h"
+#include "usage_message.h"
 
 int main(int argc, char** argv) {
     CLI::App app{"Aliquot: a Monte Carlo render farm about where the samples go"};
@@ -19,13 +21,25 @@ int main(int argc, char** argv) {
     aliquot::cli::register_reference(app);
     aliquot::cli::register_study(app);
     aliquot::cli::register_health(app);
+    // A first word that is no option must name a command; CLI11 alone would answer
+    // `aliquot rendr` with "A subcommand is required".
+    if (argc > 1 && argv[1][0] != '-') {
+        const std::string unknown = aliquot::cli::unknown_command(app, argv[1]);
+        if (!unknown.empty()) {
+            std::fprintf(stderr, "aliquot: %s\n", unknown.c_str());
+            return aliquot::cli::kExitUsage;
+        }
+    }
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         // --help and --version end parsing as "errors" with status 0; every other parse
-        // error is a usage error, whatever number CLI11 gives its kind.
-        app.exit(e);
-        return e.get_exit_code() == 0 ? 0 : aliquot::cli::kExitUsage;
+        // error is a usage error, whatever number CLI11 gives its kind, and reads like
+        // the commands' own: one line, "aliquot: ".
+        if (e.get_exit_code() == 0) return app.exit(e);
+        std::fprintf(stderr, "aliquot: %s\n",
+                     aliquot::cli::parse_error_message(app, e).c_str());
+        return aliquot::cli::kExitUsage;
     } catch (const aliquot::cli::UsageError& e) {
         std::fprintf(stderr, "aliquot: %s\n", e.what());
         return aliquot::cli::kExitUsage;

@@ -41,6 +41,7 @@ struct ReferenceCommand {
         options.strategy.method = "uniform";
         if (options.seed == 0) options.seed = kReferenceSeed;
         check_render_options(options);
+        check_fits_in_memory(options);
         check_writable(out, "--out");
         const RenderSpec spec = make_render_spec(options);
         const std::filesystem::path cached =

@@ -5,7 +5,9 @@
 #include <thread>
 
 #include "commands.h"
+#include "coordinator.h"
 #include "exr_io.h"
+#include "near_miss.h"
 #include "resolution.h"
 #include "scene_loader.h"
 #include "sigma_map.h"
@@ -20,7 +22,8 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
     cmd.add_option("--resolution", o.resolution, "image size as WxH")
         ->capture_default_str();
     cmd.add_option("--spp", o.spp,
-                   "samples per pixel (uniform; others: budget = spp x pixels)")
+                   "samples per pixel (uniform; others: budget = spp x pixels); "
+                   "without --spp or --budget, 64")
         ->check(whole_number());
     cmd.add_option("--seed", o.seed, "render seed")
         ->check(whole_number())
@@ -100,6 +103,7 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
 }
 
 void check_render_options(RenderOptions& o) {
+    check_scene_name(o.scene);
     try {
         const Resolution r = parse_resolution(o.resolution);
         o.width = r.width;
@@ -109,8 +113,13 @@ void check_render_options(RenderOptions& o) {
     }
     if (o.spp != kSppNotGiven && (o.spp < 1 || o.spp > (int64_t(1) << 31)))
         throw UsageError("--spp: must be in 1..2^31, got " + std::to_string(o.spp));
+    // Without --spp or --budget every method that needs a sample budget gets the same
+    // one, 64 samples per pixel (dammertz and cycles stop by their own measure).
     if (o.spp == kSppNotGiven)
-        o.spp = (o.strategy.budget == 0 && o.strategy.method == "uniform") ? 64 : 0;
+        o.spp = (o.strategy.budget == 0 && o.strategy.method != "dammertz" &&
+                 o.strategy.method != "cycles")
+                    ? kDefaultSpp
+                    : 0;
     o.strategy.spp = uint64_t(o.spp);
     if (o.threads < 0) throw UsageError("--threads: must be 0 or more");
     if (o.threads == 0)
@@ -147,6 +156,36 @@ RenderSpec make_render_spec(const RenderOptions& o) {
     spec.strategy = o.strategy;
     if (!o.reference.empty()) spec.reference = read_exr(o.reference);
     return spec;
+}
+
+void check_scene_name(const std::string& scene) {
+    // The scene loader's own rule for what is a file: a .json name or a path that exists.
+    // Anything else can only be a built-in name, and a wrong one is a usage error, like
+    // an unknown method; a scene file that cannot be read is a failure (exit status 1).
+    if (builtin_scene_json(scene) ||
+        std::filesystem::path(scene).extension() == ".json" ||
+        std::filesystem::exists(scene))
+        return;
+    const std::vector<std::string> names = builtin_scene_names();
+    const std::string near = closest(scene, names);
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw UsageError("--scene: unknown scene '" + scene + "'" +
+                     (near.empty() ? "" : "; did you mean '" + near + "'?") +
+                     " (built-in scenes: " + list + "; or a path to a .json file)");
+}
+
+void check_fits_in_memory(const RenderOptions& o) {
+    const uint64_t needed =
+        render_memory_estimate(o.width, o.height, !o.reference.empty());
+    const uint64_t limit = default_memory_limit();
+    if (needed <= limit) return;
+    const auto mib = [](uint64_t bytes) { return std::to_string(bytes >> 20) + " MiB"; };
+    throw CommandError("--resolution " + std::to_string(o.width) + "x" +
+                       std::to_string(o.height) + ": the render would hold about " +
+                       mib(needed) + " in memory, more than the " + mib(limit) +
+                       " (half of this machine's memory) a render may use; choose a "
+                       "smaller --resolution");
 }
 
 void check_writable(const std::filesystem::path& path, const std::string& option) {

@@ -17,7 +17,7 @@ struct RenderOptions {
     std::string scene = "cornell-box";
     std::string resolution = "256x256";
     uint32_t width = 256, height = 256;
-    int64_t spp = -1;  // kSppNotGiven: uniform then defaults to 64
+    int64_t spp = -1;  // kSppNotGiven: then kDefaultSpp, unless --budget
     uint64_t seed = 0;
     int threads = 0;        // 0: all hardware threads
     std::string reference;  // optional reference EXR
@@ -28,13 +28,22 @@ struct RenderOptions {
 // Adds --scene, --resolution, --spp, --seed, --threads, --method and every strategy
 // parameter (--budget, --max-variance, ...) and --reference to `cmd`.
 void add_render_options(CLI::App& cmd, RenderOptions& options);
-// Parses the resolution and checks ranges; throws CommandError.
+// Parses the resolution and checks ranges and the scene's name; throws CommandError.
 void check_render_options(RenderOptions& options);
+// A name that is neither a built-in scene nor a scene file: UsageError, with the nearest
+// built-in name.
+void check_scene_name(const std::string& scene);
+// For a render in this process (render, bench, reference): CommandError, in the words of
+// its own options, when its buffers would not fit the memory a render may use here; the
+// in-process coordinator would refuse it anyway, naming the farm's --memory-limit.
+void check_fits_in_memory(const RenderOptions& options);
 // The spec the options describe: loads the scene (inlining meshes) and the reference.
 RenderSpec make_render_spec(const RenderOptions& options);
 // Fails early, before any work, if `path` cannot be written.
 void check_writable(const std::filesystem::path& path, const std::string& option);
 
 constexpr int64_t kSppNotGiven = -1;
+// Samples per pixel when neither --spp nor --budget is given.
+constexpr int64_t kDefaultSpp = 64;
 
 }  // namespace aliquot::cli
