@@ -9,7 +9,9 @@
 #include "client.h"
 #include "commands.h"
 #include "endpoint_options.h"
+#include "exr_io.h"
 #include "http_api.h"
+#include "png_output.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
@@ -25,6 +27,7 @@ struct FarmOptions {
     std::string id;
     std::string out;
     bool json = false, aovs = false;
+    PngOptions png;
 };
 
 CLI::App* add_common(CLI::App& app, const char* name, const char* help,
@@ -105,11 +108,19 @@ void register_fetch(CLI::App& app) {
     cmd->add_option("id", o->id, "render id")->required();
     cmd->add_option("--out", o->out, "output .exr")->required();
     cmd->add_flag("--aovs", o->aovs, "add the layers sampleCount.Y and variance.Y");
+    o->png.add_to(*cmd);
     cmd->callback([o] {
         check_writable(o->out, "--out");
+        const std::string png_path = o->png.path_beside(o->out);
         ClientConnection c(o->coordinator.resolve(Role::Client));
         fetch_image(c, o->id, o->out, o->aovs);
         std::cout << "wrote " << o->out << std::endl;
+        if (o->png.png) {
+            // From the EXR just written: the picture is the file's, whatever the render
+            // has merged since.
+            write_png(read_exr(o->out), o->png.exposure, png_path);
+            std::cout << "wrote " << png_path << std::endl;
+        }
     });
 }
 

@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "embedded_render.h"
 #include "exr_io.h"
+#include "png_output.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
@@ -21,10 +22,13 @@ struct RenderCommand {
     std::string out;
     bool json = false;
     bool aovs = false;
+    PngOptions png;
 
     void run() {
         check_render_options(options);
+        check_fits_in_memory(options);
         check_writable(out, "--out");
+        const std::string png_path = png.path_beside(out);
         const RenderSpec spec = make_render_spec(options);
 
         ProgressBar bar("render");
@@ -39,6 +43,7 @@ struct RenderCommand {
             });
         bar.finish();
         write_exr(out, result.image);
+        if (png.png) write_png(result.image, png.exposure, png_path);
         const RenderInfo& info = result.info;
         if (json) {
             // The render as the farm's clients print it, plus what only a local run has.
@@ -46,6 +51,7 @@ struct RenderCommand {
             summary["spp"] = options.spp;
             summary["threads"] = options.threads;
             summary["output"] = out;
+            if (png.png) summary["png"] = png_path;
             std::cout << summary.dump() << std::endl;
         } else {
             std::printf(
@@ -54,6 +60,7 @@ struct RenderCommand {
                 options.scene.c_str(), options.width, options.height, info.method.c_str(),
                 (unsigned long long)info.samples_done, info.seconds,
                 info.samples_per_second, out.c_str());
+            if (png.png) std::printf("wrote %s\n", png_path.c_str());
             if (info.outcome_json != "{}" && !info.outcome_json.empty())
                 std::printf("outcome: %s\n", info.outcome_json.c_str());
         }
@@ -71,6 +78,7 @@ void register_render(CLI::App& app) {
     cmd->add_flag("--json", command->json, "print one JSON summary object");
     cmd->add_flag("--aovs", command->aovs,
                   "add the layers sampleCount.Y and variance.Y to the EXR");
+    command->png.add_to(*cmd);
     cmd->callback([command] { command->run(); });
 }
 

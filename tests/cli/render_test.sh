@@ -55,7 +55,7 @@ expect_error() {
 mkdir -p "$tmp/ro"
 echo '{"camera": ' > "$tmp/broken.json"
 expect_error "missing scene file" 1 "cannot open" "$aliquot" render --scene "$tmp/nope.json" --out "$tmp/x.exr"
-expect_error "unknown built-in scene" 1 "unknown scene" "$aliquot" render --scene cornel-box --out "$tmp/x.exr"
+expect_error "unknown built-in scene" 2 "unknown scene" "$aliquot" render --scene cornel-box --out "$tmp/x.exr"
 expect_error "malformed scene file" 1 "broken.json" "$aliquot" render --scene "$tmp/broken.json" --out "$tmp/x.exr"
 expect_error "resolution 0x0" 2 "--resolution" "$aliquot" render --resolution 0x0 --out "$tmp/x.exr"
 expect_error "resolution not WxH" 2 "--resolution" "$aliquot" render --resolution 64 --out "$tmp/x.exr"
@@ -80,8 +80,8 @@ expect_error "ALIQUOT_COORDINATOR names the coordinator" 1 "cannot reach coordin
 expect_error "--coordinator wins over ALIQUOT_COORDINATOR" 1 "cannot reach coordinator at 127.0.0.1:3" \
     env ALIQUOT_COORDINATOR=127.0.0.1:2 "$aliquot" status --coordinator 127.0.0.1:3 --token-file "$tmp/token" --connect-timeout 0
 
-# CLI11's own parse errors are usage errors too (it numbers them 100 and up); they print
-# the error and a hint, so only the status is checked.
+# CLI11's own parse errors are usage errors too (it numbers them 100 and up); their
+# wording is checked below, with the near-miss suggestions.
 "$aliquot" render --no-such-option >/dev/null 2>&1
 [[ $? -eq 2 ]] && pass "an unknown option exits 2" || fail "an unknown option exits 2"
 "$aliquot" render >/dev/null 2>&1
@@ -126,6 +126,91 @@ PY
 else
     fail "oiiotool --info -v runs (install openimageio-tools: scripts/install-deps.sh): $info"
 fi
+
+# --png: an 8-bit sRGB PNG beside the EXR, the render's size, brighter with --exposure.
+# png_size FILE: "WIDTHxHEIGHT" from the IHDR chunk after PNG's 8-byte signature.
+png_size() {
+    python3 - "$1" <<'PY'
+import struct, sys
+data = open(sys.argv[1], "rb").read()
+assert data[:8] == b"\x89PNG\r\n\x1a\n", "no PNG signature"
+assert data[12:16] == b"IHDR", "no IHDR first"
+w, h, depth, colour = struct.unpack(">IIBB", data[16:26])
+assert depth == 8 and colour == 2, (depth, colour)  # 8-bit RGB
+print(f"{w}x{h}")
+PY
+}
+out=$("$aliquot" render --scene cornell-box --resolution 40x30 --spp 4 --seed 3 --png \
+    --out "$tmp/p.exr" 2>/dev/null)
+[[ $(png_size "$tmp/p.png") == 40x30 && $out == *"wrote $tmp/p.png"* ]] &&
+    pass "render --png writes a 40x30 PNG beside the EXR and says where" ||
+    fail "render --png writes a 40x30 PNG beside the EXR and says where (stdout: $out)"
+"$aliquot" render --scene cornell-box --resolution 40x30 --spp 4 --seed 3 --png --exposure 2 \
+    --out "$tmp/bright.exr" >/dev/null 2>&1
+cmp -s "$tmp/p.exr" "$tmp/bright.exr" && ! cmp -s "$tmp/p.png" "$tmp/bright.png" &&
+    pass "--exposure changes the PNG, not the EXR" || fail "--exposure changes the PNG, not the EXR"
+expect_error "--exposure without --png" 2 "--exposure requires --png" \
+    "$aliquot" render --exposure 1 --out "$tmp/x.exr"
+expect_error "--exposure out of range" 2 "--exposure: must be -20..20" \
+    "$aliquot" render --png --exposure 99 --out "$tmp/x.exr"
+expect_error "--png over an --out named .png" 2 "--png: --out" \
+    "$aliquot" render --png --out "$tmp/x.png"
+
+# Usage errors read alike, whoever found them: "aliquot: ", one line, exit status 2, and
+# the nearest known word for a near miss.
+expect_error "a mistyped command" 2 "aliquot: unknown command 'rendr'; did you mean 'render'?" \
+    "$aliquot" rendr --out "$tmp/x.exr"
+expect_error "a command swapped two letters" 2 "did you mean 'status'?" "$aliquot" stauts
+expect_error "no command" 2 "aliquot: a command is required: render" "$aliquot"
+expect_error "an unknown top-level option" 2 "aliquot: unknown option --frob" "$aliquot" --frob
+expect_error "a mistyped option" 2 "aliquot: render: unknown option --spd; did you mean --spp?" \
+    "$aliquot" render --spd 3 --out "$tmp/x.exr"
+expect_error "CLI11's missing option" 2 "aliquot: render: --out is required" "$aliquot" render
+expect_error "CLI11's conversion error" 2 "aliquot: status: " "$aliquot" status --connect-timeout soon
+expect_error "a stray argument" 2 "aliquot: render: unexpected argument 'foo'" \
+    "$aliquot" render foo --out "$tmp/x.exr"
+expect_error "an unknown scene is a usage error, with the near name" 2 \
+    "--scene: unknown scene 'cornel-box'; did you mean 'cornell-box'?" \
+    "$aliquot" render --scene cornel-box --out "$tmp/x.exr"
+# An image larger than the memory a render may use: refused in render's words, before
+# any work; the farm's --memory-limit is no option of render.
+err=$("$aliquot" render --resolution 8192x8192 --spp 1 --out "$tmp/x.exr" 2>&1 >/dev/null)
+status=$?
+[[ $status -eq 1 && $err == "aliquot: --resolution 8192x8192: "*"choose a smaller --resolution" &&
+    $err != *memory-limit* ]] && pass "a render too large for memory names --resolution, not --memory-limit" ||
+    fail "a render too large for memory names --resolution, not --memory-limit (status $status: $err)"
+# Every method that needs a budget gets uniform's default, 64 samples per pixel.
+json=$("$aliquot" render --method optimal --resolution 8x8 --out "$tmp/o.exr" --json 2>/dev/null)
+python3 -c 'import json, sys; s = json.loads(sys.argv[1]); assert s["samples_done"] == 64 * 64, s' "$json" &&
+    pass "optimal without --spp or --budget renders 64 samples per pixel" ||
+    fail "optimal without --spp or --budget renders 64 samples per pixel ($json)"
+
+# A small farm on a free port: fetch --png, and a client without a token.
+port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+addr=127.0.0.1:$port
+"$aliquot" coordinator --grpc "$addr" --data "$tmp/farm" >"$tmp/coordinator.log" 2>&1 &
+coordinator_pid=$!
+worker_pid=
+trap 'kill $coordinator_pid $worker_pid 2>/dev/null; wait 2>/dev/null; rm -rf "$tmp"' EXIT
+for _ in $(seq 100); do [[ -s $tmp/farm/worker.token ]] && break; sleep 0.1; done
+"$aliquot" worker --coordinator "$addr" --token-file "$tmp/farm/worker.token" --threads 1 \
+    >"$tmp/worker.log" 2>&1 &
+worker_pid=$!
+id=$(timeout 120 "$aliquot" submit --coordinator "$addr" --token-file "$tmp/farm/client.token" \
+    --scene cornell-box --resolution 24x16 --spp 4 --wait --json 2>/dev/null |
+    python3 -c 'import json, sys; print(json.load(sys.stdin)["id"])')
+out=$("$aliquot" fetch "$id" --coordinator "$addr" --token-file "$tmp/farm/client.token" \
+    --out "$tmp/f.exr" --png 2>&1)
+[[ -n $id && -s $tmp/f.exr && $(png_size "$tmp/f.png") == 24x16 && $out == *"wrote $tmp/f.png"* ]] &&
+    pass "fetch --png writes a 24x16 PNG beside the EXR" ||
+    fail "fetch --png writes a 24x16 PNG beside the EXR (id '$id': $out)"
+# In a directory without aliquot-data/: the coordinator answers, so its token is elsewhere
+# and waiting for one to appear here is pointless. Before, the client waited out its
+# whole --connect-timeout and then said only "no client token".
+mkdir -p "$tmp/elsewhere"
+expect_error "a client without a token next to a running coordinator says so at once" 1 \
+    "no client token: the coordinator at $addr answers" \
+    env -C "$tmp/elsewhere" -u ALIQUOT_TOKEN "$(realpath "$aliquot")" status --coordinator "$addr" --connect-timeout 60
 
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]
