@@ -44,14 +44,39 @@ fs::path find_report_script(const fs::path& study_file) {
         "cannot find tools/report/aliquot_report.py (set ALIQUOT_REPORT to its path)");
 }
 
-// The repository's .venv (the scripts install matplotlib there), else python3 on PATH.
-std::string find_python(const fs::path& script) {
+// The file `name` names on PATH, canonical; empty when there is none.
+fs::path on_path(const std::string& name) {
+    const char* path = std::getenv("PATH");
+    std::stringstream dirs(path ? path : "");
+    for (std::string dir; std::getline(dirs, dir, ':');) {
+        std::error_code ec;
+        const fs::path found =
+            fs::canonical(fs::path(dir.empty() ? "." : dir) / name, ec);
+        if (!ec) return found;
+    }
+    return {};
+}
+
+// The interpreters to try, in order: the repository's .venv when a user made one, python3
+// on PATH, then Debian's own python3, where scripts/install-deps.sh installs
+// python3-matplotlib and python3-numpy (a python3 from pyenv or conda on PATH does not
+// see them).
+std::vector<std::string> report_pythons(const fs::path& script) {
+    std::vector<std::string> pythons;
     const fs::path venv = script.parent_path() / ".." / ".." / ".venv" / "bin" / "python";
     // Not canonicalised: a venv's python is a symlink, and only its own path selects the
     // venv.
-    if (fs::exists(venv)) return fs::absolute(venv).lexically_normal().string();
-    return "python3";
+    if (fs::exists(venv))
+        pythons.push_back(fs::absolute(venv).lexically_normal().string());
+    pythons.push_back("python3");
+    std::error_code ec;
+    const fs::path debian = fs::canonical("/usr/bin/python3", ec);
+    if (!ec && debian != on_path("python3")) pythons.push_back("/usr/bin/python3");
+    return pythons;
 }
+
+// The report module's exit status when its interpreter lacks matplotlib or numpy.
+constexpr int kReportLacksModules = 3;
 
 struct StudyCommand {
     std::string file;
@@ -117,16 +142,19 @@ private:
     void write_report(const StudyDefinition& def, const StudyScale& sc,
                       const fs::path& dir) {
         const fs::path script = find_report_script(file);
-        const std::string python = find_python(script);
-        const int rc = run_process({python, script.string(), "--db",
-                                    (dir / "data" / "aliquot.db").string(), "--study",
-                                    study_id(def, sc), "--out", dir.string()});
-        if (rc == 3)
+        int rc = kReportLacksModules;
+        for (const std::string& python : report_pythons(script)) {
+            rc = run_process({python, script.string(), "--db",
+                              (dir / "data" / "aliquot.db").string(), "--study",
+                              study_id(def, sc), "--out", dir.string()});
+            if (rc != kReportLacksModules) break;
+        }
+        if (rc == kReportLacksModules)
             throw CommandError(
-                "report not written: " + python +
-                " lacks matplotlib or numpy (install with: " + python +
-                " -m pip install matplotlib numpy); the renders are recorded, "
-                "run the study again to write the report");
+                "report not written: no python3 here has matplotlib and numpy (run "
+                "scripts/install-deps.sh, which installs Debian's python3-matplotlib and "
+                "python3-numpy); the renders are recorded, run the study again to write "
+                "the report");
         if (rc != 0)
             throw CommandError("report not written: " + script.string() +
                                " exited with status " + std::to_string(rc));

@@ -185,6 +185,17 @@ python3 -c 'import json, sys; s = json.loads(sys.argv[1]); assert s["samples_don
     pass "optimal without --spp or --budget renders 64 samples per pixel" ||
     fail "optimal without --spp or --budget renders 64 samples per pixel ($json)"
 
+# A study whose report finds no python3 with matplotlib and numpy (the report module exits
+# 3, as aliquot_report.py does then) names the project's installer, not pip, which Debian's
+# python3 refuses.
+echo 'import sys; sys.exit(3)' >"$tmp/lacks_modules.py"
+err=$(ALIQUOT_REPORT="$tmp/lacks_modules.py" ALIQUOT_CACHE="$tmp/cache" "$aliquot" study \
+    "$(dirname "$0")/../study/tiny.json" --out "$tmp/study" --threads 2 2>&1 >/dev/null)
+status=$?
+[[ $status -eq 1 && $err == *"aliquot: report not written: "*"run scripts/install-deps.sh"* &&
+    $err != *pip* ]] && pass "a study report without matplotlib names scripts/install-deps.sh" ||
+    fail "a study report without matplotlib names scripts/install-deps.sh (status $status: $err)"
+
 # A small farm on a free port: fetch --png, and a client without a token.
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 addr=127.0.0.1:$port

@@ -22,12 +22,10 @@ fail() { failed=$((failed + 1)); echo "FAIL $1"; }
 check() { if eval "$2"; then pass "$1"; else fail "$1"; fi; }
 sql() { python3 -c 'import sqlite3, sys; print(sqlite3.connect(sys.argv[1]).execute(sys.argv[2]).fetchone()[0])' "$@"; }
 
-# The report needs numpy and matplotlib: the repository's .venv, made here if missing.
-VENV="$ROOT/.venv"
-if ! "$VENV/bin/python" -c 'import numpy, matplotlib' 2>/dev/null; then
-    [[ -x "$VENV/bin/python" ]] || python3 -m venv "$VENV"
-    "$VENV/bin/python" -m pip install --quiet numpy matplotlib >/dev/null || echo "study: cannot install numpy/matplotlib into .venv"
-fi
+# The report needs numpy and matplotlib: Debian's python3-numpy and python3-matplotlib,
+# which scripts/install-deps.sh installs; no pip, no venv.
+/usr/bin/python3 -c 'import numpy, matplotlib' 2>/dev/null ||
+    echo "study: Debian's python3 lacks numpy or matplotlib (run scripts/install-deps.sh)"
 
 # --- a tiny study writes every file
 tiny="$ROOT/tests/study/tiny.json"
