@@ -1,11 +1,37 @@
 #!/usr/bin/env bash
-# One command from a fresh Debian machine to a rendered image: installs what is missing,
-# builds, and renders the built-in Cornell box in-process (no servers).
+# One command from a fresh Debian machine to a rendered image you can look at: installs
+# only the packages the `aliquot` binary's build needs, builds that one target, and renders
+# the built-in Cornell box in-process (no servers) to an EXR and a PNG beside it.
+# The tests, benchmarks and the dashboard are not built here: scripts/test.sh installs
+# and builds everything. A step that fails stops the script with the step's name.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/install-deps.sh
-bash scripts/build.sh
+
+step() {
+    local name=$1 start=$SECONDS status
+    shift
+    echo "demo.sh: $name" >&2
+    "$@" || {
+        status=$?
+        echo "demo.sh: step '$name' failed (exit status $status); nothing after it ran" >&2
+        exit 1
+    }
+    echo "demo.sh: $name took $((SECONDS - start)) s" >&2
+}
+
+step "install the build packages (scripts/install-deps.sh --demo)" \
+    bash scripts/install-deps.sh --demo
+# The same configuration as scripts/build.sh, so that a later build.sh or test.sh reuses
+# build/ and only adds what the demo skipped.
+configure() { cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null; }
+step "configure (cmake)" configure
+step "build the aliquot binary" \
+    cmake --build build --target aliquot --parallel "$(nproc)"
 mkdir -p out
-build/bin/aliquot render --scene cornell-box --resolution 256x256 --spp 256 --seed 1 \
-    --out out/cornell-box.exr
-echo "output: out/cornell-box.exr (compare it with: build/bin/aliquot compare A.exr B.exr)"
+step "render the Cornell box" \
+    build/bin/aliquot render --scene cornell-box --resolution 256x256 --spp 256 --seed 1 \
+    --out out/cornell-box.exr --png
+echo "output: out/cornell-box.exr (linear, 32-bit float) and out/cornell-box.png (sRGB," \
+    "open it in any image viewer)"
+echo "next: build/bin/aliquot render --help; compare two images with" \
+    "build/bin/aliquot compare A.exr B.exr"

@@ -1,18 +1,41 @@
 #!/usr/bin/env bash
 # Installs the Debian packages Aliquot builds and tests with; idempotent, does nothing when
 # everything is already there. Needs root (or sudo) only when something is missing.
+#   scripts/install-deps.sh          everything scripts/test.sh needs (build, tests, fuzzers,
+#                                    the dashboard, the study report)
+#   scripts/install-deps.sh --demo   only what building the `aliquot` binary needs, without
+#                                    recommended packages (scripts/demo.sh)
 set -euo pipefail
 
-packages=(
-    build-essential cmake ninja-build pkg-config git
+mode=all
+case "${1:-}" in
+    "") ;;
+    --demo) mode=demo ;;
+    *)
+        echo "install-deps.sh: unknown argument '$1' (usage: install-deps.sh [--demo])" >&2
+        exit 2
+        ;;
+esac
+
+# What the `aliquot` binary's build needs: CMake configures the whole project, so the
+# test framework's headers (libgtest-dev) are here too. deploy/Dockerfile's BUILD_PACKAGES
+# is the same list.
+build_packages=(
+    build-essential cmake ninja-build pkg-config
     libembree-dev libtbb-dev libopenexr-dev
     libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
-    libsqlite3-dev sqlite3 libgtest-dev nlohmann-json3-dev libcli11-dev
-    python3 python3-venv python3-pip
-    libcpp-httplib-dev zlib1g-dev clang-format
+    libsqlite3-dev libgtest-dev nlohmann-json3-dev libcli11-dev
+    libcpp-httplib-dev zlib1g-dev
     # The coordinator's /metrics (the registry and text format of prometheus-cpp), and
     # gRPC's standard health.proto, whose client the tests and probes build.
     prometheus-cpp-dev grpc-proto
+)
+test_packages=(
+    git sqlite3 clang-format
+    python3 python3-venv python3-pip
+    # `aliquot study`'s report (studies/report.py): its plots and arrays, from Debian
+    # rather than pip, which Debian's own python3 refuses (externally managed).
+    python3-matplotlib python3-numpy
     # tests/ops: /metrics parsed as Prometheus does, gRPC health and reflection asked
     # from Python as probes and grpcurl do.
     python3-prometheus-client python3-grpcio python3-protobuf
@@ -24,11 +47,18 @@ packages=(
     # (libclang_rt.fuzzer) and the sanitizers for Debian's clang 14.
     clang libclang-rt-14-dev
 )
-# The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own Node
-# keeps it.
-command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
-# The Kubernetes manifest check builds kubeconform with Go; a machine with its own Go keeps it.
-command -v go >/dev/null 2>&1 || packages+=(golang-go)
+packages=("${build_packages[@]}")
+install_options=(--no-install-recommends)
+if [[ $mode == all ]]; then
+    packages+=("${test_packages[@]}")
+    install_options=()
+    # The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own
+    # Node keeps it.
+    command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
+    # The Kubernetes manifest check builds kubeconform with Go; a machine with its own Go
+    # keeps it.
+    command -v go >/dev/null 2>&1 || packages+=(golang-go)
+fi
 
 missing=()
 for p in "${packages[@]}"; do
@@ -39,5 +69,6 @@ if ((${#missing[@]})); then
     sudo_cmd=()
     [[ $(id -u) -eq 0 ]] || sudo_cmd=(sudo)
     "${sudo_cmd[@]}" apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq "${missing[@]}"
+    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq \
+        ${install_options[@]+"${install_options[@]}"} "${missing[@]}"
 fi

@@ -186,6 +186,7 @@ dockerfile_keeps_up() {
 import glob, re, sys
 # Tools for tests and development (the format check, the fuzzers), not for building the image.
 NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "python3-pip", "nodejs", "npm",
+                     "python3-matplotlib", "python3-numpy",
                      "golang-go", "clang", "clang-format", "libclang-rt-14-dev", "openssl", "curl",
                      "python3-prometheus-client", "python3-grpcio", "python3-protobuf",
                      "openimageio-tools"}
@@ -193,7 +194,9 @@ NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "python3-pip",
 DIRS_NOT_FOR_THE_IMAGE = {"fuzz"}
 dockerfile = open("deploy/Dockerfile").read()
 script = re.sub(r"#.*", "", open("scripts/install-deps.sh").read())
-listed = {w for m in re.finditer(r"packages\+?=\(([^)]*)\)", script) for w in m.group(1).split()}
+# Package names only: a list built from other lists ("${build_packages[@]}") names none.
+listed = {w for m in re.finditer(r"packages\+?=\(([^)]*)\)", script) for w in m.group(1).split()
+          if re.fullmatch(r"[a-z0-9][a-z0-9+.-]+", w)}
 m = re.search(r'ARG BUILD_PACKAGES="([^"]*)"', dockerfile)
 image = set(m.group(1).replace("\\", " ").split()) if m else set()
 problems = []
