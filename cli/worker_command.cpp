@@ -61,8 +61,9 @@ struct WorkerCommand {
         });
         try {
             loop.run();
-        } catch (const LinkRefused& e) {
-            // The token was refused: wake the waiter, then end with the reason.
+        } catch (const std::exception& e) {
+            // The token was refused, or a thread could not start or go on: wake the
+            // waiter, then end with the reason (non-zero: a supervisor restarts us).
             refused = true;
             pthread_kill(waiter.native_handle(), SIGINT);
             waiter.join();

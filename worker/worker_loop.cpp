@@ -3,7 +3,9 @@
 #include <cstdio>
 #include <functional>
 #include <new>
+#include <optional>
 #include <random>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -166,19 +168,43 @@ void WorkerLoop::run() {
     for (size_t i = 0; i < beat_slots_; ++i) beats_[i] = now;
     threads_started_ = true;
     {
+        // Nothing escapes a thread: a thread that cannot go on (its courier's thread not
+        // had, memory) stops the worker with the reason instead of aborting it.
+        const auto guarded = [this](const auto& body) {
+            try {
+                body();
+            } catch (const std::exception& e) {
+                broke(std::string("a thread stopped: ") + e.what());
+            }
+        };
         std::vector<std::jthread> threads;
-        for (int t = 0; t < std::max(options_.threads, 1) && !stopping_; ++t)
-            threads.emplace_back([this, t] {
-                beat_slot = &beats_[size_t(t)];
-                thread_main();
+        std::optional<std::jthread> keeper;
+        try {
+            for (int t = 0; t < std::max(options_.threads, 1) && !stopping_; ++t)
+                threads.emplace_back([this, t, guarded] {
+                    beat_slot = &beats_[size_t(t)];
+                    guarded([this] { thread_main(); });
+                });
+            keeper.emplace([this, guarded] {
+                beat_slot = &beats_[beat_slots_ - 1];
+                guarded([this] { keeper_main(); });
             });
-        std::jthread keeper([this] {
-            beat_slot = &beats_[beat_slots_ - 1];
-            keeper_main();
-        });
+        } catch (const std::exception& e) {
+            // Those started end at once (they wait for stopping_) and are joined here.
+            broke(std::string("cannot start a thread: ") + e.what());
+        }
     }  // every thread has ended
     std::lock_guard lock(session_mutex_);
     if (!refused_.empty()) throw LinkRefused(refused_);
+    if (!broken_.empty()) throw std::runtime_error(broken_);
+}
+
+void WorkerLoop::broke(const std::string& why) {
+    {
+        std::lock_guard lock(session_mutex_);
+        if (broken_.empty()) broken_ = why;
+    }
+    stopping_ = true;
 }
 
 // What one tracing thread carries from lease to lease: two kinds of retry, each waiting

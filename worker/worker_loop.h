@@ -37,7 +37,9 @@ public:
 
     // Runs until stop() is called. Thread-safe to call stop() from any thread. Throws
     // LinkRefused, once every thread has ended, when the coordinator refused this
-    // worker's token: no retry can help.
+    // worker's token: no retry can help; std::runtime_error when a thread could not be
+    // started or one stopped on an exception (no thread of resources, no memory), so
+    // that the process exits non-zero and its supervisor starts it again.
     void run();
     void stop() { stopping_ = true; }
 
@@ -94,6 +96,9 @@ private:
     bool release(uint64_t lease_id);
     // Remembers why the coordinator refused this worker and stops every thread.
     void refused(const LinkRefused& e);
+    // Remembers why a thread could not start or went on no longer, and stops every
+    // thread.
+    void broke(const std::string& why);
 
     WorkerLink& link_;
     WorkerOptions options_;
@@ -106,6 +111,7 @@ private:
     mutable std::mutex session_mutex_;
     std::string session_;
     std::string refused_;  // under session_mutex_: why run() ends with LinkRefused
+    std::string broken_;   // under session_mutex_: why run() ends with runtime_error
     std::mutex held_mutex_;
     std::set<uint64_t> held_;
     // Per thread, steady-clock nanoseconds of its last beat: the tracing threads', then
