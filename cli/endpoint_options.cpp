@@ -91,23 +91,25 @@ CoordinatorEndpoint EndpointOptions::resolve(Role role) const {
         } else if (const char* env = std::getenv("ALIQUOT_TOKEN"); env && *env) {
             endpoint.token = env;
             check_token(endpoint.token, "ALIQUOT_TOKEN");
-        } else if (std::filesystem::exists(local)) {
-            endpoint.token = read_token_file(local);
-        } else if (port_answers(endpoint.address,
-                                std::min(timeout, std::chrono::milliseconds(500)))) {
-            // A coordinator writes its tokens before it listens: one that answers
-            // keeps them somewhere else, and waiting here would only delay the news.
-            throw CommandError("no " + name + " token: the coordinator at " +
-                               endpoint.address + " answers, but this directory has no " +
-                               local.string() + "; pass --token-file PATH (its DATA/" +
-                               name + ".token) or set ALIQUOT_TOKEN");
-        } else if (appears_by(local, until)) {
-            endpoint.token = read_token_file(local);
         } else {
-            throw CommandError("no " + name +
-                               " token: pass --token-file PATH (the coordinator writes "
-                               "DATA/" +
-                               name + ".token at its first start) or set ALIQUOT_TOKEN");
+            // A coordinator writes its tokens before it listens: once it answers, a
+            // token that is not here now will not appear, and waiting would only delay
+            // the news. One that does not answer yet may be starting here.
+            const bool answers =
+                !std::filesystem::exists(local) &&
+                port_answers(endpoint.address,
+                             std::min(timeout, std::chrono::milliseconds(500)));
+            if (answers ? !std::filesystem::exists(local) : !appears_by(local, until))
+                throw CommandError(
+                    "no " + name + " token: " +
+                    (answers
+                         ? "the coordinator at " + endpoint.address +
+                               " answers, but this directory has no " + local.string() +
+                               "; pass --token-file PATH (its DATA/" + name + ".token)"
+                         : "pass --token-file PATH (the coordinator writes DATA/" + name +
+                               ".token at its first start)") +
+                    " or set ALIQUOT_TOKEN");
+            endpoint.token = read_token_file(local);
         }
     } catch (const TokenError& e) {
         throw CommandError(e.what());
