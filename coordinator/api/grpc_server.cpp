@@ -4,7 +4,6 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/impl/server_builder_option.h>
 #include <grpcpp/resource_quota.h>
-#include <grpcpp/security/tls_credentials_options.h>
 
 #include <algorithm>
 #include <atomic>
@@ -513,10 +512,19 @@ GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
     std::lock_guard lock(mutex_);
     listen(address);
     host_ = address.substr(0, address.rfind(':'));
-    if (limits_.watchdog_failures > 0)
-        watchdog_ = std::make_unique<ListenerWatchdog>(
-            limits_.watchdog_period, limits_.watchdog_failures,
-            [this] { return reachable(); }, [this] { listen_again(); });
+    if (limits_.watchdog_failures <= 0) return;
+    // Asked first of a port just opened: where the probe cannot tell (no /proc/net), a
+    // listener must not be started again for ever.
+    if (!reachable()) {
+        std::fprintf(stderr,
+                     "coordinator: cannot check that gRPC's port %d accepts connections "
+                     "here; no listener watchdog\n",
+                     port_);
+        return;
+    }
+    watchdog_ = std::make_unique<ListenerWatchdog>(
+        limits_.watchdog_period, limits_.watchdog_failures,
+        [this] { return reachable(); }, [this] { listen_again(); });
 }
 
 void GrpcServer::listen(const std::string& address) {
@@ -539,6 +547,11 @@ void GrpcServer::listen(const std::string& address) {
     quota.SetMaxThreads(limits.max_threads);
     quota.Resize(limits.max_memory_bytes);
     builder.SetResourceQuota(quota);
+    // No SO_REUSEPORT (gRPC's default): with it, sockets of this or another process
+    // could share the port, the kernel handing each a share of new connections, a deaf
+    // one too, where the watchdog's one probe might not land. Without it a second
+    // coordinator on the same port fails to start instead of sharing it.
+    builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
     builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS,
                                limits.max_streams_per_connection);
     builder.AddChannelArgument(GRPC_ARG_SERVER_HANDSHAKE_TIMEOUT_MS,
@@ -562,36 +575,16 @@ void GrpcServer::listen(const std::string& address) {
 }
 
 bool GrpcServer::reachable() {
-    // A channel of its own (no subchannel shared with another), hence a new connection:
-    // one already open goes on working after the listener stops accepting.
-    grpc::ChannelArguments args;
-    args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-    std::shared_ptr<grpc::ChannelCredentials> credentials;
-    if (security_.tls_cert_pem.empty()) {
-        credentials = grpc::InsecureChannelCredentials();
-    } else {
-        // The question is whether the port answers, not who: the server is this process.
-        grpc::experimental::TlsChannelCredentialsOptions tls;
-        tls.set_verify_server_certs(false);
-        tls.set_check_call_host(false);
-        credentials = grpc::experimental::TlsCredentials(tls);
-    }
-    const std::string wildcard[] = {"", "0.0.0.0", "[::]", "[::0]"};
-    const bool any =
-        std::find(std::begin(wildcard), std::end(wildcard), host_) != std::end(wildcard);
-    const std::string target = (any ? "localhost" : host_) + ":" + std::to_string(port_);
-    auto channel = grpc::CreateCustomChannel(target, credentials, args);
-    grpc::ClientContext ctx;
-    ctx.set_deadline(std::chrono::system_clock::now() +
-                     std::max(limits_.watchdog_period, std::chrono::milliseconds(1000)));
-    grpc::health::v1::HealthCheckRequest req;
-    grpc::health::v1::HealthCheckResponse reply;
-    const Status status =
-        grpc::health::v1::Health::NewStub(channel)->Check(&ctx, req, &reply);
-    // Any answer from the server will do (NOT_SERVING while stopping, or threads
-    // exhausted): what is asked is whether a new connection is served at all.
-    return status.error_code() != StatusCode::DEADLINE_EXCEEDED &&
-           status.error_code() != StatusCode::UNAVAILABLE;
+    // Accepted, not only queued: what gRPC 1.51 stops doing after a failed accept.
+    // A wildcard listens on loopback too (gRPC's "[::]" is dual-stack, or falls back
+    // to 0.0.0.0 where IPv6 is off).
+    std::string host = host_;
+    if (host.empty() || host == "0.0.0.0" || host == "[::]" || host == "[::0]")
+        host = "127.0.0.1";
+    if (host.size() > 2 && host.front() == '[' && host.back() == ']')
+        host = host.substr(1, host.size() - 2);
+    return accepts_connections(
+        host, port_, std::max(limits_.watchdog_period, std::chrono::milliseconds(1000)));
 }
 
 void GrpcServer::listen_again() {

@@ -50,9 +50,10 @@ struct GrpcLimits {
     // encoded in memory.
     int max_fetches = 16;
     int max_fetches_from_memory = 2;
-    // Every `watchdog_period` a new connection to the server's own port asks health
-    // Check; after `watchdog_failures` failures in a row the listener is started again,
-    // and if it cannot be, the process exits (ListenerWatchdog). 0 failures: no watchdog.
+    // Every `watchdog_period` a new connection to the server's own port checks that it
+    // is accepted (accepts_connections); after `watchdog_failures` failures in a row the
+    // server is started again, and if it cannot be, the process exits
+    // (ListenerWatchdog). 0 failures: no watchdog.
     std::chrono::milliseconds watchdog_period{2000};
     int watchdog_failures = 3;
 };
@@ -89,7 +90,7 @@ private:
     struct Services;
     // Builds and starts a server on `address` into server_; under mutex_.
     void listen(const std::string& address);
-    // The watchdog's probe: whether a new connection's health Check is answered.
+    // The watchdog's probe: whether a new connection is accepted.
     bool reachable();
     // The watchdog found the listener deaf: stop the server, start another on the same
     // port, or exit.
