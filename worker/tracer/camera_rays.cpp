@@ -7,7 +7,8 @@
 namespace aliquot {
 
 ALIQUOT_SIMD_CLONES void camera_rays(const CameraModel& camera, uint64_t seed,
-                                     const SampleLanes& samples, int n, Vec3* dirs,
+                                     const uint32_t* xs, const uint32_t* ys,
+                                     const uint64_t* ks, int n, Vec3* dirs,
                                      SampleRng* rngs) {
     constexpr int kMax = PathLanes::kMax;
     if (n < 0 || n > kMax)
@@ -16,9 +17,9 @@ ALIQUOT_SIMD_CLONES void camera_rays(const CameraModel& camera, uint64_t seed,
     float dx[kMax], dy[kMax], dz[kMax];
     const CameraModel cam = camera;  // a local copy: nothing the loop stores can alias it
     for (int j = 0; j < n; ++j) {
-        const uint32_t x = samples.x[j], y = samples.y[j];
+        const uint32_t x = xs[j], y = ys[j];
         uint64_t s, i;
-        seed_pcg(seed, x, y, samples.k[j], s, i);
+        seed_pcg(seed, x, y, ks[j], s, i);
         // Through int32: a signed conversion is one vector instruction, an unsigned one
         // is several without AVX-512; a pixel's coordinates are far below 2^31.
         const float px = float(int32_t(x)) + unit_float(pcg32_step(s, i));

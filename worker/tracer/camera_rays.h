@@ -13,14 +13,10 @@
 
 namespace aliquot {
 
-// Which sample each lane of a batch is: sample k[j] of pixel (x[j], y[j]).
-struct SampleLanes {
-    uint32_t x[PathLanes::kMax], y[PathLanes::kMax];
-    uint64_t k[PathLanes::kMax];
-};
-
-// Lanes 0 .. n - 1 of `samples`; n is at most PathLanes::kMax (a batch).
-void camera_rays(const CameraModel& camera, uint64_t seed, const SampleLanes& samples,
-                 int n, Vec3* dirs, SampleRng* rngs);
+// Samples k[j] of the pixels at (x[j], y[j]), j = 0 .. n - 1; n is at most
+// PathLanes::kMax.
+void camera_rays(const CameraModel& camera, uint64_t seed, const uint32_t* x,
+                 const uint32_t* y, const uint64_t* k, int n, Vec3* dirs,
+                 SampleRng* rngs);
 
 }  // namespace aliquot

@@ -23,13 +23,16 @@ TEST(CameraRays, EachSampleGetsWhatItsOwnGeneratorWouldDraw) {
         std::vector<Vec3> dirs(count);
         std::vector<SampleRng> rngs(count, SampleRng(0, 0, 0, 0));
         const uint64_t seed = 12345;
-        SampleLanes lanes;
+        struct {
+            uint32_t x[PathLanes::kMax], y[PathLanes::kMax];
+            uint64_t k[PathLanes::kMax];
+        } lanes;
         for (int j = 0; j < n; ++j) {  // a few samples of each of several pixels
             lanes.x[j] = 40 + uint32_t(j / 3) % 8;
             lanes.y[j] = 17 + uint32_t(j / 24);
             lanes.k[j] = 1000 + uint64_t(n) + uint64_t(j % 3);
         }
-        camera_rays(camera, seed, lanes, n, dirs.data(), rngs.data());
+        camera_rays(camera, seed, lanes.x, lanes.y, lanes.k, n, dirs.data(), rngs.data());
         for (int j = 0; j < n; ++j) {
             SampleRng own(seed, lanes.x[j], lanes.y[j], lanes.k[j]);
             const float px = float(lanes.x[j]) + own.next_float();
@@ -48,8 +51,10 @@ TEST(CameraRays, RefusesMoreSamplesThanABatch) {
     const CameraModel camera(scene.camera, 8, 8);
     std::vector<Vec3> dirs(PathLanes::kMax + 1);
     std::vector<SampleRng> rngs(PathLanes::kMax + 1, SampleRng(0, 0, 0, 0));
-    EXPECT_THROW(camera_rays(camera, 1, SampleLanes{}, PathLanes::kMax + 1, dirs.data(),
-                             rngs.data()),
+    std::vector<uint32_t> xy(PathLanes::kMax + 1, 0);
+    std::vector<uint64_t> k(PathLanes::kMax + 1, 0);
+    EXPECT_THROW(camera_rays(camera, 1, xy.data(), xy.data(), k.data(),
+                             PathLanes::kMax + 1, dirs.data(), rngs.data()),
                  std::invalid_argument);
 }
 

@@ -1,16 +1,17 @@
 // How a job's samples are cut into the tracer's batches: by cells of the image's grid
 // (kCellSide in sample_job.h), each cell's samples of the round in scanline order (pixel
-// by pixel, each pixel's samples in index order) cut into batches of PathTracer::kBatch
-// from the cell's start. So a batch's composition follows from the round and the grid
-// alone, never from how the round is cut into jobs on cells or a job among threads, and
-// a batch is full whether its pixels get one sample each or 64.
+// by pixel, each pixel's samples in index order) cut into batches of SampleBatch::kMax
+// from the cell's start, each traced by one call of PathTracer::radiance_batch (its
+// PathTracer::kBatch lanes refilled from the batch as paths end). So a batch's
+// composition, and the order its paths take the lanes, follow from the round and the grid
+// alone, never from how the round is cut into jobs on cells or a job among threads; and
+// the lanes are full whether the cell's pixels get one sample each or 64.
 #pragma once
 
 #include <algorithm>
 #include <array>
 #include <cstdint>
 
-#include "camera_rays.h"
 #include "path_tracer.h"
 #include "sample_job.h"
 
@@ -43,12 +44,15 @@ private:
     uint32_t cx0_, cy0_, across_, down_;
 };
 
-// One batch: lane j is sample samples.k[j] of the pixel at (samples.x[j], samples.y[j]),
-// pixel[j] in the job's row-major order.
+// One batch: sample k[j] of the pixel at (x[j], y[j]), pixel[j] in the job's row-major
+// order, j < count.
 struct SampleBatch {
-    static constexpr int kMax = PathTracer::kBatch;
-    SampleLanes samples;
-    std::array<size_t, kMax> pixel{};
+    // 16 lanes' worth: enough that the lanes drain (the last paths of a batch, fewer
+    // than the lanes) for a small share of a batch at 4 samples a pixel and more.
+    static constexpr int kMax = 16 * PathTracer::kBatch;
+    std::array<uint32_t, kMax> x, y;
+    std::array<uint64_t, kMax> k;
+    std::array<size_t, kMax> pixel;
     int count = 0;
 };
 
@@ -65,9 +69,9 @@ void for_each_batch(const SampleJob& job, const PixelRect& cell, SampleBatch& ba
             const uint64_t first = job.first_sample[i], end = first + job.counts[i];
             for (uint64_t k = first; k < end; ++k) {
                 const int j = batch.count;
-                batch.samples.x[j] = x;
-                batch.samples.y[j] = y;
-                batch.samples.k[j] = k;
+                batch.x[j] = x;
+                batch.y[j] = y;
+                batch.k[j] = k;
                 batch.pixel[j] = i;
                 if (++batch.count == SampleBatch::kMax) {
                     trace(batch);

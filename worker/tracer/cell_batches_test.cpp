@@ -13,12 +13,12 @@ namespace {
 using Sample = std::tuple<uint32_t, uint32_t, uint64_t>;  // x, y, k
 using Batch = std::vector<Sample>;
 
-// A round on a whole image of w x h pixels: counts 0-5, first samples 0-4.
-SampleJob uneven_round(uint32_t w, uint32_t h) {
+// A round on a whole image of w x h pixels: counts 0-5 times `scale`, first samples 0-4.
+SampleJob uneven_round(uint32_t w, uint32_t h, uint32_t scale = 1) {
     SampleJob round;
     round.rect = {0, 0, w, h};
     for (size_t i = 0; i < round.rect.size(); ++i) {
-        round.counts.push_back(uint32_t(i * 7 % 6));
+        round.counts.push_back(uint32_t(i * 7 % 6) * scale);
         round.first_sample.push_back(i % 5);
     }
     return round;
@@ -46,10 +46,10 @@ std::vector<Batch> batches_of(const SampleJob& job) {
         for_each_batch(job, cells[c], batch, [&](const SampleBatch& b) {
             Batch lanes;
             for (int j = 0; j < b.count; ++j) {
-                const uint32_t x = b.samples.x[j], y = b.samples.y[j];
+                const uint32_t x = b.x[j], y = b.y[j];
                 EXPECT_EQ(b.pixel[j],
                           size_t(y - job.rect.y) * job.rect.width + (x - job.rect.x));
-                lanes.emplace_back(x, y, b.samples.k[j]);
+                lanes.emplace_back(x, y, b.k[j]);
             }
             out.push_back(lanes);
         });
@@ -71,11 +71,14 @@ std::vector<Batch> batches_cut_at(const SampleJob& round, uint32_t tile) {
 }
 
 TEST(CellBatches, AreTheSameHoweverARoundIsCutOnCells) {
-    // 28 x 19: the right and bottom cells are clipped by the image.
-    const SampleJob round = uneven_round(28, 19);
-    const std::vector<Batch> whole = batches_cut_at(round, 32);
-    for (uint32_t tile : {8u, 16u, 24u, 40u})
-        EXPECT_EQ(batches_cut_at(round, tile), whole);
+    // 28 x 19: the right and bottom cells are clipped by the image. Up to 5 samples a
+    // pixel (a cell is one batch) and up to 50 (a cell is several).
+    for (uint32_t scale : {1u, 10u}) {
+        const SampleJob round = uneven_round(28, 19, scale);
+        const std::vector<Batch> whole = batches_cut_at(round, 32);
+        for (uint32_t tile : {8u, 16u, 24u, 40u})
+            EXPECT_EQ(batches_cut_at(round, tile), whole) << tile << ", " << scale;
+    }
 }
 
 TEST(CellBatches, FillEveryLaneWhenEachPixelHasOneSample) {
@@ -83,9 +86,11 @@ TEST(CellBatches, FillEveryLaneWhenEachPixelHasOneSample) {
     std::fill(round.counts.begin(), round.counts.end(), 1u);
     std::fill(round.first_sample.begin(), round.first_sample.end(), 0u);
     const std::vector<Batch> batches = batches_of(round);
-    ASSERT_EQ(batches.size(), 8u);  // 8 cells of 64 pixels
+    // 8 cells of 64 pixels, a batch each: radiance_batch's lanes all busy.
+    ASSERT_GE(kCellSide * kCellSide, uint32_t(PathTracer::kBatch));
+    ASSERT_EQ(batches.size(), 8u);
     for (const Batch& b : batches) {
-        ASSERT_EQ(b.size(), size_t(SampleBatch::kMax));
+        ASSERT_EQ(b.size(), size_t(kCellSide * kCellSide));
         // One cell's pixels in scanline order.
         const auto [x0, y0, k0] = b.front();
         for (size_t j = 0; j < b.size(); ++j)
@@ -94,28 +99,34 @@ TEST(CellBatches, FillEveryLaneWhenEachPixelHasOneSample) {
 }
 
 TEST(CellBatches, CutACellsSamplesIntoFullBatchesInScanlineOrder) {
-    const SampleJob round = uneven_round(28, 19);
-    const JobCells cells(round.rect);
-    SampleBatch batch;
-    for (size_t c = 0; c < cells.count(); ++c) {
-        std::vector<int> sizes;
-        Batch lanes;
-        for_each_batch(round, cells[c], batch, [&](const SampleBatch& b) {
-            sizes.push_back(b.count);
-            for (int j = 0; j < b.count; ++j)
-                lanes.emplace_back(b.samples.x[j], b.samples.y[j], b.samples.k[j]);
-        });
-        Batch expected;  // the cell's pixels row by row, each pixel's samples in order
-        const PixelRect& cell = cells[c];
-        for (uint32_t y = cell.y; y < cell.y + cell.height; ++y)
-            for (uint32_t x = cell.x; x < cell.x + cell.width; ++x) {
-                const size_t i = size_t(y) * 28 + x;
-                for (uint32_t s = 0; s < round.counts[i]; ++s)
-                    expected.emplace_back(x, y, round.first_sample[i] + s);
+    for (uint32_t scale : {1u, 10u, 100u}) {
+        const SampleJob round = uneven_round(28, 19, scale);
+        const JobCells cells(round.rect);
+        SampleBatch batch;
+        for (size_t c = 0; c < cells.count(); ++c) {
+            std::vector<int> sizes;
+            Batch lanes;
+            for_each_batch(round, cells[c], batch, [&](const SampleBatch& b) {
+                sizes.push_back(b.count);
+                for (int j = 0; j < b.count; ++j)
+                    lanes.emplace_back(b.x[j], b.y[j], b.k[j]);
+            });
+            Batch
+                expected;  // the cell's pixels row by row, each pixel's samples in order
+            const PixelRect& cell = cells[c];
+            for (uint32_t y = cell.y; y < cell.y + cell.height; ++y)
+                for (uint32_t x = cell.x; x < cell.x + cell.width; ++x) {
+                    const size_t i = size_t(y) * 28 + x;
+                    for (uint32_t s = 0; s < round.counts[i]; ++s)
+                        expected.emplace_back(x, y, round.first_sample[i] + s);
+                }
+            EXPECT_EQ(lanes, expected);
+            for (size_t b = 0; b + 1 < sizes.size(); ++b)
+                EXPECT_EQ(sizes[b], SampleBatch::kMax);
+            if (scale == 100 && cell.width == kCellSide && cell.height == kCellSide) {
+                EXPECT_GT(sizes.size(), 2u);  // many batches
             }
-        EXPECT_EQ(lanes, expected);
-        for (size_t b = 0; b + 1 < sizes.size(); ++b)
-            EXPECT_EQ(sizes[b], SampleBatch::kMax);
+        }
     }
 }
 

@@ -143,45 +143,81 @@ bool PathTracer::scatter_specular(PathLanes& l, int i, const Hit& hit,
 void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
                                 SampleRng* rngs, Radiance* out) const {
     static_assert(kBatch <= PathLanes::kMax);
-    if (count < 0 || count > kBatch)
-        throw std::invalid_argument("radiance_batch: more paths than a batch holds");
+    if (count < 0) throw std::invalid_argument("radiance_batch: a negative count");
     constexpr int kPacket = EmbreeScene::kPacket;
+    const int lanes = std::min(count, kBatch);
     PathLanes l;
     std::array<Hit, kBatch> hits;
-    std::array<bool, kBatch> found;
-    for (int b = 0; b < count; b += kPacket)  // camera rays: kPacket per packet from b
-        embree_.intersect_packet(origin, dirs + b, std::min(kPacket, count - b),
-                                 hits.data() + b, found.data() + b);
-    // Paths still going, in sample order; each pass advances every one a vertex.
-    std::array<int, kBatch> active, next, shadowed;
-    int n_active = 0;
-    for (int i = 0; i < count; ++i) {
-        l.o.set(i, origin);
-        l.d.set(i, dirs[i]);
-        l.L.set(i, Vec3(0.0f));
-        l.beta.set(i, Vec3(1.0f));
-        l.eta[i] = 1.0f;
-        l.prev_bsdf_pdf[i] = 0.0f;
-        l.prev_specular[i] = 1;
-        l.depth[i] = 0;
-        l.rays[i] = 1;
-        // shade_diffuse reads every lane below count and keeps the others' state: give
+    std::array<int, kBatch> path_of;  // the path (index into dirs) in each lane
+    // Paths still going, oldest first; each pass advances every one a vertex.
+    std::array<int, kBatch> active, next, shadowed, ended;
+    // Lanes whose path ended, in the order the paths ended: the next paths take them.
+    std::array<int, kBatch> free_lanes;
+    int n_active = 0, n_free = 0, started = 0;
+    for (int i = 0; i < lanes; ++i) {
+        // shade_diffuse reads every lane below `lanes` and keeps the others' state: give
         // its inputs values before any lane is diffuse.
         l.diffuse[i] = l.roulette[i] = 0;
         for (PathLanes::Vec3Lanes* v : {&l.reflectance, &l.light_p0, &l.light_e1,
                                         &l.light_e2, &l.light_normal, &l.light_radiance})
             v->set(i, Vec3(0.0f));
         l.light_pdf[i] = 0.0f;
-        l.rng_state[i] = rngs[i].state();
-        l.rng_inc[i] = rngs[i].increment();
-        l.t[i] = found[i] ? hits[i].t : 0.0f;
-        l.ng.set(i, found[i] ? hits[i].ng : Vec3(0.0f));
-        if (found[i]) active[n_active++] = i;
+        free_lanes[n_free++] = i;
     }
+    const auto finish = [&](int i) {
+        const int p = path_of[i];
+        out[p] = {l.L.get(i), l.rays[i]};
+        rngs[p].set_state(l.rng_state[i]);
+        free_lanes[n_free++] = i;
+    };
+    // The lanes freed take the next paths, in order, their camera rays kPacket at a time
+    // from the one origin; a camera ray that hits nothing ends its path at once, and its
+    // lane takes another. So the lanes stay full while paths are left, and which paths
+    // share a pass (and so Embree's packets) follows from the paths' order alone.
+    std::array<Hit, kPacket> camera_hits;
+    std::array<bool, kPacket> camera_found;
+    std::array<int, kPacket> taking;
+    const auto refill = [&] {
+        while (n_free > 0 && started < count) {
+            const int m = std::min({n_free, count - started, kPacket});
+            for (int j = 0; j < m; ++j) taking[j] = free_lanes[j];
+            n_free -= m;
+            std::copy(free_lanes.begin() + m, free_lanes.begin() + m + n_free,
+                      free_lanes.begin());
+            embree_.intersect_packet(origin, dirs + started, m, camera_hits.data(),
+                                     camera_found.data());
+            for (int j = 0; j < m; ++j) {
+                const int i = taking[j], p = started + j;
+                path_of[i] = p;
+                l.o.set(i, origin);
+                l.d.set(i, dirs[p]);
+                l.L.set(i, Vec3(0.0f));
+                l.beta.set(i, Vec3(1.0f));
+                l.eta[i] = 1.0f;
+                l.prev_bsdf_pdf[i] = 0.0f;
+                l.prev_specular[i] = 1;
+                l.depth[i] = 0;
+                l.rays[i] = 1;
+                l.rng_state[i] = rngs[p].state();
+                l.rng_inc[i] = rngs[p].increment();
+                // A lane the shading loops read but skip still holds defined values.
+                l.t[i] = camera_found[j] ? camera_hits[j].t : 0.0f;
+                l.ng.set(i, camera_found[j] ? camera_hits[j].ng : Vec3(0.0f));
+                if (camera_found[j]) {
+                    hits[i] = camera_hits[j];
+                    active[n_active++] = i;
+                } else {
+                    finish(i);
+                }
+            }
+            started += m;
+        }
+    };
     std::array<bool, kBatch> going;
     RayLanes rays;
     std::array<bool, kPacket> blocked, hit_found;
     std::array<Hit, kPacket> packet_hits;
+    refill();
     while (n_active > 0) {
         // Shade every vertex: specular ones one by one, diffuse ones together.
         for (int a = 0; a < n_active; ++a) {
@@ -194,14 +230,14 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
             else
                 going[i] = scatter_specular(l, i, hits[i], *mat);
         }
-        draw_diffuse_uniforms(l, count, !lights_.empty());
-        pick_lights(l, count, active.data(), n_active);
-        shade_diffuse(l, count);
+        draw_diffuse_uniforms(l, lanes, !lights_.empty());
+        pick_lights(l, lanes, active.data(), n_active);
+        shade_diffuse(l, lanes);
 
-        // The lists of paths with a shadow ray and of paths going on, in sample order,
+        // The lists of paths with a shadow ray, going on and ending, in the active order,
         // made without branches: which paths end or cast a shadow ray is random, and a
         // mispredicted branch a path cost more than the rest of this loop.
-        int n_next = 0, n_shadow = 0;
+        int n_next = 0, n_shadow = 0, n_ended = 0;
         for (int a = 0; a < n_active; ++a) {
             const int i = active[a];
             const bool goes = l.diffuse[i] ? l.alive[i] != 0 : going[i];
@@ -210,11 +246,13 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
             n_shadow += shadow;
             next[n_next] = i;
             n_next += goes;
+            ended[n_ended] = i;
+            n_ended += !goes;
             l.rays[i] += uint32_t(shadow) + uint32_t(goes);
             l.depth[i] += goes;
             l.diffuse[i] = 0;  // shade_diffuse leaves paths that ended alone
         }
-        // Shadow rays, then the next bounces, kPacket at a time in sample order.
+        // Shadow rays, then the next bounces, kPacket at a time in the active order.
         for (int b = 0; b < n_shadow; b += kPacket) {
             const int m = std::min(kPacket, n_shadow - b);
             for (int j = 0; j < m; ++j) {
@@ -228,6 +266,8 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
                 if (!blocked[j]) l.L.set(i, l.L.get(i) + l.shadow_L.get(i));
             }
         }
+        for (int e = 0; e < n_ended; ++e) finish(ended[e]);
+        const int n_shaded_ended = n_ended;
         n_active = 0;
         for (int b = 0; b < n_next; b += kPacket) {
             const int m = std::min(kPacket, n_next - b);
@@ -238,19 +278,19 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
             }
             embree_.intersect_lanes(rays, m, packet_hits.data(), hit_found.data());
             for (int j = 0; j < m; ++j) {
-                // A path that hit nothing ends; its lane keeps what it is given here.
+                // A path that hit nothing ends (below).
                 const int i = next[b + j];
                 hits[i] = packet_hits[j];
                 l.t[i] = packet_hits[j].t;
                 l.ng.set(i, packet_hits[j].ng);
                 active[n_active] = i;
                 n_active += hit_found[j];
+                ended[n_ended] = i;
+                n_ended += !hit_found[j];
             }
         }
-    }
-    for (int i = 0; i < count; ++i) {
-        out[i] = {l.L.get(i), l.rays[i]};
-        rngs[i].set_state(l.rng_state[i]);
+        for (int e = n_shaded_ended; e < n_ended; ++e) finish(ended[e]);
+        refill();
     }
 }
 

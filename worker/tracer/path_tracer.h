@@ -21,7 +21,7 @@ struct Radiance {
 class PathTracer {
 public:
     static constexpr int kRussianRouletteDepth = 5;
-    // Paths radiance_batch advances together.
+    // Paths radiance_batch advances together: its lanes.
     static constexpr int kBatch = 64;
 
     explicit PathTracer(const Scene& scene);
@@ -32,12 +32,14 @@ public:
     // Radiance arriving at `origin` from direction `dir` (unit length): a batch of one.
     Radiance radiance(const Vec3& origin, const Vec3& dir, SampleRng& rng) const;
 
-    // The radiance of `count` (at most kBatch) camera rays from `origin`, traced together
-    // a vertex at a time: camera rays, shadow rays and bounces as Embree packets of the
-    // paths still going, in sample order, and the diffuse vertices shaded together
-    // (path_lanes.h). out[i] is what radiance() would give rngs[i]'s path up to
-    // Embree's rounding, which may differ between its packet and single-ray kernels:
-    // callers make batches from what the render fixes (trace_job.cpp).
+    // The radiance of `count` camera rays from `origin`, kBatch paths traced together a
+    // vertex at a time: camera rays, shadow rays and bounces as Embree packets of the
+    // paths still going, and the diffuse vertices shaded together (path_lanes.h). As a
+    // path ends, the next of the `count` takes its lane, so the lanes stay full while
+    // paths are left. out[i] is what radiance() would give rngs[i]'s path up to
+    // Embree's rounding, which may differ between its packet and single-ray kernels and
+    // with a packet's other rays: callers make batches from what the render fixes
+    // (trace_job.cpp).
     void radiance_batch(const Vec3& origin, const Vec3* dirs, int count, SampleRng* rngs,
                         Radiance* out) const;
 

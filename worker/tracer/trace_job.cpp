@@ -37,12 +37,13 @@ public:
 
 private:
     void trace_batch(const SampleBatch& b) {
-        camera_rays(camera_, geometry_.seed, b.samples, b.count, dirs_.data(),
-                    rngs_.data());
+        for (int j = 0; j < b.count; j += PathLanes::kMax)
+            camera_rays(camera_, geometry_.seed, &b.x[j], &b.y[j], &b.k[j],
+                        std::min(PathLanes::kMax, b.count - j), &dirs_[j], &rngs_[j]);
         tracer_.radiance_batch(camera_.origin(), dirs_.data(), b.count, rngs_.data(),
                                radiance_.data());
         for (int j = 0; j < b.count; ++j)
-            add_sample(result_.pixels[b.pixel[j]], b.samples.k[j], radiance_[j].value,
+            add_sample(result_.pixels[b.pixel[j]], b.k[j], radiance_[j].value,
                        radiance_[j].rays);
     }
 
