@@ -183,6 +183,9 @@ cookie=$(curl -sS --max-time 10 --cacert "$TMP/ca.pem" -o /dev/null -D - -X POST
 check "signing in over HTTPS sets a Secure, HttpOnly, SameSite=Strict cookie" \
     eval '[[ $cookie == *aliquot_session=* && $cookie == *Secure* && $cookie == *HttpOnly* && $cookie == *SameSite=Strict* ]]'
 
+# The gRPC listener watchdog asks the TLS port as it asks a plaintext one (docs/SECURITY.md).
+check "the gRPC watchdog runs over TLS and never found the port deaf" \
+    eval '! grep -q "listening again\|no listener watchdog" "$TMP/coordinator.log"'
 check "the worker traced over TLS and is still running" \
     eval 'kill -0 "${PIDS[1]}" && [[ $(https "$URL/api/workers") == *tls-worker* ]]'
 exit 0
