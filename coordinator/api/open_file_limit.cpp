@@ -2,16 +2,23 @@
 
 #include <sys/resource.h>
 
+#include <fstream>
+
 namespace aliquot {
 
 uint64_t raise_open_file_limit() {
     rlimit limit{};
     if (getrlimit(RLIMIT_NOFILE, &limit) != 0) return 0;
-    if (limit.rlim_cur < limit.rlim_max) {
+    rlim_t target = limit.rlim_max;
+    // An unlimited hard limit is still capped by the kernel's fs.nr_open.
+    if (target == RLIM_INFINITY) {
+        unsigned long long nr_open = 1 << 20;
+        std::ifstream("/proc/sys/fs/nr_open") >> nr_open;
+        target = rlim_t(nr_open);
+    }
+    if (limit.rlim_cur < target) {
         rlimit raised = limit;
-        raised.rlim_cur = limit.rlim_max;
-        // A hard limit of RLIM_INFINITY may still be above what the kernel allows
-        // (fs.nr_open): then the soft limit stays where it was.
+        raised.rlim_cur = target;
         if (setrlimit(RLIMIT_NOFILE, &raised) == 0) limit = raised;
     }
     return limit.rlim_cur;
