@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (fuzz/) with clang into build-fuzz/ and runs each for
-# SECONDS (default 12: about a minute for all six), starting from its committed corpus in
-# fuzz/corpus/<target>. Non-zero if any target finds a crash, a hang, a leak or an
+# SECONDS (default 12: a minute and a half for all seven), starting from its committed
+# corpus in fuzz/corpus/<target>. Non-zero if any target finds a crash, a hang, a leak or an
 # allocation past the limits below; the input that did it is in build-fuzz/artifacts/.
 # Usage: scripts/fuzz.sh [seconds-per-target] [target ...]
 set -euo pipefail
@@ -10,7 +10,7 @@ seconds=${1:-12}
 shift || true
 targets=("$@")
 ((${#targets[@]})) || targets=(scene_fuzz obj_fuzz study_fuzz render_request_fuzz job_result_fuzz
-    checkpoint_fuzz)
+    checkpoint_fuzz exr_fuzz)
 
 bash scripts/install-deps.sh
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \

@@ -15,6 +15,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <set>
 #include <string>
 #include <system_error>
@@ -118,6 +119,82 @@ Imf::Header read_header(Imf::IStream& stream, const std::filesystem::path& path)
     header.readFrom(stream, version);
     stream.seekg(0);
     return header;
+}
+
+// How many bytes OpenEXR reads for a value of a fixed-size type whatever size the file
+// states (0: not such a type).
+size_t fixed_value_size(const std::string& type) {
+    static const std::map<std::string, size_t> kSizes = {
+        {"box2i", 16},    {"box2f", 16},   {"compression", 1},
+        {"lineOrder", 1}, {"envmap", 1},   {"float", 4},
+        {"int", 4},       {"double", 8},   {"rational", 8},
+        {"v2i", 8},       {"v2f", 8},      {"v2d", 16},
+        {"v3i", 12},      {"v3f", 12},     {"v3d", 24},
+        {"m33f", 36},     {"m33d", 72},    {"m44f", 64},
+        {"m44d", 128},    {"keycode", 28}, {"chromaticities", 32},
+        {"timecode", 8},  {"tiledesc", 9}, {"deepImageState", 1}};
+    const auto it = kSizes.find(type);
+    return it == kSizes.end() ? 0 : it->second;
+}
+
+// Refuses a header OpenEXR would read past what the bytes hold, before it reads it:
+// OpenEXR allocates what an attribute claims before reading it (a string is even zeroed
+// first), so 2 KB claiming a 1.9 GB attribute took 1.9 GB. The header is a list of
+// (name, type, 32-bit size, value) ended by an empty name. Every value must lie within
+// the bytes; types OpenEXR reads by their content rather than by the stated size must
+// state the size their content takes (so that this reading and OpenEXR's stay in step);
+// those whose content claims further allocations (previews, string vectors, ID
+// manifests) are refused: no image of ours has them.
+void check_header_claims(const std::string& bytes, const std::filesystem::path& path) {
+    const auto cut_short = [&] { fail("read", path, "the header is cut short"); };
+    const auto read_int = [&](size_t at) {
+        return int32_t(uint32_t(uint8_t(bytes[at])) |
+                       uint32_t(uint8_t(bytes[at + 1])) << 8 |
+                       uint32_t(uint8_t(bytes[at + 2])) << 16 |
+                       uint32_t(uint8_t(bytes[at + 3])) << 24);
+    };
+    size_t at = 8;  // past the magic number and the version
+    const auto read_string = [&] {
+        const size_t end = bytes.find('\0', at);
+        if (end == std::string::npos || end - at > 255) cut_short();
+        std::string text = bytes.substr(at, end - at);
+        at = end + 1;
+        return text;
+    };
+    for (;;) {
+        const std::string name = read_string();
+        if (name.empty()) return;  // the empty name that ends the header
+        const std::string type = read_string();
+        if (bytes.size() - at < 4) cut_short();
+        const int32_t size = read_int(at);
+        at += 4;
+        if (size < 0 || uint64_t(size) > bytes.size() - at)
+            fail("read", path,
+                 "attribute " + name + " claims " + std::to_string(size) +
+                     " bytes, more than follow it");
+        const size_t end = at + size_t(size);
+        const size_t fixed = fixed_value_size(type);
+        bool in_step = fixed == 0 || fixed == size_t(size);
+        if (type == "chlist") {
+            // Channels (a name, then 16 bytes) up to an empty name, as OpenEXR reads
+            // them.
+            size_t c = at;
+            while (in_step && c < end && bytes[c] != '\0') {
+                const size_t name_end = bytes.find('\0', c);
+                in_step = name_end != std::string::npos && name_end - c <= 255 &&
+                          name_end + 17 <= end;
+                c = name_end + 17;
+            }
+            in_step = in_step && c + 1 == end;
+        } else if (type == "preview" || type == "stringvector" || type == "idmanifest") {
+            fail("read", path, "attribute " + name + " of type " + type + " is not read");
+        }
+        if (!in_step)
+            fail("read", path,
+                 "attribute " + name + " of type " + type + " states " +
+                     std::to_string(size) + " bytes, not what its value takes");
+        at = end;
+    }
 }
 
 // Refuses what the header claims before anything is allocated by it: a few kilobytes
@@ -294,8 +371,9 @@ std::string encode_exr(const Image& image) {
 
 Image decode_exr(const std::string& bytes, const std::string& name,
                  std::optional<ExrSize> expected, uint64_t max_bytes) {
-    if (bytes.size() < 4 || !Imf::isImfMagic(bytes.data()))
+    if (bytes.size() < 8 || !Imf::isImfMagic(bytes.data()))
         fail("read", name, "not an OpenEXR file");
+    check_header_claims(bytes, name);
     return reading(name, [&] {
         Imf::StdISStream stream;
         stream.str(bytes);

@@ -13,6 +13,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -328,6 +329,33 @@ TEST_F(ExrIo, AHeaderClaimingMoreThanTheBudgetIsRefusedBeforeAnyPixel) {
     EXPECT_THROW(
         decode_exr(encode_exr(small), "ref", ExrSize{64, 64}, 64 * 64 * 5 * 4 - 1),
         ImageTooLarge);
+}
+
+// Found by fuzz/exr_fuzz: OpenEXR allocates the size an attribute claims before reading
+// it, so 2 KB whose header claimed a 1.9 GB attribute allocated 1.9 GB (and any number of
+// such attributes, each). An attribute claiming more bytes than follow it is refused.
+TEST_F(ExrIo, AnAttributeClaimingMoreBytesThanFollowIsRefusedBeforeAllocating) {
+    std::string bytes = encode_exr(patterned(4, 4));
+    const std::string key("aliquot:method\0string\0", 22);
+    const size_t at = bytes.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const int32_t claim = 1900000000;
+    std::memcpy(&bytes[at + key.size()], &claim, sizeof claim);  // little-endian
+    rusage before{};
+    getrusage(RUSAGE_SELF, &before);
+    try {
+        decode_exr(bytes, "ref");
+        FAIL() << "expected ImageFileError";
+    } catch (const ImageFileError& e) {
+        EXPECT_NE(
+            std::string(e.what()).find(
+                "attribute aliquot:method claims 1900000000 bytes, more than follow"),
+            std::string::npos)
+            << e.what();
+    }
+    rusage after{};
+    getrusage(RUSAGE_SELF, &after);
+    EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "KiB more at the peak";
 }
 
 }  // namespace
