@@ -23,12 +23,13 @@ class CellTracer {
 public:
     CellTracer(const PathTracer& tracer, const CameraModel& camera,
                const RenderGeometry& geometry, const SampleJob& job,
-               SampleJobResult& result)
+               SampleJobResult& result, const std::atomic<bool>* cancel)
         : tracer_(tracer),
           camera_(camera),
           geometry_(geometry),
           job_(job),
-          result_(result) {}
+          result_(result),
+          cancel_(cancel) {}
 
     void trace(const PixelRect& cell) {
         for_each_batch(job_, cell, batch_,
@@ -37,6 +38,8 @@ public:
 
 private:
     void trace_batch(const SampleBatch& b) {
+        // Also between a cell's batches: a cell of a steered round may hold many.
+        if (cancel_ && cancel_->load()) throw JobCancelled();
         for (int j = 0; j < b.count; j += PathLanes::kMax)
             camera_rays(camera_, geometry_.seed, &b.x[j], &b.y[j], &b.k[j],
                         std::min(PathLanes::kMax, b.count - j), &dirs_[j], &rngs_[j]);
@@ -52,6 +55,7 @@ private:
     const RenderGeometry& geometry_;
     const SampleJob& job_;
     SampleJobResult& result_;
+    const std::atomic<bool>* cancel_;
     SampleBatch batch_;
     std::array<Vec3, SampleBatch::kMax> dirs_;
     std::vector<SampleRng> rngs_ = std::vector<SampleRng>(
@@ -84,7 +88,7 @@ SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry&
     std::atomic<bool> failed{false};
     auto work = [&] {
         enable_flush_to_zero();
-        CellTracer cell_tracer(tracer, camera, geometry, job, result);
+        CellTracer cell_tracer(tracer, camera, geometry, job, result, cancel);
         for (size_t c; (c = next_cell.fetch_add(1)) < cells.count();) {
             if ((cancel && cancel->load()) || failed.load()) return;
             cell_tracer.trace(cells[c]);

@@ -21,8 +21,9 @@ public:
 // boundaries (as round_cutter cuts them), on how the round was cut into jobs. A rectangle
 // that cuts through cells (the network may send any) is still traced correctly, its
 // cells clipped to it: only its samples' last bits may then differ from those of a cut on
-// cells. When `cancel` becomes true the job stops between cells and throws JobCancelled:
-// a worker told to stop gives the lease back instead of finishing a long job.
+// cells. When `cancel` becomes true the job stops between batches and throws
+// JobCancelled: a worker told to stop gives the lease back instead of finishing a long
+// job.
 SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry& geometry,
                                  const SampleJob& job, int threads = 1,
                                  const std::atomic<bool>* cancel = nullptr);

@@ -136,6 +136,22 @@ TEST_F(SampleJobTest, DifferentSeedGivesDifferentSums) {
     EXPECT_GT(differing, a.pixels.size() / 2);
 }
 
+// A worker told to stop gives the lease back: the job throws JobCancelled, also when its
+// one cell holds many batches, and also with several threads.
+TEST_F(SampleJobTest, StopsWhenCancelled) {
+    const std::atomic<bool> cancel{true};
+    SampleJob one_cell;
+    one_cell.rect = {8, 8, 8, 8};
+    one_cell.counts.assign(one_cell.rect.size(), 1000);
+    one_cell.first_sample.assign(one_cell.rect.size(), 0);
+    for (int threads : {1, 2})
+        EXPECT_THROW(trace_sample_job(tracer, geometry, one_cell, threads, &cancel),
+                     JobCancelled);
+    EXPECT_THROW(
+        trace_sample_job(tracer, geometry, whole_image_job(24, 16, 1), 2, &cancel),
+        JobCancelled);
+}
+
 TEST_F(SampleJobTest, RejectsJobsThatDoNotFitTheImage) {
     SampleJob job = whole_image_job(25, 16, 1);
     EXPECT_THROW(trace_sample_job(tracer, geometry, job), std::invalid_argument);
