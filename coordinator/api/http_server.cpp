@@ -17,6 +17,7 @@
 
 #include "exr_io.h"
 #include "http_api.h"
+#include "http_front.h"
 #include "http_session.h"
 #include "scene_loader.h"
 #include "store.h"
@@ -126,22 +127,88 @@ std::string first_heading(const std::filesystem::path& md) {
     return {};
 }
 
+// httplib's listener hands each accepted socket to its TaskQueue as a job that calls
+// process_and_close_socket. This queue runs the job at once, and FrontedServer's
+// process_and_close_socket gives the socket to the front: the listener never waits, and
+// no thread is spent on a connection until its request has arrived (http_front.h).
+class HandToFront : public httplib::TaskQueue {
+public:
+    void enqueue(std::function<void()> job) override { job(); }
+    void shutdown() override {}
+};
+
+// What the HTTP server needs of httplib's server besides its routes: serving one request
+// the front has read.
+class FrontedRequests {
+public:
+    virtual ~FrontedRequests() = default;
+    virtual bool serve(FrontConnection& connection, bool close, bool& closed) = 0;
+    virtual void deepen_backlog() = 0;
+    HttpFront* front = nullptr;  // set before the server listens
+};
+
+// httplib's Server or SSLServer with the front before it. httplib declares
+// process_and_close_socket virtual (SSLServer overrides it too), and process_request
+// protected: a subclass may serve a request over any Stream.
+template <class Base>
+class FrontedServer : public Base, public FrontedRequests {
+public:
+    using Base::Base;
+    bool serve(FrontConnection& connection, bool close, bool& closed) override {
+        return this->process_request(
+            connection, close, closed,
+            [&connection](httplib::Request& req) { req.ssl = connection.ssl(); });
+    }
+
+    // httplib listens with a backlog of 5, compiled in: a burst of connections (a
+    // browser opens six at once) overflows it and each one over waits a second or more
+    // for its SYN to be sent again. Listening again on the bound socket sets a deeper one.
+    void deepen_backlog() override { ::listen(this->svr_sock_, SOMAXCONN); }
+
+private:
+    bool process_and_close_socket(socket_t sock) override {
+        front->admit(sock);
+        return true;
+    }
+};
+
+struct MadeServer {
+    std::unique_ptr<httplib::Server> server;
+    FrontedRequests* requests = nullptr;
+    SSL_CTX* tls = nullptr;  // the SSLServer's, null for plain HTTP
+};
+
 // The server object: an SSLServer when the options name a certificate. SSLServer loads
 // both files in its constructor and only says whether that worked, so the message names
 // what to check.
-std::unique_ptr<httplib::Server> make_server(const HttpOptions& o) {
-    if (o.tls_cert.empty() && o.tls_key.empty())
-        return std::make_unique<httplib::Server>();
+MadeServer make_server(const HttpOptions& o) {
+    MadeServer made;
+    if (o.tls_cert.empty() && o.tls_key.empty()) {
+        auto server = std::make_unique<FrontedServer<httplib::Server>>();
+        made.requests = server.get();
+        made.server = std::move(server);
+        return made;
+    }
     if (o.tls_cert.empty() || o.tls_key.empty())
         throw std::invalid_argument("http: a TLS certificate and its key go together");
-    auto server =
-        std::make_unique<httplib::SSLServer>(o.tls_cert.c_str(), o.tls_key.c_str());
+    auto server = std::make_unique<FrontedServer<httplib::SSLServer>>(o.tls_cert.c_str(),
+                                                                      o.tls_key.c_str());
     if (!server->is_valid())
         throw std::runtime_error(
             "http: cannot use TLS certificate " + o.tls_cert.string() + " with key " +
             o.tls_key.string() +
             " (unreadable, not PEM, or a key of another certificate)");
-    return server;
+    made.tls = server->ssl_context();
+    made.requests = server.get();
+    made.server = std::move(server);
+    return made;
+}
+
+bool iequals(std::string_view a, std::string_view b) {
+    return a.size() == b.size() &&
+           std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+               return std::tolower((unsigned char)x) == std::tolower((unsigned char)y);
+           });
 }
 
 std::string query(const httplib::Request& req, const std::string& name,
@@ -151,17 +218,19 @@ std::string query(const httplib::Request& req, const std::string& name,
 
 }  // namespace
 
-// The server's threads, and how many of them event streams may never take.
-constexpr size_t kThreads = 32;
+// How many of the server's threads (FrontLimits::threads) event streams may never take.
 constexpr size_t kFreeThreads = 8;
 
 struct HttpServer::Impl {
     Coordinator& coordinator;
     HttpOptions options;
-    std::unique_ptr<httplib::Server> owned_server;  // Server, or SSLServer under TLS
+    MadeServer made;  // Server, or SSLServer under TLS
     httplib::Server& server;
     const bool https;  // what the Origin of a same-site request starts with
     std::optional<http_api::HostPolicy> hosts;  // set in start(), once the port is known
+    BrowserSessions sessions;
+    std::string cookie_name;           // set in start(), once the port is known
+    std::unique_ptr<HttpFront> front;  // set in start()
     EventHub hub;
     std::thread listener, broadcaster;
     int port = 0;
@@ -184,9 +253,10 @@ struct HttpServer::Impl {
     Impl(Coordinator& c, HttpOptions o)
         : coordinator(c),
           options(std::move(o)),
-          owned_server(make_server(options)),
-          server(*owned_server),
-          https(!options.tls_cert.empty()) {}
+          made(make_server(options)),
+          server(*made.server),
+          https(!options.tls_cert.empty()),
+          sessions(options.sessions) {}
 
     // ---- renders ----
 
@@ -547,21 +617,65 @@ struct HttpServer::Impl {
         return httplib::Server::HandlerResponse::Unhandled;
     }
 
+    // httplib inflates a gzip or brotli body before any handler sees it, and its size
+    // limit counts the compressed bytes: 1 MB of gzip became 1000 MiB, before the token
+    // was looked at. Nothing the API takes is sent compressed, so no compressed body is
+    // accepted, refused before it is read.
+    httplib::Server::HandlerResponse encoding_check(const httplib::Request& req,
+                                                    httplib::Response& res) {
+        const auto [first, last] = req.headers.equal_range("Content-Encoding");
+        for (auto it = first; it != last; ++it) {
+            std::string_view coding = it->second;
+            while (!coding.empty() && (coding.front() == ' ' || coding.front() == '\t'))
+                coding.remove_prefix(1);
+            while (!coding.empty() && (coding.back() == ' ' || coding.back() == '\t'))
+                coding.remove_suffix(1);
+            if (!iequals(coding, "identity"))
+                return refuse(
+                    res, 415,
+                    "a request body may not be compressed (Content-Encoding \"" +
+                        it->second.substr(0, 40) + "\"); send it as it is");
+        }
+        return httplib::Server::HandlerResponse::Unhandled;
+    }
+
+    // The bearer token when the request sends one, else the session its cookie names.
+    // A cookie is only ever a session id: the client token in a cookie opens nothing.
+    Access presented_access(const httplib::Request& req) {
+        const std::string authorization = req.get_header_value("Authorization");
+        const std::string_view bearer = bearer_token(authorization);
+        if (!bearer.empty()) return check_access(options.tokens, bearer, Role::Client);
+        const std::string id =
+            http_session::cookie_value(req.get_header_value("Cookie"), cookie_name);
+        return !id.empty() && sessions.use(id) ? Access::Granted
+                                               : Access::Unauthenticated;
+    }
+
     // After the cross-site checks, so that a foreign page learns nothing more from a 401
-    // than from a 403. Only the client token opens the API.
+    // than from a 403. Only the client token (or a session it opened) opens the API.
     httplib::Server::HandlerResponse token_check(const httplib::Request& req,
                                                  httplib::Response& res) {
-        if (!http_session::needs_token(req.method, req.path))
+        const Access access = presented_access(req);
+        if (access == Access::Granted) {
+            HttpFront::trust_current_request();
             return httplib::Server::HandlerResponse::Unhandled;
-        const Access access = check_access(
-            options.tokens,
-            http_session::presented_token(req.get_header_value("Authorization"),
-                                          req.get_header_value("Cookie")),
-            Role::Client);
-        if (access == Access::Granted) return httplib::Server::HandlerResponse::Unhandled;
-        res.set_header("Connection", "close");  // its body is never read
-        send_refusal(res, access);
-        return httplib::Server::HandlerResponse::Handled;
+        }
+        if (http_session::needs_token(req.method, req.path)) {
+            res.set_header("Connection", "close");  // its body is never read
+            send_refusal(res, access);
+            return httplib::Server::HandlerResponse::Handled;
+        }
+        // Without the token, only a body the front has read whole (a sign-in): such a
+        // request never holds a thread while its body trickles in.
+        if (req.has_header("Transfer-Encoding"))
+            return refuse(res, 411,
+                          "a request without the client token must send Content-Length");
+        if (req.get_header_value<uint64_t>("Content-Length") >
+            options.front.max_small_body)
+            return refuse(res, 413,
+                          "a request without the client token may send at most " +
+                              std::to_string(options.front.max_small_body) + " bytes");
+        return httplib::Server::HandlerResponse::Unhandled;
     }
 
     // 401 with WWW-Authenticate (no or a wrong token) or 403 (the worker's), as JSON.
@@ -573,12 +687,20 @@ struct HttpServer::Impl {
     }
 
     void routes() {
-        server.set_pre_routing_handler(
-            [this](const httplib::Request& req, httplib::Response& res) {
-                const auto cross_site = cross_site_check(req, res);
-                if (cross_site == httplib::Server::HandlerResponse::Handled)
-                    return cross_site;
-                return token_check(req, res);
+        server.set_pre_routing_handler([this](const httplib::Request& req,
+                                              httplib::Response& res) {
+            for (auto check :
+                 {&Impl::encoding_check, &Impl::cross_site_check, &Impl::token_check})
+                if ((this->*check)(req, res) == httplib::Server::HandlerResponse::Handled)
+                    return httplib::Server::HandlerResponse::Handled;
+            return httplib::Server::HandlerResponse::Unhandled;
+        });
+        // A refusal's body was never read: what follows it on the connection is not a
+        // request, so the connection ends with the response (httplib would read on).
+        server.set_post_routing_handler(
+            [](const httplib::Request&, httplib::Response& res) {
+                if (res.get_header_value("Connection") == "close")
+                    HttpFront::close_after_current_response();
             });
         render_routes();
         session_routes();
@@ -675,8 +797,9 @@ struct HttpServer::Impl {
             }));
     }
 
-    // The dashboard's sign-in: the session cookie carries the client token (docs/API.md,
-    // "Authentication"). GET needs the token like every route; POST and DELETE do not.
+    // The dashboard's sign-in: the client token opens a session, whose random id the
+    // cookie carries (docs/API.md, "Authentication"). GET needs the token like every
+    // route; POST and DELETE do not.
     void session_routes() {
         server.Get("/api/session", [](const httplib::Request&, httplib::Response& res) {
             send_json(res, {{"signed_in", true}});
@@ -687,15 +810,22 @@ struct HttpServer::Impl {
                 const Access access = check_access(options.tokens, token, Role::Client);
                 if (access == Access::Granted) {
                     res.set_header("Set-Cookie",
-                                   http_session::sign_in_cookie(token, https));
+                                   http_session::sign_in_cookie(cookie_name,
+                                                                sessions.open(), https));
                     send_json(res, {{"ok", true}});
                     return;
                 }
                 send_refusal(res, access);
             }));
+        // Ends the session the cookie names, so that a copy of the cookie opens nothing
+        // either; knowing the id is what signing out needs.
         server.Delete(
-            "/api/session", [this](const httplib::Request&, httplib::Response& res) {
-                res.set_header("Set-Cookie", http_session::sign_out_cookie(https));
+            "/api/session", [this](const httplib::Request& req, httplib::Response& res) {
+                const std::string id = http_session::cookie_value(
+                    req.get_header_value("Cookie"), cookie_name);
+                if (!id.empty()) sessions.close(id);
+                res.set_header("Set-Cookie",
+                               http_session::sign_out_cookie(cookie_name, https));
                 send_json(res, {{"ok", true}});
             });
     }
@@ -857,8 +987,6 @@ struct HttpServer::Impl {
     }
 
     void start(const std::string& address) {
-        // A usable token is also one the session cookie carries as it is (RFC 6750's
-        // b64token alphabet has no ; , " \ or %).
         check_tokens(options.tokens);
         const size_t colon = address.rfind(':');
         if (colon == std::string::npos)
@@ -880,13 +1008,20 @@ struct HttpServer::Impl {
 
         // Event streams hold a thread each and browsers keep a few idle connections open;
         // at most max_event_streams of the threads go to streams.
-        if (options.max_event_streams + kFreeThreads > kThreads)
+        const size_t threads = options.front.threads;
+        if (threads < kFreeThreads || options.max_event_streams + kFreeThreads > threads)
             throw std::invalid_argument(
-                "http: at most " + std::to_string(kThreads - kFreeThreads) +
+                "http: at most " +
+                std::to_string(threads - std::min(threads, kFreeThreads)) +
                 " event streams, so that the server keeps threads for other requests");
-        server.new_task_queue = [] { return new httplib::ThreadPool(kThreads); };
+        server.new_task_queue = [] { return new HandToFront; };
         server.set_payload_max_length(1 << 20);
-        server.set_keep_alive_timeout(5);
+        // What the Keep-Alive header tells clients; the front enforces both.
+        server.set_keep_alive_max_count(options.front.requests_per_connection);
+        server.set_keep_alive_timeout(
+            std::max<time_t>(1, std::chrono::duration_cast<std::chrono::seconds>(
+                                    options.front.request_deadline)
+                                    .count()));
         http_api::HostPolicy(host, wanted,
                              options.allowed_hosts);  // throws on a bad entry
         routes();
@@ -898,7 +1033,15 @@ struct HttpServer::Impl {
                 throw std::runtime_error("http: cannot listen on " + address);
             port = wanted;
         }
+        made.requests->deepen_backlog();
         hosts.emplace(host, port, options.allowed_hosts);
+        cookie_name = http_session::cookie_name(port, https);
+        front = std::make_unique<HttpFront>(
+            options.front, made.tls,
+            [this](FrontConnection& c, bool close, bool& closed) {
+                return made.requests->serve(c, close, closed);
+            });
+        made.requests->front = front.get();
         snapshot(false);  // later updates say what changed since now
         seen_storage_warning = coordinator.storage_warning();
         listener = std::thread([this] { server.listen_after_bind(); });
@@ -910,6 +1053,7 @@ struct HttpServer::Impl {
             hub.stop();
             server.stop();
             if (listener.joinable()) listener.join();
+            if (front) front->stop();
             if (broadcaster.joinable()) broadcaster.join();
         });
     }

@@ -11,7 +11,9 @@
 #include <vector>
 
 #include "access.h"
+#include "browser_sessions.h"
 #include "coordinator.h"
+#include "http_front.h"
 #include "metrics.h"
 
 namespace aliquot {
@@ -32,8 +34,8 @@ struct HttpOptions {
     // Listed renders per request at most (GET /api/renders?limit=).
     size_t max_list = 1000;
     // Event streams open at once at most; one more is refused with 503 and Retry-After.
-    // Each open stream holds one of the server's 32 threads, so this many always stay
-    // free for everything else (the API, /healthz, the dashboard's files).
+    // Each open stream holds one of the server's threads (front.threads, 32), so 8 always
+    // stay free for everything else (the API, /healthz, the dashboard's files).
     size_t max_event_streams = 16;
     // How often an idle event stream looks whether its client has left: a departed
     // client's thread is free again within about this long.
@@ -49,6 +51,11 @@ struct HttpOptions {
     // Served as GET /metrics (Prometheus' text format, the client token required);
     // without it /metrics is 404.
     FarmMetrics* metrics = nullptr;
+    // What a connection may send and how long it may take, and the server's threads
+    // (docs/SECURITY.md, "HTTP connections").
+    FrontLimits front;
+    // The dashboard's sessions: how many, and when they end.
+    SessionLimits sessions;
 };
 
 class HttpServer {

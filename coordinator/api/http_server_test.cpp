@@ -1014,6 +1014,16 @@ std::string cookie_sent_back(const httplib::Response& res) {
     return set.substr(0, set.find(';'));
 }
 
+// Signs in with the client token; the cookie to send back ("NAME=ID"), empty on failure.
+std::string sign_in(int port) {
+    httplib::Client browser("127.0.0.1", port);
+    browser.set_read_timeout(10, 0);
+    auto res =
+        browser.Post("/api/session", json{{"token", testing::kTestTokens.client}}.dump(),
+                     "application/json");
+    return res && res->status == 200 ? cookie_sent_back(*res) : "";
+}
+
 // Routes of every kind: a list, one render, its image and maps, a study's file, the
 // session, and a route that does not exist (which must not tell that it does not).
 std::vector<std::string> guarded_paths(const std::string& id) {
@@ -1040,8 +1050,13 @@ TEST_F(HttpServerTest, WithoutTheClientTokenEveryApiRouteAnswers401) {
         {},
         {{"Authorization", "Bearer not-the-token-0123456789"}},
         {{"Authorization", "Basic " + http_api::base64(testing::kTestTokens.client)}},
-        {{"Cookie", "aliquot_session=not-the-token-0123456789"}},
+        {{"Cookie",
+          http_session::cookie_name(port, false) + "=not-the-token-0123456789"}},
         {{"Cookie", "other=" + testing::kTestTokens.client}},
+        // The cookie is never the token, under the old name or the new.
+        {{"Cookie", "aliquot_session=" + testing::kTestTokens.client}},
+        {{"Cookie",
+          http_session::cookie_name(port, false) + "=" + testing::kTestTokens.client}},
     };
     for (const std::string& path : guarded_paths(id)) {
         for (const httplib::Headers& headers : refused) {
@@ -1112,8 +1127,7 @@ TEST_F(HttpServerTest, MetricsAreServedInPrometheusTextFormatWithTheClientToken)
         << res->body;
     EXPECT_NE(res->body.find("aliquot_samples_merged_total 128"), std::string::npos)
         << res->body;  // 8x8 pixels at 2 spp
-    const httplib::Headers cookie = {{"Cookie", std::string(http_session::kCookieName) +
-                                                    "=" + testing::kTestTokens.client}};
+    const httplib::Headers cookie = {{"Cookie", sign_in(server_->port())}};
     auto with_cookie = get_with(server_->port(), "/metrics", cookie);
     ASSERT_TRUE(with_cookie);
     EXPECT_EQ(with_cookie->status, 200);
@@ -1148,7 +1162,8 @@ TEST_F(HttpServerTest, SigningInSetsACookieThatAloneOpensTheApi) {
     ASSERT_EQ(res->status, 200) << res->body;
     EXPECT_EQ(json::parse(res->body)["ok"], true);
     const std::string set = res->get_header_value("Set-Cookie");
-    EXPECT_EQ(set.rfind("aliquot_session=", 0), 0u) << set;
+    const std::string name = http_session::cookie_name(server_->port(), false);
+    EXPECT_EQ(set.rfind(name + "=", 0), 0u) << set;
     for (const char* attribute : {"; HttpOnly", "; SameSite=Strict", "; Path=/"})
         EXPECT_NE(set.find(attribute), std::string::npos) << attribute << ": " << set;
     EXPECT_EQ(res->body.find(testing::kTestTokens.client), std::string::npos);
@@ -1175,7 +1190,7 @@ TEST_F(HttpServerTest, SigningInSetsACookieThatAloneOpensTheApi) {
     ASSERT_TRUE(out);
     EXPECT_EQ(out->status, 200) << out->body;
     const std::string cleared = out->get_header_value("Set-Cookie");
-    EXPECT_EQ(cleared.rfind("aliquot_session=;", 0), 0u) << cleared;
+    EXPECT_EQ(cleared.rfind(name + "=;", 0), 0u) << cleared;
     EXPECT_NE(cleared.find("Max-Age=0"), std::string::npos) << cleared;
     EXPECT_NE(cleared.find("SameSite=Strict"), std::string::npos) << cleared;
 }
@@ -1222,8 +1237,8 @@ TEST_F(HttpServerTest, ARefusedRequestChangesNothing) {
     for (const httplib::Headers& headers :
          {httplib::Headers{},
           httplib::Headers{{"Authorization", "Bearer " + testing::kTestTokens.worker}},
-          httplib::Headers{
-              {"Cookie", "aliquot_session=" + testing::kTestTokens.worker}}}) {
+          httplib::Headers{{"Cookie", http_session::cookie_name(server_->port(), false) +
+                                          "=" + testing::kTestTokens.worker}}}) {
         httplib::Client c("127.0.0.1", server_->port());
         auto submitted = c.Post("/api/renders", headers, body, "application/json");
         ASSERT_TRUE(submitted);
@@ -1251,9 +1266,8 @@ TEST(HttpServerTokens, RefusesToStartWithoutTwoDifferentTokens) {
     }
 }
 
-// The session cookie carries the client token as it is, so one that would end or quote
-// the cookie, or that the HTTP library would percent-decode, is refused at start rather
-// than making sign-in fail later.
+// A client token that would end or quote a header value, or that the HTTP library would
+// percent-decode, is refused at start rather than making sign-in fail later.
 TEST(HttpServerTokens, RefusesAClientTokenACookieCannotCarry) {
     Coordinator coordinator{CoordinatorOptions{}};
     for (const char* odd : {"client;token-0123456789", "client,token-0123456789",
@@ -1265,6 +1279,68 @@ TEST(HttpServerTokens, RefusesAClientTokenACookieCannotCarry) {
                      std::invalid_argument)
             << odd;
     }
+}
+
+// Issue 30, 3: the cookie was the client token itself, which any server on another port
+// of the host received and which then worked as a gRPC bearer token. It is a session id
+// now: not the token, no token for either role (what gRPC checks), named with the port,
+// and meaningless to a coordinator on another port.
+TEST_F(HttpServerTest, TheCookieIsASessionOfThisServerNotTheToken) {
+    const std::string cookie = sign_in(server_->port());
+    const std::string name = http_session::cookie_name(server_->port(), false);
+    ASSERT_EQ(cookie.rfind(name + "=", 0), 0u) << cookie;
+    const std::string id = cookie.substr(name.size() + 1);
+    EXPECT_EQ(id.size(), 64u);
+    EXPECT_EQ(id.find(testing::kTestTokens.client), std::string::npos);
+    EXPECT_EQ(check_access(testing::kTestTokens, id, Role::Client),
+              Access::Unauthenticated);
+    EXPECT_EQ(check_access(testing::kTestTokens, id, Role::Worker),
+              Access::Unauthenticated);
+    EXPECT_NE(sign_in(server_->port()), cookie);  // each sign-in its own session
+
+    // Another coordinator on another port of this host gets the cookie from the browser
+    // and takes it neither under this name nor under its own.
+    HttpServer other(*coordinator_, "127.0.0.1:0", options_with_tokens());
+    const std::string other_name = http_session::cookie_name(other.port(), false);
+    for (const std::string& sent : {cookie, other_name + "=" + id}) {
+        auto res = get_with(other.port(), "/api/renders", {{"Cookie", sent}});
+        ASSERT_TRUE(res);
+        EXPECT_EQ(res->status, 401) << sent;
+    }
+    auto here = get_with(server_->port(), "/api/renders", {{"Cookie", cookie}});
+    ASSERT_TRUE(here);
+    EXPECT_EQ(here->status, 200);
+}
+
+// Signing out ends the session on the server: a copy of the cookie kept elsewhere opens
+// nothing afterwards.
+TEST_F(HttpServerTest, SigningOutEndsTheSessionNotJustTheCookie) {
+    const std::string cookie = sign_in(server_->port()), other = sign_in(server_->port());
+    httplib::Client browser("127.0.0.1", server_->port());
+    auto out =
+        browser.Delete("/api/session", {{"Cookie", cookie}}, "{}", "application/json");
+    ASSERT_TRUE(out);
+    EXPECT_EQ(out->status, 200);
+    auto kept = get_with(server_->port(), "/api/renders", {{"Cookie", cookie}});
+    ASSERT_TRUE(kept);
+    EXPECT_EQ(kept->status, 401);
+    auto still = get_with(server_->port(), "/api/renders", {{"Cookie", other}});
+    ASSERT_TRUE(still);
+    EXPECT_EQ(still->status, 200);  // another browser's session is its own
+}
+
+// A session past its lifetime is refused like no session at all (the lifetime here is 0,
+// so every session is over by its first use).
+TEST(HttpServerSessions, AnExpiredSessionIsRefused) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    HttpOptions options = options_with_tokens();
+    options.sessions.lifetime = std::chrono::milliseconds(0);
+    HttpServer server(coordinator, "127.0.0.1:0", options);
+    const std::string cookie = sign_in(server.port());
+    ASSERT_FALSE(cookie.empty());
+    auto res = get_with(server.port(), "/api/session", {{"Cookie", cookie}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 401);
 }
 
 }  // namespace

@@ -27,19 +27,18 @@ bool needs_token(std::string_view method, std::string_view path) {
     return true;
 }
 
-std::string presented_token(std::string_view authorization,
-                            std::string_view cookie_header) {
-    const std::string_view bearer = bearer_token(authorization);
-    return bearer.empty() ? cookie_token(cookie_header) : std::string(bearer);
+std::string cookie_name(int port, bool https) {
+    return std::string(https ? "__Host-" : "") + "aliquot_session_" +
+           std::to_string(port);
 }
 
-std::string cookie_token(std::string_view cookie_header) {
-    // "a=1; aliquot_session=TOKEN; b=2" (RFC 6265, 5.4); the first of ours counts.
+std::string cookie_value(std::string_view cookie_header, std::string_view name) {
+    // "a=1; aliquot_session_8080=ID; b=2" (RFC 6265, 5.4); the first of ours counts.
     while (!cookie_header.empty()) {
         const size_t end = cookie_header.find(';');
         const std::string_view pair = trim(cookie_header.substr(0, end));
         const size_t eq = pair.find('=');
-        if (eq != std::string_view::npos && trim(pair.substr(0, eq)) == kCookieName) {
+        if (eq != std::string_view::npos && trim(pair.substr(0, eq)) == name) {
             std::string_view value = trim(pair.substr(eq + 1));
             if (value.size() >= 2 && value.front() == '"' && value.back() == '"')
                 value = value.substr(1, value.size() - 2);
@@ -55,13 +54,12 @@ std::string cookie_attributes(bool https) {
     return std::string("HttpOnly; SameSite=Strict; Path=/") + (https ? "; Secure" : "");
 }
 
-std::string sign_in_cookie(std::string_view token, bool https) {
-    return std::string(kCookieName) + "=" + std::string(token) + "; " +
-           cookie_attributes(https);
+std::string sign_in_cookie(std::string_view name, std::string_view id, bool https) {
+    return std::string(name) + "=" + std::string(id) + "; " + cookie_attributes(https);
 }
 
-std::string sign_out_cookie(bool https) {
-    return std::string(kCookieName) + "=; Max-Age=0; " + cookie_attributes(https);
+std::string sign_out_cookie(std::string_view name, bool https) {
+    return std::string(name) + "=; Max-Age=0; " + cookie_attributes(https);
 }
 
 std::string parse_sign_in_request(const std::string& body) {

@@ -1,8 +1,7 @@
 // Who may call the HTTP API: every /api/ route needs the client token, sent as
-// `Authorization: Bearer TOKEN` or, from the dashboard, as the session cookie that
-// signing in sets. The cookie carries the client token itself, so the server keeps no
-// sessions: none to grow or lose at a restart, and rotating the token signs every browser
-// out.
+// `Authorization: Bearer TOKEN`, or, from the dashboard, a session cookie that signing in
+// with the token sets. The cookie holds a session id of its own (BrowserSessions), never
+// the token: it opens this server's HTTP API only and signing out ends it.
 #pragma once
 
 #include <string>
@@ -12,7 +11,11 @@
 
 namespace aliquot::http_session {
 
-inline constexpr std::string_view kCookieName = "aliquot_session";
+// The session cookie's name, with this server's port in it: browsers send a host's
+// cookies to every port of it, so a coordinator on another port of the same host receives
+// this cookie but never takes it for its own. Under TLS with the `__Host-` prefix, which
+// browsers accept only with Secure, Path=/ and no Domain: no other host can set it.
+std::string cookie_name(int port, bool https);
 
 // Whether a request needs the client token: every /api/ route and /metrics. /healthz and
 // the dashboard's files (anything else) hold no data and must load for the page to show
@@ -20,24 +23,20 @@ inline constexpr std::string_view kCookieName = "aliquot_session";
 // gets and drops the token.
 bool needs_token(std::string_view method, std::string_view path);
 
-// The token a request presents: its bearer token when it sends one, else the token in its
-// session cookie; empty when it has neither.
-std::string presented_token(std::string_view authorization,
-                            std::string_view cookie_header);
-
-// The token in a Cookie header's session cookie; empty when it has none.
-std::string cookie_token(std::string_view cookie_header);
+// The value of the cookie `name` in a Cookie header (the first of that name); empty when
+// it has none.
+std::string cookie_value(std::string_view cookie_header, std::string_view name);
 
 // The attributes every session cookie carries, set and cleared alike: the one place they
 // are decided. HttpOnly keeps the token from the page's scripts; SameSite=Strict keeps
-// the browser from sending it with any request another site starts.
+// the browser from sending it with any request another site starts. No Max-Age: the
+// browser drops it when it closes, the server's expiry (SessionLimits) bounds it anyway.
 // Under TLS (`https`) also Secure: the browser never sends it over plain HTTP.
 std::string cookie_attributes(bool https);
-// The Set-Cookie value that signs a browser in with `token` (check_tokens made sure a
-// cookie carries it as it is).
-std::string sign_in_cookie(std::string_view token, bool https);
+// The Set-Cookie value that signs a browser in with session `id` (hex digits).
+std::string sign_in_cookie(std::string_view name, std::string_view id, bool https);
 // The Set-Cookie value that signs it out: the same cookie, expired.
-std::string sign_out_cookie(bool https);
+std::string sign_out_cookie(std::string_view name, bool https);
 
 // The token in the body of POST /api/session, {"token": "..."}. Throws
 // http_api::ApiError(400) naming what is wrong, never echoing the body.

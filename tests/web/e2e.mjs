@@ -115,6 +115,8 @@ async function finish() {
 const grpcPort = await freePort();
 const httpPort = await freePort();
 const BASE = `http://127.0.0.1:${httpPort}`;
+// The session cookie is named with the port (docs/API.md, "Authentication").
+const COOKIE = `aliquot_session_${httpPort}`;
 
 // The coordinator writes its client token at its first start; read once it answers.
 let clientToken = null;
@@ -300,7 +302,7 @@ await check("a wrong token or the worker's is refused with a message", async () 
   await page.fill("#sign-in-token", fs.readFileSync(path.join(DATA, "worker.token"), "utf8").trim());
   await page.click("#sign-in-button");
   await waitFor(async () => /worker token/.test(await page.textContent("#sign-in-message")), { what: "the worker-token message" });
-  assert(!(await context.cookies(BASE)).some((c) => c.name === "aliquot_session"), "a refused sign-in set a cookie");
+  assert(!(await context.cookies(BASE)).some((c) => c.name.startsWith("aliquot_session")), "a refused sign-in set a cookie");
   await shot("sign-in-refused");
 });
 
@@ -310,8 +312,9 @@ await check("signing in with the client token shows the dashboard", async () => 
   await page.waitForSelector("#renders-table");
   await page.waitForSelector('#live[data-status="live"]');
   assert(await page.isVisible("#sign-out"), "no sign-out control");
-  const cookie = (await context.cookies(BASE)).find((c) => c.name === "aliquot_session");
+  const cookie = (await context.cookies(BASE)).find((c) => c.name === COOKIE);
   assert(cookie && cookie.httpOnly && cookie.sameSite === "Strict", `cookie ${JSON.stringify({ ...cookie, value: "..." })}`);
+  assert(cookie.value !== clientToken && !cookie.value.includes(clientToken), "the cookie carries the client token");
   assert(!(await page.evaluate(() => document.cookie)).includes("aliquot_session"), "the page's scripts can read the cookie");
 });
 
@@ -569,11 +572,12 @@ await check("sign out returns to the sign-in view, and a stale cookie does too",
   await page.waitForSelector("#workers-table");
   await page.click("#sign-out");
   await page.waitForSelector("#sign-in-form");
-  assert(!(await context.cookies(BASE)).some((c) => c.name === "aliquot_session"), "the cookie is still there");
+  assert(!(await context.cookies(BASE)).some((c) => c.name === COOKIE), "the cookie is still there");
   await page.reload();
   await page.waitForSelector("#sign-in-form");
-  // What a browser holds after the coordinator's client token was replaced.
-  await context.addCookies([{ name: "aliquot_session", value: "an-old-client-token-0123456789", url: BASE }]);
+  // What a browser holds after the coordinator restarted (its sessions are in memory), or
+  // after signing out elsewhere: a session id the server no longer knows.
+  await context.addCookies([{ name: COOKIE, value: "0".repeat(64), url: BASE }]);
   await page.reload();
   await page.waitForSelector("#sign-in-form");
   await page.fill("#sign-in-token", clientToken);
