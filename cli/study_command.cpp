@@ -77,6 +77,10 @@ std::vector<std::string> report_pythons(const fs::path& script) {
 
 // The report module's exit status when its interpreter lacks matplotlib or numpy.
 constexpr int kReportLacksModules = 3;
+// Exits 0 when the interpreter can import both, printing nothing either way.
+constexpr const char* kHasReportModules =
+    "import importlib.util as u, sys; "
+    "sys.exit(0 if u.find_spec('numpy') and u.find_spec('matplotlib') else 1)";
 
 struct StudyCommand {
     std::string file;
@@ -142,13 +146,20 @@ private:
     void write_report(const StudyDefinition& def, const StudyScale& sc,
                       const fs::path& dir) {
         const fs::path script = find_report_script(file);
-        int rc = kReportLacksModules;
-        for (const std::string& python : report_pythons(script)) {
-            rc = run_process({python, script.string(), "--db",
-                              (dir / "data" / "aliquot.db").string(), "--study",
-                              study_id(def, sc), "--out", dir.string()});
-            if (rc != kReportLacksModules) break;
+        // The first interpreter that has both modules (asked quietly, so that the ones
+        // without leave no ImportError on the terminal), else the last, whose report
+        // then says what it lacks.
+        const std::vector<std::string> pythons = report_pythons(script);
+        std::string python = pythons.back();
+        for (const std::string& candidate : pythons) {
+            if (run_process({candidate, "-c", kHasReportModules}) == 0) {
+                python = candidate;
+                break;
+            }
         }
+        const int rc = run_process({python, script.string(), "--db",
+                                    (dir / "data" / "aliquot.db").string(), "--study",
+                                    study_id(def, sc), "--out", dir.string()});
         if (rc == kReportLacksModules)
             throw CommandError(
                 "report not written: no python3 here has matplotlib and numpy (run "

@@ -4,8 +4,8 @@ OUT/report.md, OUT/results.csv and OUT/charts/*.svg|png (see docs/STUDIES.md).
 
     aliquot_report.py --db OUT/data/aliquot.db --study NAME@SCALE --out OUT
 
-Exit status 3 when numpy or matplotlib is missing: the study command then tries the next
-python3, and names scripts/install-deps.sh (Debian's python3-matplotlib, python3-numpy).
+Exit status 3 when numpy or matplotlib is missing (the study command runs it with the first
+python3 that has both, and otherwise names scripts/install-deps.sh).
 """
 import argparse
 import csv
