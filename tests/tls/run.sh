@@ -176,12 +176,13 @@ check "a write with Origin https://HOST passes the cross-site check (status $sam
     eval '[[ $same =~ ^[0-9]+$ && $same != 403 && $same != 000 ]]'
 check "a write with Origin http://HOST is refused as cross-site (status $other)" test "$other" = 403
 
-# Signing in over HTTPS sets a cookie the browser will send over HTTPS only.
+# Signing in over HTTPS sets a cookie the browser will send over HTTPS only, named with
+# __Host- and the port (docs/SECURITY.md, "The session cookie").
 cookie=$(curl -sS --max-time 10 --cacert "$TMP/ca.pem" -o /dev/null -D - -X POST \
     -H "Content-Type: application/json" --data "{\"token\": \"$(cat "$DATA/client.token")\"}" \
     "$URL/api/session" | grep -i '^set-cookie:' || true)
 check "signing in over HTTPS sets a Secure, HttpOnly, SameSite=Strict cookie" \
-    eval '[[ $cookie == *aliquot_session=* && $cookie == *Secure* && $cookie == *HttpOnly* && $cookie == *SameSite=Strict* ]]'
+    eval '[[ $cookie == *"__Host-aliquot_session_$HTTP_PORT="* && $cookie == *Secure* && $cookie == *HttpOnly* && $cookie == *SameSite=Strict* ]]'
 
 # The gRPC listener watchdog asks the TLS port as it asks a plaintext one (docs/SECURITY.md).
 check "the gRPC watchdog runs over TLS and never found the port deaf" \
