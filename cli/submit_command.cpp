@@ -8,6 +8,8 @@
 #include "client.h"
 #include "commands.h"
 #include "endpoint_options.h"
+#include "exr_io.h"
+#include "png_output.h"
 #include "progress_bar.h"
 #include "render_json.h"
 #include "render_options.h"
@@ -25,6 +27,7 @@ struct SubmitCommand {
     bool wait = false, json = false, aovs = false;
     std::string out;
     int32_t priority = 0;
+    PngOptions png;
 
     void run() {
         check_render_options(options);
@@ -32,6 +35,9 @@ struct SubmitCommand {
             check_writable(out, "--out");
             wait = true;  // an output file means waiting for the image
         }
+        if (png.png && out.empty())
+            throw UsageError("--png: needs --out, the EXR it goes beside");
+        const std::string png_path = png.path_beside(out);
         v1::SubmitRequest req;
         req.set_scene(options.scene);
         req.set_scene_json(self_contained_scene_json(options.scene));
@@ -68,6 +74,10 @@ struct SubmitCommand {
         });
         bar.finish();
         if (!out.empty()) fetch_image(c, info.id, out, aovs);
+        if (png.png) {
+            write_png(read_exr(out), png.exposure, png_path);
+            if (!json) std::cerr << "wrote " << png_path << std::endl;
+        }
         if (json)
             std::cout << render_detail(info).dump() << std::endl;
         else
@@ -89,6 +99,7 @@ void register_submit(CLI::App& app) {
     cmd->add_flag("--aovs", c->aovs,
                   "add the layers sampleCount.Y and variance.Y to the EXR");
     cmd->add_flag("--json", c->json, "print JSON");
+    c->png.add_to(*cmd);
     cmd->add_option("--priority", c->priority,
                     "leases go to the highest priority first, in submission order within "
                     "one; change it later with `aliquot priority`")

@@ -155,6 +155,8 @@ expect_error "--exposure out of range" 2 "--exposure: must be -20..20" \
     "$aliquot" render --png --exposure 99 --out "$tmp/x.exr"
 expect_error "--png over an --out named .png" 2 "--png: --out" \
     "$aliquot" render --png --out "$tmp/x.png"
+expect_error "submit --png without --out" 2 "--png: needs --out" \
+    "$aliquot" submit --png --coordinator 127.0.0.1:1 --connect-timeout 0
 
 # Usage errors read alike, whoever found them: "aliquot: ", one line, exit status 2, and
 # the nearest known word for a near miss.
@@ -208,8 +210,11 @@ for _ in $(seq 100); do [[ -s $tmp/farm/worker.token ]] && break; sleep 0.1; don
     >"$tmp/worker.log" 2>&1 &
 worker_pid=$!
 id=$(timeout 120 "$aliquot" submit --coordinator "$addr" --token-file "$tmp/farm/client.token" \
-    --scene cornell-box --resolution 24x16 --spp 4 --wait --json 2>/dev/null |
+    --scene cornell-box --resolution 24x16 --spp 4 --out "$tmp/s.exr" --png --json 2>/dev/null |
     python3 -c 'import json, sys; print(json.load(sys.stdin)["id"])')
+[[ -s $tmp/s.exr && $(png_size "$tmp/s.png") == 24x16 ]] &&
+    pass "submit --out --png writes a 24x16 PNG beside the EXR" ||
+    fail "submit --out --png writes a 24x16 PNG beside the EXR"
 out=$("$aliquot" fetch "$id" --coordinator "$addr" --token-file "$tmp/farm/client.token" \
     --out "$tmp/f.exr" --png 2>&1)
 [[ -n $id && -s $tmp/f.exr && $(png_size "$tmp/f.png") == 24x16 && $out == *"wrote $tmp/f.png"* ]] &&
