@@ -162,7 +162,8 @@ public:
 
     // httplib listens with a backlog of 5, compiled in: a burst of connections (a
     // browser opens six at once) overflows it and each one over waits a second or more
-    // for its SYN to be sent again. Listening again on the bound socket sets a deeper one.
+    // for its SYN to be sent again. Listening again on the bound socket sets a deeper
+    // one.
     void deepen_backlog() override { ::listen(this->svr_sock_, SOMAXCONN); }
 
 private:
