@@ -1046,6 +1046,11 @@ struct HttpServer::Impl {
         snapshot(false);  // later updates say what changed since now
         seen_storage_warning = coordinator.storage_warning();
         listener = std::thread([this] { server.listen_after_bind(); });
+        // httplib's stop() does nothing until its listener has begun (is_running): a
+        // server stopped at once would leave that thread in accept() for ever, and stop()
+        // waiting for it. Bounded, should the listener end at once.
+        for (int i = 0; i < 5000 && !server.is_running(); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
         broadcaster = std::thread([this] { broadcast(); });
     }
 
