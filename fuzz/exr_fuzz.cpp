@@ -4,6 +4,7 @@
 // a crash, nor an allocation the budget does not allow.
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "exr_io.h"
@@ -17,7 +18,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         try {
             const aliquot::Image image = aliquot::decode_exr(
                 bytes, "fuzz",
-                expected ? std::optional(aliquot::ExrSize{16, 16}) : std::nullopt, kBudget);
+                expected ? std::optional(aliquot::ExrSize{16, 16}) : std::nullopt,
+                kBudget);
             if (image.rgb.size() != image.pixel_count() * 3) __builtin_trap();
         } catch (const aliquot::ImageFileError&) {
         }
