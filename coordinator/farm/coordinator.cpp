@@ -954,7 +954,8 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
 Registration Coordinator::register_session(const std::string& name, uint32_t threads,
                                            std::string identity, bool trusted) {
     std::lock_guard lock(mutex_);
-    // First: a refused registration changes nothing.
+    // First: a refused registration adds nothing (the silent session or worker one of
+    // these dropped before the other refused stays dropped).
     make_room_for_a_session();
     make_room_for_a_worker(name);
     WorkerEntry& w = touch_worker(name);
