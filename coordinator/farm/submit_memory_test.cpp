@@ -3,6 +3,7 @@
 // on (issue 30, item 7).
 #include "coordinator.h"
 #include "failing_allocator.h"
+#include "mesh_scene_text.h"
 
 #include <gtest/gtest.h>
 
@@ -10,18 +11,6 @@
 
 namespace aliquot {
 namespace {
-
-// A valid scene of 20,000 triangles: its JSON array alone takes 512 KiB parsed.
-std::string large_scene() {
-    std::string text =
-        R"({"camera": {"position": [0, 0, 3.9], "target": [0, 0, 0], "up": [0, 1, 0],)"
-        R"( "fov": 39}, "materials": {"white": {"type": "diffuse", "reflectance": )"
-        R"([0.5, 0.5, 0.5]}}, "shapes": [{"type": "mesh", "material": "white", )"
-        R"("emission": [1, 1, 1], "positions": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], )"
-        R"("triangles": [)";
-    for (int i = 0; i < 20000; ++i) text += i ? ",[0,1,2]" : "[0,1,2]";
-    return text + "]}]}";
-}
 
 // prlimit --as=1300000000 and a 4 MB scene of 515k triangles: SIGABRT in
 // parse_submitted_scene, the coordinator gone.
@@ -31,7 +20,7 @@ TEST(SubmitOutOfMemory, ASceneThatDoesNotFitFailsItsSubmissionOnly) {
     Coordinator coordinator(options);
     RenderSpec spec;
     spec.scene_name = "large";
-    spec.scene_json = large_scene();
+    spec.scene_json = testing::mesh_scene_text(20000);
     spec.width = spec.height = 8;
     spec.strategy.method = "uniform";
     spec.strategy.spp = 1;

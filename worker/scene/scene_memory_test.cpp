@@ -1,6 +1,7 @@
 // Out of memory while a scene from another machine is parsed: the parse fails with
 // std::bad_alloc and the process goes on (issue 30, item 7).
 #include "failing_allocator.h"
+#include "mesh_scene_text.h"
 #include "scene_loader.h"
 
 #include <gtest/gtest.h>
@@ -11,25 +12,13 @@
 namespace aliquot {
 namespace {
 
-// An emissive mesh of `triangles` triangles, as a submitted scene carries it inline.
-std::string mesh_scene(int triangles) {
-    std::string text =
-        R"({"camera": {"position": [0, 0, 3.9], "target": [0, 0, 0], "up": [0, 1, 0],)"
-        R"( "fov": 39}, "materials": {"white": {"type": "diffuse", "reflectance": )"
-        R"([0.5, 0.5, 0.5]}}, "shapes": [{"type": "mesh", "material": "white", )"
-        R"("emission": [1, 1, 1], "positions": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], )"
-        R"("triangles": [)";
-    for (int i = 0; i < triangles; ++i) text += i ? ",[0,1,2]" : "[0,1,2]";
-    return text + "]}]}";
-}
-
 // prlimit --as=1300000000 and a 4 MB scene of 515k triangles: SIGABRT in
 // parse_submitted_scene. The parse threw std::bad_alloc, and destroying the half-built
 // JSON (nlohmann's noexcept destructor allocates a stack the size of the largest array)
 // failed again: std::terminate. Each cap here fails the parse at another place; the
 // process must survive every one (run apart, so that an abort fails this test only).
 TEST(SubmittedScenesOutOfMemory, FailWithBadAllocAndNeverAbort) {
-    const std::string text = mesh_scene(20000);
+    const std::string text = testing::mesh_scene_text(20000);
     ASSERT_NO_THROW(parse_submitted_scene(text, "scene:h"));  // with memory enough
     for (const size_t cap : {size_t(512), size_t(4) << 10, size_t(64) << 10,
                              size_t(256) << 10, size_t(320) << 10}) {
