@@ -80,23 +80,34 @@ size_t small_body_length(std::string_view head, size_t max_small_body) {
 
 // ---- FrontConnection ----
 
+namespace {
+
+// An IPv4 or IPv6 socket address as httplib's Request spells it: the address in text and
+// the port; anything else leaves both as they were.
+void address_text(const sockaddr_storage& addr, std::string& ip, int& port) {
+    char text[INET6_ADDRSTRLEN] = {};
+    if (addr.ss_family == AF_INET) {
+        const auto* a = reinterpret_cast<const sockaddr_in*>(&addr);
+        ::inet_ntop(AF_INET, &a->sin_addr, text, sizeof text);
+        port = ntohs(a->sin_port);
+    } else if (addr.ss_family == AF_INET6) {
+        const auto* a = reinterpret_cast<const sockaddr_in6*>(&addr);
+        ::inet_ntop(AF_INET6, &a->sin6_addr, text, sizeof text);
+        port = ntohs(a->sin6_port);
+    } else {
+        return;
+    }
+    ip = text;
+}
+
+}  // namespace
+
 FrontConnection::FrontConnection(int fd, SSL* ssl, const FrontLimits& limits)
     : fd_(fd), ssl_(ssl), limits_(limits) {
     sockaddr_storage addr{};
     socklen_t len = sizeof addr;
-    if (::getpeername(fd_, reinterpret_cast<sockaddr*>(&addr), &len) == 0) {
-        char text[INET6_ADDRSTRLEN] = {};
-        if (addr.ss_family == AF_INET) {
-            const auto* a = reinterpret_cast<const sockaddr_in*>(&addr);
-            ::inet_ntop(AF_INET, &a->sin_addr, text, sizeof text);
-            peer_port_ = ntohs(a->sin_port);
-        } else if (addr.ss_family == AF_INET6) {
-            const auto* a = reinterpret_cast<const sockaddr_in6*>(&addr);
-            ::inet_ntop(AF_INET6, &a->sin6_addr, text, sizeof text);
-            peer_port_ = ntohs(a->sin6_port);
-        }
-        peer_ip_ = text;
-    }
+    if (::getpeername(fd_, reinterpret_cast<sockaddr*>(&addr), &len) == 0)
+        address_text(addr, peer_ip_, peer_port_);
 }
 
 FrontConnection::~FrontConnection() {
@@ -316,18 +327,8 @@ void FrontConnection::get_remote_ip_and_port(std::string& ip, int& port) const {
 void FrontConnection::get_local_ip_and_port(std::string& ip, int& port) const {
     sockaddr_storage addr{};
     socklen_t len = sizeof addr;
-    if (::getsockname(fd_, reinterpret_cast<sockaddr*>(&addr), &len) != 0) return;
-    char text[INET6_ADDRSTRLEN] = {};
-    if (addr.ss_family == AF_INET) {
-        const auto* a = reinterpret_cast<const sockaddr_in*>(&addr);
-        ::inet_ntop(AF_INET, &a->sin_addr, text, sizeof text);
-        port = ntohs(a->sin_port);
-    } else if (addr.ss_family == AF_INET6) {
-        const auto* a = reinterpret_cast<const sockaddr_in6*>(&addr);
-        ::inet_ntop(AF_INET6, &a->sin6_addr, text, sizeof text);
-        port = ntohs(a->sin6_port);
-    }
-    ip = text;
+    if (::getsockname(fd_, reinterpret_cast<sockaddr*>(&addr), &len) == 0)
+        address_text(addr, ip, port);
 }
 
 // ---- HttpFront ----
