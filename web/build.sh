@@ -10,12 +10,20 @@ if ! command -v npm >/dev/null 2>&1; then
     exit 1
 fi
 
+fail() {
+    echo "web/build.sh: $*; the dashboard is not built" >&2
+    exit 1
+}
+
 if [[ ! -f node_modules/.package-lock.json || package-lock.json -nt node_modules/.package-lock.json ]]; then
     # Some npm 11 releases refuse `npm ci` on this lock file, reporting rollup's optional
     # per-platform packages as missing although they are in it; `npm install` then installs
-    # the same locked versions.
-    npm ci --no-audit --no-fund --loglevel=error 2>/dev/null ||
-        npm install --no-audit --no-fund --loglevel=error
+    # the same locked versions. npm's own words are shown either way: a network or
+    # registry failure must be readable where it happened.
+    if ! npm ci --no-audit --no-fund --loglevel=error; then
+        echo "web/build.sh: npm ci failed (above); trying npm install with the same lock file" >&2
+        npm install --no-audit --no-fund --loglevel=error || fail "npm install failed (above)"
+    fi
 fi
 
 stamp=dist/index.html
@@ -23,4 +31,5 @@ if [[ -f $stamp ]] && [[ -z $(find index.html src package.json package-lock.json
         tsconfig.json -newer "$stamp" -print -quit) ]]; then
     exit 0
 fi
-npm run --silent build
+npm run --silent build || fail "npm run build failed (above)"
+[[ -f $stamp ]] || fail "the build wrote no $stamp"
