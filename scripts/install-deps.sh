@@ -41,6 +41,10 @@ test_packages=(
     python3-prometheus-client python3-grpcio python3-protobuf
     # tests/tls/run.sh: a throwaway CA and certificates, and HTTPS requests.
     openssl curl
+    # tests/net: network namespaces, veth pairs and a bridge (ip), packet loss and partitions
+    # (iptables' statistic match and DROP), Toxiproxy built with Debian's Go (below), which
+    # builds kubeconform for tests/compose too.
+    iproute2 iptables golang-go
     # tests/cli/render_test.sh: an --aovs EXR as a tool reads it (`oiiotool --info -v`).
     openimageio-tools
     # scripts/fuzz.sh: clang, and the compiler-rt archives that carry libFuzzer
@@ -55,9 +59,6 @@ if [[ $mode == all ]]; then
     # The dashboard's build (web/build.sh) needs Node and npm; a machine that has its own
     # Node keeps it.
     command -v node >/dev/null 2>&1 || packages+=(nodejs npm)
-    # The Kubernetes manifest check builds kubeconform with Go; a machine with its own Go
-    # keeps it.
-    command -v go >/dev/null 2>&1 || packages+=(golang-go)
 fi
 
 missing=()
@@ -71,4 +72,28 @@ if ((${#missing[@]})); then
     "${sudo_cmd[@]}" apt-get update -qq
     DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq \
         ${install_options[@]+"${install_options[@]}"} "${missing[@]}"
+fi
+
+# Toxiproxy (Shopify's TCP proxy with latency, jitter and cuts) for tests/net, built from the
+# Go module proxy with Debian's Go into build/tools, once per version: v2.8.0 is the newest
+# whose go.mod bookworm's Go 1.19 accepts (v2.9.0 asks for 1.22). Debian's go by its own path,
+# since a Go of the machine's may come first on PATH; GOROOT unset for the same reason.
+if [[ $mode == all ]]; then
+    toxiproxy_version=v2.8.0
+    tools=$(cd "$(dirname "$0")/.." && pwd)/build/tools
+    toxiproxy=$tools/toxiproxy-$toxiproxy_version/toxiproxy-server
+    if [[ ! -x $toxiproxy ]]; then
+        echo "building toxiproxy-server $toxiproxy_version into build/tools" >&2
+        go=go
+        [[ -x /usr/bin/go ]] && go=/usr/bin/go  # golang-go's
+        gobin=$(mktemp -d)
+        env -u GOROOT GOPATH="$tools/go" GOCACHE="$tools/go/cache" GOBIN="$gobin" \
+            GOFLAGS="-modcacherw -buildvcs=false" GOTOOLCHAIN=local \
+            "$go" install "github.com/Shopify/toxiproxy/v2/cmd/server@$toxiproxy_version"
+        mkdir -p "$(dirname "$toxiproxy")"
+        mv "$gobin/server" "$toxiproxy"
+        rmdir "$gobin"
+    fi
+    mkdir -p "$tools/bin"
+    ln -sfn "../toxiproxy-$toxiproxy_version/toxiproxy-server" "$tools/bin/toxiproxy-server"
 fi

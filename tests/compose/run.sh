@@ -189,7 +189,7 @@ NOT_FOR_THE_IMAGE = {"git", "sqlite3", "python3", "python3-venv", "python3-pip",
                      "python3-matplotlib", "python3-numpy",
                      "golang-go", "clang", "clang-format", "libclang-rt-14-dev", "openssl", "curl",
                      "python3-prometheus-client", "python3-grpcio", "python3-protobuf",
-                     "openimageio-tools"}
+                     "openimageio-tools", "iproute2", "iptables"}
 # Built only with -DALIQUOT_FUZZ=ON, by scripts/fuzz.sh.
 DIRS_NOT_FOR_THE_IMAGE = {"fuzz"}
 dockerfile = open("deploy/Dockerfile").read()
