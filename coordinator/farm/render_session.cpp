@@ -83,7 +83,7 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
         }
         if (next_spp_) break;
         // The jobs' rectangles now, their contents when each is first leased (issue).
-        rects = round_tiles(*round, merged_.width(), merged_.height());
+        rects = round_tiles(*round, merged_.width(), merged_.height(), 0, min_jobs_);
         if (!rects.empty()) break;
     }
     // The ended round's jobs lend their vectors to the next round's (cut_job).
@@ -167,7 +167,7 @@ void RenderSession::open_next_round() {
     }
     const std::vector<uint32_t>* spp = strategy_->round_planned_ahead();
     const std::vector<PixelRect> rects =
-        spp ? round_tiles(*spp, merged_.width(), merged_.height())
+        spp ? round_tiles(*spp, merged_.width(), merged_.height(), 0, min_jobs_)
             : std::vector<PixelRect>{};
     end_plan_wait(!rects.empty());
     if (rects.empty()) return;

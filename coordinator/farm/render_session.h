@@ -19,6 +19,7 @@
 #include "lease.h"
 #include "render_spec.h"
 #include "render_state.h"
+#include "round_cutter.h"
 #include "strategy.h"
 
 namespace aliquot {
@@ -86,6 +87,10 @@ public:
     // the worker's.
     bool fail_job(uint64_t lease_id, const std::string& worker, const std::string& reason,
                   const std::set<std::string>& alive, const FailurePolicy& policy);
+    // The farm's live worker cores: the rounds cut from now on get at least two jobs a
+    // core (round_cutter.h, min_jobs_for_cores). Which job a pixel's samples travel in
+    // never changes a bit of the image.
+    void set_worker_cores(size_t cores) { min_jobs_ = min_jobs_for_cores(cores); }
     // Whether `lease_id` is out now (issued, not yet merged, expired or given back).
     bool holds(uint64_t lease_id) const { return lease_to_job_.count(lease_id) > 0; }
     // Failures of `worker` on this render's jobs.
@@ -199,6 +204,7 @@ private:
 
     uint32_t round_index_ = 0;
     uint64_t round_samples_ = 0;
+    size_t min_jobs_ = kMinJobsPerRound;  // a round's jobs at least (set_worker_cores)
     // The round out: its jobs are cut from it as they are first leased (round_cutter.h),
     // into the vectors of the round before's (spare_).
     Round round_;

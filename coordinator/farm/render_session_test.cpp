@@ -91,6 +91,25 @@ TEST_F(RenderSessionTest, RunsRoundsUntilTheStrategyIsDone) {
     for (size_t i = 0; i < rounds.size(); ++i) EXPECT_EQ(rounds[i].index, i);
 }
 
+// A farm of 32 worker cores: the round is cut into at least 64 jobs, where the cut for a
+// few workers (tiles of 64 on 256x256, 28 jobs) would leave half of them idle.
+TEST_F(RenderSessionTest, ARoundIsCutIntoTwoJobsALiveWorkerCore) {
+    spec.width = spec.height = 256;  // uniform, 8 spp: one round
+    const auto jobs_of_first_round = [&](size_t cores) {
+        RenderSession s("r", spec, 0);
+        if (cores) s.set_worker_cores(cores);
+        s.start();
+        size_t jobs = 0;
+        uint64_t samples = 0;
+        while (auto job = s.issue(jobs + 1, "w", far))
+            ++jobs, samples += samples_of(*job);
+        EXPECT_EQ(samples, 8u * 256 * 256);
+        return jobs;
+    };
+    EXPECT_EQ(jobs_of_first_round(0), 28u);
+    EXPECT_GE(jobs_of_first_round(32), 64u);
+}
+
 TEST_F(RenderSessionTest, ReissuesAnExpiredLeaseAndIgnoresItsLateResult) {
     RenderSession s("r", spec, 0);
     s.start();

@@ -72,35 +72,10 @@ std::array<PixelRect, 4> quadrants_of(const PixelRect& r) {
             PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}};
 }
 
-}  // namespace
-
-std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
-                                   uint32_t h, uint32_t tile) {
-    const size_t n = size_t(w) * h;
-    if (tile == 0) {
-        // Mean over the pixels that get samples, so a round that refines a small area is
-        // cut by the density it actually has there.
-        std::vector<std::pair<size_t, uint64_t>> band(band_count(n, kBandPixels));
-        for_each_band(n, kBandPixels, [&](size_t b, size_t begin, size_t end) {
-            size_t active = 0;
-            uint64_t total = 0;
-            for (size_t i = begin; i < end; ++i) {
-                active += spp[i] > 0;
-                total += spp[i];
-            }
-            band[b] = {active, total};
-        });
-        size_t active = 0;
-        uint64_t total = 0;
-        for (const auto& [a, t] : band) active += a, total += t;
-        tile = job_tile_side(active ? double(total) / double(active) : 1.0);
-        // Enough jobs to keep several workers' threads busy even on a small image.
-        while (tile > kMinAutoTile && tile_count(w, h, tile) < kMinJobsPerRound)
-            tile /= 2;
-    } else {
-        tile = uint32_t(std::min<uint64_t>(
-            (uint64_t(tile) + kCellSide - 1) / kCellSide * kCellSide, uint64_t(1) << 31));
-    }
+// The jobs of tiles of side `tile`: the tiles that hold samples, the last quarter of
+// them in quadrants.
+std::vector<PixelRect> tiles_of_side(const std::vector<uint32_t>& spp, uint32_t w,
+                                     uint32_t h, uint32_t tile) {
     const uint32_t across = (w + tile - 1) / tile, down = (h + tile - 1) / tile;
     const auto rect_of = [&](size_t t) {
         const uint32_t x0 = uint32_t(t % across) * tile, y0 = uint32_t(t / across) * tile;
@@ -146,6 +121,47 @@ std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
         for (int i = 0; i < 4; ++i)
             if (q[i].width > 0 && q[i].height > 0 && holds[4 * kept[k] + i])
                 rects.push_back(q[i]);
+    }
+    return rects;
+}
+
+}  // namespace
+
+std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t w,
+                                   uint32_t h, uint32_t tile, size_t min_jobs) {
+    const size_t n = size_t(w) * h;
+    const bool automatic = tile == 0;
+    if (automatic) {
+        // Mean over the pixels that get samples, so a round that refines a small area is
+        // cut by the density it actually has there.
+        std::vector<std::pair<size_t, uint64_t>> band(band_count(n, kBandPixels));
+        for_each_band(n, kBandPixels, [&](size_t b, size_t begin, size_t end) {
+            size_t active = 0;
+            uint64_t total = 0;
+            for (size_t i = begin; i < end; ++i) {
+                active += spp[i] > 0;
+                total += spp[i];
+            }
+            band[b] = {active, total};
+        });
+        size_t active = 0;
+        uint64_t total = 0;
+        for (const auto& [a, t] : band) active += a, total += t;
+        tile = job_tile_side(active ? double(total) / double(active) : 1.0);
+        // Enough jobs to keep several workers' threads busy even on a small image.
+        while (tile > kMinAutoTile && tile_count(w, h, tile) < min_jobs) tile /= 2;
+    } else {
+        tile = uint32_t(std::min<uint64_t>(
+            (uint64_t(tile) + kCellSide - 1) / kCellSide * kCellSide, uint64_t(1) << 31));
+    }
+    std::vector<PixelRect> rects = tiles_of_side(spp, w, h, tile);
+    // A round with fewer jobs than the farm has worker cores leaves some idle from its
+    // start, and one with about as many idles most of them through its tail: smaller
+    // tiles while there are fewer jobs than asked for (a round that refines a small area
+    // skips most tiles, which the count of the image's tiles above cannot see).
+    while (automatic && rects.size() < min_jobs && tile > kMinAutoTile) {
+        tile /= 2;
+        rects = tiles_of_side(spp, w, h, tile);
     }
     return rects;
 }

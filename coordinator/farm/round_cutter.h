@@ -2,6 +2,7 @@
 // the number it already has, so sample indices never repeat across rounds.
 #pragma once
 
+#include <algorithm>
 #include <vector>
 
 #include "accumulator.h"
@@ -11,9 +12,9 @@ namespace aliquot {
 
 // Tiles of `tile` x `tile` pixels (smaller at the edges); tiles with no samples are
 // skipped. With tile 0 the side follows the round's mean spp (see job_tile_side), halved
-// while the image has fewer than kMinJobsPerRound tiles. Jobs are in issue order; the
-// last quarter of the tiles is cut into quadrants so that the round's end waits on small
-// jobs.
+// while the round would have fewer jobs than asked (round_tiles' min_jobs). Jobs are in
+// issue order; the last quarter of the tiles is cut into quadrants so that the round's
+// end waits on small jobs.
 //
 // Every rectangle is cut on the grid of cells the tracer batches by (kCellSide in
 // sample_job.h), so that how a round is cut never changes a bit of the image: an explicit
@@ -32,11 +33,21 @@ std::vector<SampleJob> cut_round(const Round& round, const Accumulator& merged,
 
 // cut_round in two steps. The rectangles of the round's jobs, in issue order (one pass
 // over the round's counts)...
+// With automatic tiles (0), tiles are halved (down to kMinAutoTile) while the round
+// has fewer than `min_jobs` jobs: the farm asks for two a live worker core
+// (min_jobs_for_cores), so that no core idles through a round for want of a job.
 std::vector<PixelRect> round_tiles(const std::vector<uint32_t>& spp, uint32_t width,
-                                   uint32_t height, uint32_t tile = 0);
+                                   uint32_t height, uint32_t tile = 0,
+                                   size_t min_jobs = kMinJobsPerRound);
 inline std::vector<PixelRect> round_tiles(const Round& round, uint32_t width,
-                                          uint32_t height, uint32_t tile = 0) {
-    return round_tiles(round.spp, width, height, tile);
+                                          uint32_t height, uint32_t tile = 0,
+                                          size_t min_jobs = kMinJobsPerRound) {
+    return round_tiles(round.spp, width, height, tile, min_jobs);
+}
+// Jobs a round should have for a farm of `cores` live worker cores: two each (one traced,
+// one waiting), and never fewer than kMinJobsPerRound.
+inline size_t min_jobs_for_cores(size_t cores) {
+    return std::max(kMinJobsPerRound, 2 * cores);
 }
 // ...and one job, its counts and first sample indices. The farm cuts each job when it is
 // first leased, not all at the round's end: the jobs of a round cover disjoint pixels, so

@@ -246,5 +246,56 @@ TEST(RoundCutter, AJobOfTheRoundAfterIsTheSameCutBeforeOrAfterTheRoundOutMerges)
     }
 }
 
+// Every pixel with samples in exactly one job, each job on the cell grid: what a cut may
+// change without changing a bit of the image.
+void expect_cut_on_cells_covering(const std::vector<PixelRect>& rects,
+                                  const std::vector<uint32_t>& spp, uint32_t w) {
+    std::vector<int> covered(spp.size(), 0);
+    for (const PixelRect& r : rects) {
+        EXPECT_EQ(r.x % kCellSide, 0u);
+        EXPECT_EQ(r.y % kCellSide, 0u);
+        for (uint32_t y = r.y; y < r.y + r.height; ++y)
+            for (uint32_t x = r.x; x < r.x + r.width; ++x) ++covered[size_t(y) * w + x];
+    }
+    for (size_t i = 0; i < spp.size(); ++i)
+        if (spp[i]) ASSERT_EQ(covered[i], 1) << i;
+}
+
+// A farm of 256 worker cores at 1920x1080: a round of 2 spp (tiles of 128, 135 of them)
+// is cut finer, into at least two jobs a core.
+TEST(RoundCutter, ARoundHasAtLeastTwoJobsAWorkerCore) {
+    const uint32_t w = 1920, h = 1080;
+    const std::vector<uint32_t> spp(size_t(w) * h, 2);
+    ASSERT_LT(round_tiles(spp, w, h).size(), 512u);
+    for (const size_t cores : {1u, 8u, 64u, 256u}) {
+        const std::vector<PixelRect> rects =
+            round_tiles(spp, w, h, 0, min_jobs_for_cores(cores));
+        EXPECT_GE(rects.size(), 2 * cores) << cores << " cores";
+        expect_cut_on_cells_covering(rects, spp, w);
+    }
+    EXPECT_EQ(min_jobs_for_cores(3), kMinJobsPerRound);  // never fewer than before
+}
+
+// A steered round that refines a small area skips most tiles: the count of the image's
+// tiles says 16 are enough, the jobs it leaves are two. Smaller tiles until there are
+// enough jobs, down to kMinAutoTile.
+TEST(RoundCutter, ARoundOnASmallAreaIsCutIntoEnoughJobs) {
+    const uint32_t w = 512, h = 512;
+    std::vector<uint32_t> spp(size_t(w) * h, 0);
+    for (uint32_t y = 200; y < 296; ++y)
+        for (uint32_t x = 100; x < 196; ++x) spp[size_t(y) * w + x] = 4;
+    const std::vector<PixelRect> rects = round_tiles(spp, w, h, 0, min_jobs_for_cores(8));
+    EXPECT_GE(rects.size(), 16u);
+    expect_cut_on_cells_covering(rects, spp, w);
+    // 64 cores want 128 jobs; the area holds 49 tiles of 16, the least side cut to.
+    const std::vector<PixelRect> finest =
+        round_tiles(spp, w, h, 0, min_jobs_for_cores(64));
+    for (const PixelRect& r : finest) EXPECT_LE(r.width, kMinAutoTile);
+    expect_cut_on_cells_covering(finest, spp, w);
+    // An explicit tile is kept whatever the farm.
+    EXPECT_EQ(round_tiles(spp, w, h, 64, min_jobs_for_cores(64)),
+              round_tiles(spp, w, h, 64));
+}
+
 }  // namespace
 }  // namespace aliquot
