@@ -24,6 +24,19 @@ export interface RenderSummary {
   error?: string;
   buckets_converged?: number;
   buckets_total?: number;
+  /** What `submit --name` or the form named it; absent or "" when unnamed. */
+  name?: string;
+  /** While queued (no job leased yet): 1 = next to start. */
+  queue_position?: number;
+  priority?: number;
+}
+
+/** One line of a render's log (GET /api/renders/{id}/events). */
+export interface RenderEvent {
+  time_ms?: number;
+  event?: string;
+  message?: string;
+  [key: string]: unknown;
 }
 
 export interface RenderDetail extends RenderSummary {
@@ -58,6 +71,11 @@ export interface Worker {
   samples_traced: number;
   samples_per_second: number;
   last_seen_ms: number;
+  /** What the worker said when it registered: its machine and its release. */
+  host?: string;
+  version?: string;
+  /** Jobs it reported failed. */
+  failures?: number;
 }
 
 export interface PixelMap {
@@ -104,6 +122,7 @@ export interface SubmitRequest {
   resolution: string;
   seed: string;
   strategy: Record<string, number | string>;
+  name?: string;
 }
 
 export class ApiError extends Error {
@@ -156,6 +175,12 @@ export async function postJSON<T>(path: string, body?: unknown): Promise<T> {
   );
 }
 
+export async function patchJSON<T>(path: string, body: unknown): Promise<T> {
+  return parse<T>(
+    await fetch(path, { method: "PATCH", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) }),
+  );
+}
+
 export async function deleteJSON<T>(path: string): Promise<T> {
   return parse<T>(
     await fetch(path, { method: "DELETE", headers: { "Content-Type": "application/json" }, body: "{}" }),
@@ -175,6 +200,16 @@ export const api = {
   render: (id: string) => getJSON<RenderDetail>(`/api/renders/${enc(id)}`),
   submit: (req: SubmitRequest) => postJSON<RenderDetail>("/api/renders", req),
   cancel: (id: string) => postJSON<RenderDetail>(`/api/renders/${enc(id)}/cancel`),
+  setPriority: (id: string, priority: number) => patchJSON<RenderDetail>(`/api/renders/${enc(id)}`, { priority }),
+  /** Deletes a finished render, its files and rows (204). */
+  remove: (id: string) => deleteJSON<null>(`/api/renders/${enc(id)}`),
+  /** The render's log; an ApiError with status 404 from a coordinator without one. */
+  events: (id: string) => getJSON<{ events: RenderEvent[] }>(`/api/renders/${enc(id)}/events`),
+  thumbnailUrl: (id: string, version: number) => `/api/renders/${enc(id)}/thumbnail.png?v=${version}`,
+  exrUrl: (id: string) => `/api/renders/${enc(id)}/image.exr`,
+  /** The whole image as an 8-bit sRGB PNG at the render's own size. */
+  pngUrl: (id: string, width: number, height: number, exposure = 0) =>
+    `/api/renders/${enc(id)}/preview.png?exposure=${exposure}&size=${Math.min(8192, Math.max(16, width, height))}`,
   /** Every round from `since` on, following the server's pages of up to 1000. */
   rounds: async (id: string, since = 0): Promise<{ rounds: RoundRow[]; count: number }> => {
     const out: RoundRow[] = [];

@@ -1,0 +1,43 @@
+import { describe, expect, it } from "vitest";
+import { logRange, pilotRounds, pilotSamples, positiveExtent } from "./axes";
+
+describe("axes fitted to the render", () => {
+  it("a 268 M-sample, 140 s render is not drawn to 1 G samples and 16 minutes", () => {
+    const [lo, hi] = logRange(2e6, 268e6);
+    expect(hi).toBeGreaterThan(268e6);
+    expect(hi).toBeLessThan(400e6);
+    expect(lo).toBeLessThan(2e6);
+    expect(lo).toBeGreaterThan(1e6);
+    const [, t] = logRange(3, 140);
+    expect(t).toBeGreaterThan(140);
+    expect(t).toBeLessThan(200);
+  });
+  it("gives one point or a flat curve an axis around it", () => {
+    const [lo, hi] = logRange(50, 50);
+    expect(lo).toBeLessThan(50);
+    expect(hi).toBeGreaterThan(50);
+    expect(Math.log10(hi / lo)).toBeGreaterThanOrEqual(0.3 - 1e-9);
+  });
+  it("survives nothing to show", () => {
+    expect(logRange(0, 0)).toEqual([1, 10]);
+    expect(logRange(NaN, 5)).toEqual([1, 10]);
+    expect(positiveExtent([null, 0, -1], [])).toBeNull();
+    expect(positiveExtent([3, null, 1], [7, NaN])).toEqual([1, 7]);
+  });
+});
+
+describe("the pilot", () => {
+  const optimal = { method: "optimal", width: 96, height: 96, samples_planned: 589824, strategy: { spp: 64, budget: 0, min_spp: 4, floor_fraction: 0.5 } };
+  it("is half the budget by default", () => {
+    expect(pilotSamples(optimal)).toBe(32 * 96 * 96);
+  });
+  it("is at least min_spp a pixel, and only the optimal methods have one", () => {
+    expect(pilotSamples({ ...optimal, strategy: { spp: 64, min_spp: 8, floor_fraction: 0 } })).toBe(8 * 96 * 96);
+    expect(pilotSamples({ ...optimal, method: "uniform" })).toBeNull();
+  });
+  it("covers the leading rounds that end within it (a split pilot is two)", () => {
+    // The probe render of issue 32: rounds of 147456, 147456, 147456, 73728, ...
+    expect(pilotRounds([147456, 294912, 442368, 516096], 294912)).toBe(2);
+    expect(pilotRounds([147456], null)).toBe(0);
+  });
+});

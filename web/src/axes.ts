@@ -1,0 +1,61 @@
+// Chart ranges fitted to the render: uPlot's own log scales snap to whole decades, which
+// drew a 268 M-sample, 140 s render on axes running to 1 G samples and 16 minutes. And the
+// optimal methods' pilot, which is half the budget by default: where it ends, so that the
+// charts can show it while it runs.
+import type { RenderDetail } from "./api";
+
+/**
+ * A log-scale range around [lo, hi] with `pad` of the span (in decades) on each side and
+ * at least `minDecades` in all, so one point or a flat curve still gets an axis.
+ */
+export function logRange(lo: number, hi: number, pad = 0.06, minDecades = 0.3): [number, number] {
+  if (!(lo > 0) || !(hi > 0) || !Number.isFinite(lo) || !Number.isFinite(hi)) return [1, 10];
+  if (lo > hi) [lo, hi] = [hi, lo];
+  let a = Math.log10(lo);
+  let b = Math.log10(hi);
+  if (b - a < minDecades) {
+    const mid = (a + b) / 2;
+    a = mid - minDecades / 2;
+    b = mid + minDecades / 2;
+  }
+  const p = (b - a) * pad;
+  return [10 ** (a - p), 10 ** (b + p)];
+}
+
+/** The smallest and largest positive finite values, or null when there is none. */
+export function positiveExtent(...lists: (number | null | undefined)[][]): [number, number] | null {
+  let lo = Infinity;
+  let hi = -Infinity;
+  for (const list of lists)
+    for (const v of list)
+      if (v !== null && v !== undefined && Number.isFinite(v) && v > 0) {
+        lo = Math.min(lo, v);
+        hi = Math.max(hi, v);
+      }
+  return lo <= hi ? [lo, hi] : null;
+}
+
+/**
+ * The samples the pilot of an `optimal` or `optimal-time` render traces
+ * (docs/STRATEGIES.md: `max(min_spp, ⌊floor_fraction × budget / pixels⌋)` a pixel), or
+ * null for other methods.
+ */
+export function pilotSamples(r: Pick<RenderDetail, "method" | "width" | "height" | "strategy" | "samples_planned">): number | null {
+  if (r.method !== "optimal" && r.method !== "optimal-time") return null;
+  const s = r.strategy ?? {};
+  const pixels = r.width * r.height;
+  if (!pixels) return null;
+  const num = (k: string, d: number) => (typeof s[k] === "number" ? (s[k] as number) : d);
+  const budget = num("budget", 0) || num("spp", 0) * pixels || r.samples_planned;
+  if (!budget) return null;
+  const spp = Math.max(num("min_spp", 4), Math.floor((num("floor_fraction", 0.5) * budget) / pixels));
+  return Math.min(budget, spp * pixels);
+}
+
+/** How many of the leading rounds are the pilot's: those that end within its samples. */
+export function pilotRounds(totals: number[], pilot: number | null): number {
+  if (!pilot) return 0;
+  let n = 0;
+  while (n < totals.length && totals[n] <= pilot) n++;
+  return n;
+}
