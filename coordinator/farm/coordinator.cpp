@@ -198,6 +198,8 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     slot->number = submissions_++;
     order_.push_back(s->id());
     sessions_[s->id()] = std::move(slot);
+    alive_workers();  // brings alive_cores_ up to date: the first round is cut for them
+    s->set_worker_cores(alive_cores_);
     s->start();
     if (store_ && s->state() == RenderState::Running) {
         backlog_.submit("record " + s->id() + " as running", [this, id = s->id()] {
@@ -836,6 +838,8 @@ std::shared_ptr<const std::set<std::string>> Coordinator::alive_workers() {
         alive_snapshot_ = std::make_shared<const std::set<std::string>>(hosts);
         hosts.insert(kAnotherHost);
         alive_and_another_ = std::make_shared<const std::set<std::string>>(hosts);
+        alive_cores_ = 0;
+        for (const std::string& name : alive_) alive_cores_ += workers_.at(name).threads;
         alive_dirty_ = false;
     }
     return alive_snapshot_;
@@ -993,6 +997,7 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
         const uint64_t seen = version_;
         const std::vector<SlotPtr> slots = slots_by_priority();
         const std::shared_ptr<const std::set<std::string>> alive = alive_workers();
+        const size_t cores = alive_cores_;
         // Reserved now, so that no other lease takes the id while the lock is let go.
         const uint64_t lease_id = new_lease_id();
         lease_render_[lease_id] = {"", session};
@@ -1007,6 +1012,7 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
         auto try_issue = [&](RenderSlot& slot) {
             RenderSession& s = *slot.session;
             if (s.state() != RenderState::Running || !s.has_pending()) return;
+            s.set_worker_cores(cores);  // a round opened ahead here is cut for them
             std::optional<SampleJob> job = s.issue(
                 lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
                 *alive, options_.failure_policy);
@@ -1057,6 +1063,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     SessionEntry caller;
     SlotPtr slot;
     std::shared_ptr<const std::set<std::string>> alive;
+    size_t cores = 0;
     {
         std::lock_guard lock(mutex_);
         caller = worker_of_session(session);
@@ -1071,6 +1078,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         lease_render_.erase(it);  // whatever the outcome, this lease has ended
         if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
         alive = alive_for_failures_of(caller);  // a rejected result counts as a failure
+        cores = alive_cores_;
     }
     // The merge, and when this is the round's last job the round's end, under the
     // render's lock alone.
@@ -1088,6 +1096,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         // counts. Another render's round end running meanwhile would be counted here as
         // well; farm_scale runs one render.
         const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
+        s.set_worker_cores(cores);  // the next round is cut for them
         outcome = s.complete(lease_id, caller.identity, result, *alive,
                              options_.failure_policy);
         // This result ended a round, or two: the round after it, opened ahead, may have

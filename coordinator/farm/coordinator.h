@@ -400,6 +400,7 @@ private:
     std::shared_ptr<const std::set<std::string>> alive_and_another_ =
         std::make_shared<const std::set<std::string>>();
     bool alive_dirty_ = false;
+    size_t alive_cores_ = 0;  // the alive workers' threads, rebuilt with them
     int ticks_ = 0;
     std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
     double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0,
