@@ -26,6 +26,9 @@ run "ops" /usr/bin/python3 tests/ops/ops_test.py build/bin/aliquot
 run "tls" bash tests/tls/run.sh build/bin/aliquot
 # Workers killed and stopped, the coordinator killed, while every method renders: about 1-2 min.
 run "chaos" python3 tests/chaos/chaos_test.py build/bin/aliquot
+# The farm across network namespaces: Toxiproxy's delay and jitter, 1 % packet loss, a
+# worker partitioned past its lease; every method byte-identical to embedded: about 20-40 s.
+run "network" python3 tests/net/net_test.py build/bin/aliquot
 run "web unit tests" npm --prefix web test --silent
 run "web end-to-end" bash tests/web/run.sh build/bin/aliquot
 run "compose" bash tests/compose/run.sh build/bin/aliquot
