@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { logRange, pilotRounds, pilotSamples, positiveExtent } from "./axes";
+import { legendValue, logRange, pilotRounds, pilotSamples, positiveExtent } from "./axes";
 
 describe("axes fitted to the render", () => {
   it("a 268 M-sample, 140 s render is not drawn to 1 G samples and 16 minutes", () => {
@@ -39,5 +39,16 @@ describe("the pilot", () => {
     // The probe render of issue 32: rounds of 147456, 147456, 147456, 73728, ...
     expect(pilotRounds([147456, 294912, 442368, 516096], 294912)).toBe(2);
     expect(pilotRounds([147456], null)).toBe(0);
+  });
+});
+
+describe("legends", () => {
+  const f = (v: number) => v.toFixed(1);
+  it("show the hovered value, blank where the series has none, the latest when nothing is hovered", () => {
+    expect(legendValue([1, null, 3], 0, f)).toBe("1.0");
+    expect(legendValue([1, null, 3], 1, f)).toBe("");
+    expect(legendValue([1, 3, null], null, f)).toBe("3.0");
+    expect(legendValue([], undefined, f)).toBe("");
+    expect(legendValue([null], null, f)).not.toBe("--");
   });
 });

@@ -59,3 +59,20 @@ export function pilotRounds(totals: number[], pilot: number | null): number {
   while (n < totals.length && totals[n] <= pilot) n++;
   return n;
 }
+
+/**
+ * A legend's text for series `s` at data index `idx`: the hovered point's value, blank
+ * where this series has none there (another curve's point), and the latest value when
+ * nothing is hovered; never uPlot's "--".
+ */
+export function legendValue(column: (number | null | undefined)[], idx: number | null | undefined, format: (v: number) => string): string {
+  if (idx === null || idx === undefined) {
+    for (let i = column.length - 1; i >= 0; i--) {
+      const v = column[i];
+      if (v !== null && v !== undefined) return format(v);
+    }
+    return "";
+  }
+  const v = column[idx];
+  return v === null || v === undefined ? "" : format(v);
+}

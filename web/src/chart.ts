@@ -3,6 +3,7 @@
 // end-to-end test can check that every round added one.
 import uPlot from "uplot";
 import "uplot/dist/uPlot.min.css";
+import { legendValue, logRange, positiveExtent } from "./axes";
 import * as fmt from "./format";
 
 export interface SeriesSpec {
@@ -26,12 +27,24 @@ export const PALETTE = ["#2f6fdf", "#e4572e", "#17a589", "#a05ad6", "#f0a202", "
 const positive = (v: number | null | undefined): number | null =>
   v !== null && v !== undefined && Number.isFinite(v) && v > 0 ? v : null;
 
+/** What a chart shows besides its points: values its x axis must reach, the pilot, now. */
+export interface ChartView {
+  /** x values the axis includes: the planned samples, the expected end. */
+  xInclude?: number[];
+  /** The pilot's span on the x axis, shaded and labelled. */
+  pilot?: [number, number] | null;
+  /** Where the render is now (a dashed line): it moves while a long round runs. */
+  now?: number | null;
+}
+
+
 export class ErrorChart {
   readonly el: HTMLDivElement;
   private plot: uPlot | null = null;
   private observer: ResizeObserver;
   private spec: ChartSpec;
   private data: uPlot.AlignedData = [[]];
+  private view: ChartView = {};
 
   constructor(spec: ChartSpec) {
     this.spec = spec;
@@ -43,7 +56,8 @@ export class ErrorChart {
   }
 
   /** Series of (x, y) pairs per series; non-positive values are left out (log scales). */
-  setSeries(series: { x: number[]; y: (number | null)[] }[], spec?: Partial<ChartSpec>): void {
+  setSeries(series: { x: number[]; y: (number | null)[] }[], spec?: Partial<ChartSpec>, view?: ChartView): void {
+    if (view) this.view = view;
     if (spec) {
       this.spec = { ...this.spec, ...spec };
       this.plot?.destroy();
@@ -62,13 +76,62 @@ export class ErrorChart {
     this.draw();
   }
 
+  // The axes fitted to the data and the view, not snapped to whole decades (axes.ts).
+  private xRange(): [number, number] {
+    const data = this.data;
+    const e = positiveExtent(data[0] as number[], this.view.xInclude ?? [], this.view.pilot ?? [], [this.view.now ?? null]);
+    if (!e) return [1, 10];
+    return this.spec.logX ? logRange(e[0], e[1]) : [0, e[1] * 1.05];
+  }
+
+  private yRange(): [number, number] {
+    const e = positiveExtent(...(this.data.slice(1) as (number | null)[][]));
+    if (!e) return [1e-3, 1];
+    return this.spec.logY ? logRange(e[0], e[1], 0.08) : [0, e[1] * 1.05];
+  }
+
+  // The pilot's band and the "now" line, under the curves.
+  private drawView(u: uPlot): void {
+    const { pilot, now } = this.view;
+    const ctx = u.ctx;
+    const { left, top, width, height } = u.bbox;
+    const px = (v: number) => Math.min(left + width, Math.max(left, u.valToPos(v, "x", true)));
+    ctx.save();
+    if (pilot && pilot[1] > 0) {
+      const a = px(Math.max(pilot[0], u.scales.x.min ?? pilot[0]));
+      const b = px(pilot[1]);
+      ctx.fillStyle = "rgba(240, 162, 2, 0.13)";
+      ctx.fillRect(a, top, b - a, height);
+      ctx.fillStyle = "#9a6a00";
+      ctx.font = `${Math.round(11 * devicePixelRatio)}px system-ui, sans-serif`;
+      ctx.fillText("pilot", a + 4 * devicePixelRatio, top + 14 * devicePixelRatio);
+    }
+    if (now && now > 0) {
+      const x = px(now);
+      ctx.strokeStyle = "#5c7080";
+      ctx.setLineDash([4 * devicePixelRatio, 4 * devicePixelRatio]);
+      ctx.lineWidth = devicePixelRatio;
+      ctx.beginPath();
+      ctx.moveTo(x, top);
+      ctx.lineTo(x, top + height);
+      ctx.stroke();
+    }
+    ctx.restore();
+  }
+
   private options(width: number): uPlot.Options {
     const s = this.spec;
+    const xText = (v: number) => (s.xLabel === "seconds" ? fmt.seconds(v) : fmt.count(v));
+    const column = (u: uPlot, i: number) => u.data[i] as (number | null)[];
     return {
       title: s.title,
       width,
       height: s.height ?? 240,
-      scales: { x: { time: false, distr: s.logX ? 3 : 1 }, y: { distr: s.logY ? 3 : 1 } },
+      scales: {
+        x: { time: false, distr: s.logX ? 3 : 1, range: () => this.xRange() },
+        y: { distr: s.logY ? 3 : 1, range: () => this.yRange() },
+      },
+      hooks: { drawClear: [(u) => this.drawView(u)] },
       axes: [
         {
           label: s.xLabel,
@@ -86,8 +149,9 @@ export class ErrorChart {
       ],
       legend: { show: true },
       series: [
-        { label: s.xLabel },
+        { label: s.xLabel, value: (u, _v, i, idx) => legendValue(column(u, i), idx, xText) },
         ...s.series.map((x) => ({
+          value: (u: uPlot, _v: number, i: number, idx: number | null) => legendValue(column(u, i), idx, (v) => fmt.error(v)),
           label: x.label,
           stroke: x.color,
           width: 2,
@@ -108,7 +172,8 @@ export class ErrorChart {
       if (cols !== this.spec.series.length) return; // waiting for a matching setSeries
       this.plot = new uPlot(this.options(width), this.data, this.el);
     } else {
-      this.plot.setData(this.data);
+      // Resetting the scales calls the range functions again: the view may have moved.
+      this.plot.setData(this.data, true);
     }
   }
 
