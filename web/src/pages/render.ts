@@ -1,9 +1,13 @@
 // One render: the converging image with its buckets drawn over it, the sample-count and
-// error heat maps, error charts that grow by one point per round, and the round table.
-import { api, type Buckets, type PixelMap, type RenderDetail, type RoundRow } from "../api";
-import { ErrorChart, PALETTE } from "../chart";
+// error heat maps, error charts that grow by one point per round, the round table and the
+// render's log; what an operator does to it (priority, download, resubmit, delete).
+import { api, ApiError, type Buckets, type PixelMap, type RenderDetail, type RoundRow } from "../api";
+import { pilotRounds, pilotSamples } from "../axes";
+import { ErrorChart, PALETTE, type ChartView } from "../chart";
 import { colorize, cssColor, decodeBase64, ERROR_MAP, SPP_MAP } from "../colormap";
 import { append, clear, h } from "../dom";
+import { etaSeconds, etaText } from "../eta";
+import { eventLines } from "../events";
 import * as fmt from "../format";
 import { throttle, type LiveEvent } from "../live";
 import { progressText } from "./renders";
@@ -48,6 +52,9 @@ class HeatMap {
 }
 
 // A render's error against samples or time: the estimate and, when attached, the reference.
+const ESTIMATE = { label: "estimate", color: PALETTE[0] };
+const REFERENCE = { label: "vs reference", color: PALETTE[1] };
+
 function errorChart(title: string, xLabel: string): ErrorChart {
   return new ErrorChart({
     title,
@@ -55,10 +62,7 @@ function errorChart(title: string, xLabel: string): ErrorChart {
     yLabel: "mean abs. error",
     logX: true,
     logY: true,
-    series: [
-      { label: "estimate", color: PALETTE[0] },
-      { label: "vs reference", color: PALETTE[1] },
-    ],
+    series: [ESTIMATE],
   });
 }
 
@@ -81,6 +85,11 @@ export class RenderPage implements Page {
   private byTime = errorChart("error vs wall time", "seconds");
   private roundBody = h("tbody");
   private roundNote = h("p", { class: "muted" });
+  private chartNote = h("p", { class: "muted chart-note", id: "chart-note" });
+  private hasReference = false;
+  private eventList = h("ol", { class: "events", id: "render-events" });
+  private eventNote = h("p", { class: "muted", id: "render-events-note" });
+  private refreshEvents = throttle(() => void this.loadEvents(), 2000);
   private resizer: ResizeObserver;
   private refreshImages = throttle(() => void this.loadImages(), 1000);
   private gone = false;
@@ -122,7 +131,11 @@ export class RenderPage implements Page {
         this.sppMap.el,
         this.errorMap.el,
       ),
+      this.chartNote,
       h("div", { class: "chart-row" }, h("div", { class: "card" }, this.bySamples.el), h("div", { class: "card" }, this.byTime.el)),
+      h("h2", {}, "Events"),
+      this.eventNote,
+      h("div", { class: "card events-card" }, this.eventList),
       h("h2", {}, "Rounds"),
       this.roundNote,
       h(
@@ -156,6 +169,42 @@ export class RenderPage implements Page {
     }
     this.showRounds();
     this.refreshImages(); // through the throttle, like every later refresh
+    this.refreshEvents();
+  }
+
+  // The render's log, newest last. A coordinator without GET .../events (404) says so
+  // once rather than showing an error.
+  private async loadEvents(): Promise<void> {
+    if (this.gone) return;
+    let body: unknown;
+    try {
+      body = await api.events(this.id);
+    } catch (e) {
+      if (this.gone) return;
+      const missing = e instanceof ApiError && e.status === 404;
+      this.eventNote.textContent = missing ? "This coordinator keeps no event log for renders." : `cannot load events: ${(e as Error).message}`;
+      this.eventList.dataset.count = "0";
+      this.eventList.parentElement!.hidden = true;
+      return;
+    }
+    if (this.gone) return;
+    const lines = eventLines(body);
+    clear(this.eventList);
+    for (const l of lines)
+      this.eventList.append(
+        h(
+          "li",
+          { "data-kind": l.kind },
+          h("time", { class: "muted live-value" }, l.timeMs === null ? "" : new Date(l.timeMs).toLocaleTimeString()),
+          " ",
+          h("span", { class: "event-kind" }, l.kind.replace(/_/g, " ")),
+          " ",
+          h("span", { class: "muted" }, l.detail),
+        ),
+      );
+    this.eventList.dataset.count = String(lines.length);
+    this.eventList.parentElement!.hidden = false;
+    this.eventNote.textContent = lines.length ? "" : "No events yet.";
   }
 
   private loadPreview(): void {
@@ -227,11 +276,24 @@ export class RenderPage implements Page {
     });
     const stat = (key: string, label: string) => h("div", {}, h("dt", {}, label), h("dd", { "data-stat": key }));
     append(this.header, [
-      h("h1", {}, `${r.id} `, h("span", { class: "muted" }, `${r.scene} · ${r.method} · ${r.width}×${r.height} · seed ${r.seed}`), " ", stateBadge(r.state), " ", cancel),
+      h(
+        "h1",
+        {},
+        h("span", { class: "render-name", id: "render-name" }),
+        " ",
+        h("span", { class: "muted" }, `${r.scene} · ${r.method} · ${r.width}×${r.height} · seed ${r.seed}`),
+        " ",
+        stateBadge(r.state),
+        " ",
+        cancel,
+      ),
+      this.actions(r),
       h("div", { class: "render-progress", id: "render-progress" }, progressBar(r.progress, progressText(r))),
       h(
         "dl",
         { class: "stats" },
+        stat("submitted", "submitted"),
+        stat("eta", "ETA"),
         stat("samples", "samples"),
         stat("rate", "samples/s"),
         stat("rounds", "rounds"),
@@ -242,8 +304,57 @@ export class RenderPage implements Page {
       ),
       h("p", { class: "muted params" }),
       h("p", { class: "error" }),
-      h("p", { class: "muted outcome" }),
+      h("p", { class: "muted outcome", id: "render-outcome" }),
+      h("p", { class: "action-message", id: "render-action-message", role: "status" }),
     ]);
+  }
+
+  // Priority, downloads, resubmit and delete: what Deadline Monitor offers on a job.
+  private actions(r: RenderDetail): HTMLElement {
+    const say = (text: string, isError: boolean) => {
+      const m = this.header.querySelector<HTMLElement>("#render-action-message")!;
+      m.textContent = text;
+      m.classList.toggle("error", isError);
+    };
+    const priority = h("input", { type: "number", id: "priority-input", step: 1, value: r.priority ?? 0, "aria-label": "priority" });
+    const setPriority = h("button", { type: "button", id: "priority-set", class: "small" }, "set priority");
+    setPriority.addEventListener("click", async () => {
+      setPriority.disabled = true;
+      try {
+        this.render = await api.setPriority(this.id, Math.trunc(Number(priority.value)));
+        say(`priority ${this.render.priority ?? priority.value}`, false);
+        this.showHeader();
+      } catch (e) {
+        say((e as Error).message, true);
+      } finally {
+        setPriority.disabled = false;
+      }
+    });
+    const remove = h("button", { type: "button", id: "delete-render", class: "small danger" }, "delete");
+    remove.addEventListener("click", async () => {
+      if (!window.confirm(`Delete ${this.id} and its images? This cannot be undone.`)) return;
+      remove.disabled = true;
+      try {
+        await api.remove(this.id);
+        location.hash = "#/renders";
+      } catch (e) {
+        say((e as Error).message, true);
+        remove.disabled = false;
+      }
+    });
+    const exr = h("a", { class: "button small", id: "download-exr", href: api.exrUrl(this.id), download: `${this.id}.exr` }, "EXR");
+    const png = h("a", { class: "button small", id: "download-png", href: api.pngUrl(this.id, r.width, r.height), download: `${this.id}.png` }, "PNG");
+    const resubmit = h("a", { class: "button small", id: "resubmit", href: `#/renders?from=${encodeURIComponent(this.id)}` }, "resubmit with changes");
+    return h(
+      "div",
+      { class: "render-actions" },
+      h("span", { class: "priority", id: "priority-controls" }, h("label", { class: "pick" }, "priority", priority), setPriority),
+      h("span", { class: "muted" }, "download"),
+      exr,
+      png,
+      resubmit,
+      remove,
+    );
   }
 
   private showHeader(): void {
@@ -254,9 +365,19 @@ export class RenderPage implements Page {
     this.header.dataset.state = r.state;
     this.header.dataset.progress = r.progress.toFixed(4);
     setBadge(q("h1 .badge"), r.state);
-    q<HTMLButtonElement>("#cancel-render").hidden = r.state !== "running" && r.state !== "queued";
+    const active = r.state === "running" || r.state === "queued";
+    q<HTMLButtonElement>("#cancel-render").hidden = !active;
+    // The server refuses both otherwise (409): a finished render has no priority to
+    // change, and an unfinished one must be cancelled before it is deleted.
+    q("#priority-controls").hidden = !active;
+    q("#delete-render").hidden = active;
+    const priority = q<HTMLInputElement>("#priority-input");
+    if (document.activeElement !== priority) priority.value = String(r.priority ?? 0);
+    setText(q("#render-name"), r.name ? `${r.name} (${r.id})` : r.id);
     setProgress(q("#render-progress .progress"), r.progress, progressText(r));
     const stats: [string, string][] = [
+      ["submitted", r.created_ms ? new Date(r.created_ms).toLocaleString() : "–"],
+      ["eta", etaText(r, fmt.seconds)],
       ["samples", fmt.count(r.samples_done)],
       ["rate", fmt.count(r.samples_per_second)],
       ["rounds", String(r.rounds)],
@@ -270,25 +391,31 @@ export class RenderPage implements Page {
       .filter(([k, v]) => k !== "method" && v !== 0 && v !== "")
       .map(([k, v]) => `${k} ${v}`)
       .join(" · ");
-    const outcome = Object.keys(r.outcome ?? {}).length ? `outcome: ${JSON.stringify(r.outcome)}` : "";
     setText(q("p.params"), params);
     setText(q("p.error"), r.error ?? "");
-    setText(q("p.outcome"), outcome);
+    setText(q("p.outcome"), outcomeText(r.outcome));
   }
 
   private showRounds(): void {
+    this.drawCharts();
+    this.showRoundTable();
+  }
+
+  private drawCharts(): void {
     const x = this.rounds.map((r) => r.samples_total);
     const t = this.rounds.map((r) => r.seconds);
     const est = this.rounds.map((r) => r.error_estimate);
     const ref = this.rounds.map((r) => r.error_vs_reference);
-    this.bySamples.setSeries([
-      { x, y: est },
-      { x, y: ref },
-    ]);
-    this.byTime.setSeries([
-      { x: t, y: est },
-      { x: t, y: ref },
-    ]);
+    // The reference's curve only when there is one: an empty series is a legend of blanks.
+    const hasReference = ref.some((v) => v !== null && v > 0);
+    const spec = hasReference !== this.hasReference ? { series: hasReference ? [ESTIMATE, REFERENCE] : [ESTIMATE] } : undefined;
+    this.hasReference = hasReference;
+    const views = this.chartViews(x, t);
+    this.bySamples.setSeries(hasReference ? [{ x, y: est }, { x, y: ref }] : [{ x, y: est }], spec, views.samples);
+    this.byTime.setSeries(hasReference ? [{ x: t, y: est }, { x: t, y: ref }] : [{ x: t, y: est }], spec, views.time);
+  }
+
+  private showRoundTable(): void {
     clear(this.roundBody);
     // Newest first: the table grows at the top while a render runs. Dammertz renders may
     // have thousands of rounds; the charts show them all, the table the newest.
@@ -312,14 +439,53 @@ export class RenderPage implements Page {
     this.el.dataset.rounds = String(this.rounds.length);
   }
 
+  // What the charts show besides the rounds: axes that reach the render's plan and its
+  // expected end, the pilot (optimal methods) shaded, and where the render is now, so a
+  // long pilot round is not an empty chart.
+  private chartViews(x: number[], t: number[]): { samples: ChartView; time: ChartView } {
+    const r = this.render;
+    if (!r) return { samples: {}, time: {} };
+    const running = r.state === "running";
+    const pilot = pilotSamples(r);
+    const inPilot = pilotRounds(x, pilot);
+    const pilotOpen = pilot !== null && r.samples_done < pilot && running;
+    const left = running ? etaSeconds(r) : null;
+    // Dammertz's plan is a cap it rarely reaches: its axis follows what it traced.
+    const planned = r.method === "dammertz" ? r.samples_done : Math.max(r.samples_planned, r.samples_done);
+    const firstX = x.find((v) => v > 0) ?? (pilot ? pilot / 2 : planned / 100);
+    const firstT = t.find((v) => v > 0) ?? Math.max(0.1, r.seconds / 10);
+    const pilotEndT = pilotOpen ? r.seconds : inPilot ? t[inPilot - 1] : null;
+    this.chartNote.textContent = pilotOpen
+      ? `pilot: ${fmt.count(r.samples_done)} of its ${fmt.count(pilot)} samples traced (${fmt.percent(r.samples_done / pilot)}); its error comes when its round ends`
+      : x.length === 0 && running
+        ? "waiting for the first round to end"
+        : "";
+    this.chartNote.dataset.pilot = pilotOpen ? "running" : inPilot ? "done" : "none";
+    return {
+      samples: {
+        xInclude: [firstX, planned, r.samples_done],
+        pilot: pilot ? [firstX, pilot] : null,
+        now: running ? r.samples_done : null,
+      },
+      time: {
+        xInclude: [firstT, r.seconds + (left ?? 0)],
+        pilot: pilotEndT ? [firstT, pilotEndT] : null,
+        now: running ? r.seconds : null,
+      },
+    };
+  }
+
   onEvent(e: LiveEvent): void {
     if (e.type === "render") {
       const mine = e.renders.find((r) => r.id === this.id);
       if (mine && this.render) {
         const changed = mine.state !== this.render.state || mine.samples_done !== this.render.samples_done;
+        const stateChanged = mine.state !== this.render.state;
         this.render = { ...this.render, ...mine };
         this.showHeader();
         if (changed) this.refreshImages(); // at most once a second
+        if (changed) this.drawCharts(); // the "now" line and the pilot's progress
+        if (stateChanged) this.refreshEvents();
       }
     } else if (e.type === "round") {
       const mine = e.rounds.filter((r) => r.id === this.id);
@@ -333,6 +499,7 @@ export class RenderPage implements Page {
       }
       this.showRounds();
       this.refreshImages();
+      this.refreshEvents();
     } else if (e.type === "resync") {
       void this.resync();
     }
@@ -345,8 +512,18 @@ export class RenderPage implements Page {
   dispose(): void {
     this.gone = true;
     this.refreshImages.cancel();
+    this.refreshEvents.cancel();
     this.resizer.disconnect();
     this.bySamples.destroy();
     this.byTime.destroy();
   }
+}
+
+// A render's outcome as words: "budget 590k · rounds 10 · unspent 0", not its JSON.
+export function outcomeText(outcome: Record<string, unknown> | undefined): string {
+  const parts = Object.entries(outcome ?? {}).map(([k, v]) => {
+    const value = typeof v === "number" ? (Number.isInteger(v) ? fmt.count(v) : fmt.error(v)) : typeof v === "string" || typeof v === "boolean" ? String(v) : "…";
+    return `${k.replace(/_/g, " ")} ${value}`;
+  });
+  return parts.length ? `outcome: ${parts.join(" · ")}` : "";
 }
