@@ -34,7 +34,7 @@ function route(): Page {
     case "studies":
       return new StudiesPage(parts[1], parts[2]);
   }
-  return new RendersPage();
+  return new RendersPage(new URLSearchParams(query));
 }
 
 function show(): void {

@@ -1,5 +1,6 @@
-// Workers: every worker the coordinator has heard from, what it holds and how fast it
-// traces; a worker silent for longer than --lost-seconds shows as lost.
+// Workers: every worker the coordinator has heard from, where it runs (host, release), what
+// it holds, how fast it traces and how many of its jobs failed; a worker silent for longer
+// than --lost-seconds shows as lost.
 import { api, type Worker } from "../api";
 import { clear, h } from "../dom";
 import * as fmt from "../format";
@@ -23,7 +24,7 @@ export class WorkersPage implements Page {
         h(
           "table",
           { class: "workers", id: "workers-table" },
-          h("thead", {}, h("tr", {}, ...["name", "threads", "state", "current lease", "samples/s", "samples traced", "last seen"].map((t) => h("th", {}, t)))),
+          h("thead", {}, h("tr", {}, ...["name", "host", "version", "threads", "state", "failures", "current lease", "samples/s", "samples traced", "last seen"].map((t) => h("th", {}, t)))),
           this.tbody,
         ),
       ),
@@ -54,12 +55,15 @@ export class WorkersPage implements Page {
           "tr",
           { "data-name": w.name, "data-state": w.state, class: w.state === "lost" ? "lost" : "" },
           h("td", {}, w.name),
+          h("td", { class: "host" }, w.host || h("span", { class: "muted" }, "–")),
+          h("td", { class: "version" }, w.version || h("span", { class: "muted" }, "–")),
           h("td", { class: "num" }, w.threads),
           h("td", { class: "state" }, stateBadge(w.state)),
+          h("td", { class: `num failures${w.failures ? " error" : ""}` }, w.failures ?? 0),
           h("td", { class: "lease" }, w.leases.length ? w.leases.join(", ") : h("span", { class: "muted" }, "–")),
-          h("td", { class: "num" }, fmt.count(w.samples_per_second)),
-          h("td", { class: "num" }, fmt.count(w.samples_traced)),
-          h("td", { class: "num", title: new Date(w.last_seen_ms).toLocaleString() }, fmt.ago(w.last_seen_ms, now)),
+          h("td", { class: "num live-value" }, fmt.count(w.samples_per_second)),
+          h("td", { class: "num live-value" }, fmt.count(w.samples_traced)),
+          h("td", { class: "num live-value", title: new Date(w.last_seen_ms).toLocaleString() }, fmt.ago(w.last_seen_ms, now)),
         ),
       );
     }
