@@ -24,9 +24,16 @@ public:
     using ImageFileError::ImageFileError;
 };
 
+// The threads that compress an EXR's blocks of rows as it is written: one per hardware
+// thread, in OpenEXR's own pool (made on first use), while the calling thread writes.
+// The bytes do not depend on the count: each block of 16 rows is compressed alone and
+// the blocks are written in row order. A count of 0 compresses in the calling thread.
+int exr_write_threads();
+
 // Writes float R, G, B plus every extra channel (FLOAT, ZIP compression). Throws
 // ImageFileError naming the path when the file cannot be written.
-void write_exr(const std::filesystem::path& path, const Image& image);
+void write_exr(const std::filesystem::path& path, const Image& image,
+               int threads = exr_write_threads());
 
 // Reads R, G, B (any pixel type, converted to float) and every other channel as extra.
 Image read_exr(const std::filesystem::path& path);
@@ -42,7 +49,7 @@ Image read_exr(const std::filesystem::path& path);
 struct ExrSize {
     int64_t width = 0, height = 0;
 };
-std::string encode_exr(const Image& image);
+std::string encode_exr(const Image& image, int threads = exr_write_threads());
 Image decode_exr(const std::string& bytes, const std::string& name,
                  std::optional<ExrSize> expected = std::nullopt, uint64_t max_bytes = 0);
 

@@ -9,6 +9,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/ImfThreading.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -138,6 +139,20 @@ TEST_F(ExrIo, SameImageGivesIdenticalBytes) {
     const std::string a = bytes_of(dir / "a.exr");
     EXPECT_FALSE(a.empty());
     EXPECT_EQ(a, bytes_of(dir / "b.exr"));
+}
+
+TEST_F(ExrIo, TheBytesDoNotDependOnHowManyThreadsCompress) {
+    // Many blocks of 16 rows, the last one short, so that threads take different ones.
+    const Image image = patterned(67, 203);
+    const std::string alone = encode_exr(image, 0);
+    for (int threads : {1, 2, 4, 7})
+        EXPECT_EQ(encode_exr(image, threads), alone) << threads << " threads";
+    EXPECT_EQ(encode_exr(image), alone);
+    // Written by default with OpenEXR's pool, which has one thread per hardware thread.
+    EXPECT_GE(Imf::globalThreadCount(), exr_write_threads());
+    write_exr(dir / "a.exr", image, 4);
+    EXPECT_EQ(bytes_of(dir / "a.exr"), alone);
+    expect_same(decode_exr(alone, "alone"), image);
 }
 
 TEST_F(ExrIo, WritingIntoMissingDirectoryNamesThePath) {
