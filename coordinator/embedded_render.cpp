@@ -32,6 +32,9 @@ EmbeddedResult render_embedded(const RenderSpec& spec, int threads, bool aovs,
         std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     workers.stop();
+    // Wakes the threads long-polling for a lease: without it the process waited out
+    // the poll, 500 ms, after every render.
+    coordinator.stop();
     pool.join();
     if (progress) progress(info);
     if (info.state == RenderState::Failed)
