@@ -1,6 +1,7 @@
 #include "grpc_link.h"
 
 #include <grpcpp/grpcpp.h>
+#include <unistd.h>
 
 #include "aliquot.grpc.pb.h"
 #include "channel.h"
@@ -11,6 +12,13 @@ namespace aliquot {
 namespace {
 
 constexpr auto kCallDeadline = std::chrono::seconds(10);
+
+// This machine's name for the coordinator's workers list; "" when it has none.
+std::string host_name() {
+    char name[256] = {};
+    if (gethostname(name, sizeof name - 1) != 0) return "";
+    return std::string(name).substr(0, 128);  // the coordinator takes at most 128 bytes
+}
 
 }  // namespace
 
@@ -72,6 +80,8 @@ Registration GrpcLink::register_worker(const std::string& name, uint32_t threads
     v1::RegisterRequest req;
     req.set_name(name);
     req.set_threads(threads);
+    req.set_host(host_name());
+    req.set_version(ALIQUOT_VERSION);
     v1::RegisterReply reply;
     check(stub_->stub->Register(context().get(), req, &reply), endpoint_.address, true);
     if (reply.session().empty())

@@ -298,10 +298,15 @@ public:
         // The name keys the coordinator's worker table and the store's rows.
         if (req->name().empty() || req->name().size() > 128)
             return {StatusCode::INVALID_ARGUMENT, "a worker name is 1 to 128 bytes"};
+        // Kept per worker and shown in every workers list: bounded like the name.
+        if (req->host().size() > 128 || req->version().size() > 128)
+            return {StatusCode::INVALID_ARGUMENT,
+                    "a worker's host and version are at most 128 bytes each"};
         Registration r;
         try {
             // Failures count against the caller's host, never a name it chose.
             r = c_.register_worker(req->name(), req->threads(), ctx->peer());
+            c_.describe_worker(req->name(), req->host(), req->version());
         } catch (const TooManyWorkers& e) {
             return {StatusCode::RESOURCE_EXHAUSTED, e.what()};
         }

@@ -352,6 +352,25 @@ TEST_F(WorkerServiceTest, AWorkerNameLongerThan128BytesIsRefused) {
               grpc::StatusCode::INVALID_ARGUMENT);
 }
 
+// Issue 32: what a worker says of itself is kept and listed, so it is bounded like its
+// name.
+TEST_F(WorkerServiceTest, AWorkerHostOrVersionLongerThan128BytesIsRefused) {
+    for (const bool host : {true, false}) {
+        testing::TokenContext ctx(Role::Worker);
+        v1::RegisterRequest reg;
+        reg.set_name("long");
+        reg.set_threads(1);
+        if (host)
+            reg.set_host(std::string(129, 'h'));
+        else
+            reg.set_version(std::string(129, 'v'));
+        v1::RegisterReply reply;
+        EXPECT_EQ(stub_->Register(&ctx, reg, &reply).error_code(),
+                  grpc::StatusCode::INVALID_ARGUMENT);
+    }
+    EXPECT_FALSE(coordinator_->knows_worker("long"));
+}
+
 TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
     v1::LeaseRequest req;
     req.set_session("0123456789abcdef0123456789abcdef");  // never issued here

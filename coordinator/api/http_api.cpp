@@ -118,7 +118,10 @@ json worker_json(const WorkerStatus& w) {
             {"leases", w.leases},
             {"samples_traced", w.samples_traced},
             {"samples_per_second", short_number(w.samples_per_second)},
-            {"last_seen_ms", w.last_seen_ms}};
+            {"last_seen_ms", w.last_seen_ms},
+            {"host", w.host},
+            {"version", w.version},
+            {"failures", w.failures}};
 }
 
 json buckets_json(const std::vector<Bucket>& buckets) {

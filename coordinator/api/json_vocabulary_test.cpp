@@ -101,7 +101,9 @@ TEST(JsonVocabulary, EveryRenderFieldOfTheProtoHasTheApisName) {
 
 TEST(JsonVocabulary, WorkersAndRoundsHaveTheSameFieldsEverywhere) {
     v1::WorkerInfo worker;
-    to_proto(WorkerStatus{"w1", "busy", 2, {"r-000001/3"}, 10, 1.5, 7}, worker);
+    to_proto(
+        WorkerStatus{"w1", "busy", 2, {"r-000001/3"}, 10, 1.5, 7, "host1", "0.1.0", 2},
+        worker);
     EXPECT_EQ(keys(proto_json(worker)), keys(http_api::worker_json(from_proto(worker))));
 
     v1::RoundInfo round;

@@ -95,6 +95,9 @@ void to_proto(const WorkerStatus& w, v1::WorkerInfo& out) {
     out.set_samples_traced(w.samples_traced);
     out.set_samples_per_second(w.samples_per_second);
     out.set_last_seen_ms(w.last_seen_ms);
+    out.set_host(w.host);
+    out.set_version(w.version);
+    out.set_failures(w.failures);
 }
 
 WorkerStatus from_proto(const v1::WorkerInfo& in) {
@@ -106,6 +109,9 @@ WorkerStatus from_proto(const v1::WorkerInfo& in) {
     w.samples_traced = in.samples_traced();
     w.samples_per_second = in.samples_per_second();
     w.last_seen_ms = in.last_seen_ms();
+    w.host = in.host();
+    w.version = in.version();
+    w.failures = in.failures();
     return w;
 }
 

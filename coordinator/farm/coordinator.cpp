@@ -955,6 +955,16 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
     return register_session(name, threads, host_of_peer(peer), false);
 }
 
+void Coordinator::describe_worker(const std::string& name, std::string host,
+                                  std::string version) {
+    std::lock_guard lock(mutex_);
+    const auto it = workers_.find(name);
+    if (it == workers_.end()) return;
+    it->second.host = std::move(host);
+    it->second.version = std::move(version);
+    changed();
+}
+
 Registration Coordinator::register_session(const std::string& name, uint32_t threads,
                                            std::string identity, bool trusted) {
     std::lock_guard lock(mutex_);
@@ -1191,13 +1201,14 @@ bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
 
 bool Coordinator::fail(const std::string& session, uint64_t lease_id,
                        const std::string& reason) {
-    std::string worker;
+    std::string worker, worker_name;
     SlotPtr slot;
     std::shared_ptr<const std::set<std::string>> alive;
     {
         std::lock_guard lock(mutex_);
         const SessionEntry caller = worker_of_session(session);
         worker = caller.identity;
+        worker_name = caller.worker;
         slot = held_render(session, lease_id);
         alive = alive_for_failures_of(caller);
     }
@@ -1213,6 +1224,8 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     }
     std::lock_guard lock(mutex_);
     lease_render_.erase(lease_id);
+    if (const auto it = workers_.find(worker_name); it != workers_.end())
+        ++it->second.failures;
     // The render's other leases ended with it.
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     changed();
@@ -1326,6 +1339,9 @@ std::vector<WorkerStatus> Coordinator::workers() {
         st.samples_traced = w.samples;
         st.samples_per_second = w.lost ? 0 : w.rate;
         st.last_seen_ms = w.last_seen_ms;
+        st.host = w.host;
+        st.version = w.version;
+        st.failures = w.failures;
         out.push_back(std::move(st));
     }
     return out;

@@ -124,6 +124,8 @@ struct WorkerStatus {
     uint64_t samples_traced = 0;
     double samples_per_second = 0;
     int64_t last_seen_ms = 0;
+    std::string host, version;  // as the worker said when it registered
+    uint32_t failures = 0;      // jobs it reported failed, every render's
 };
 
 class Coordinator : public WorkerLink {
@@ -168,6 +170,9 @@ public:
     // Over the network: `peer` is where the call came from as the transport saw it
     // (gRPC's ServerContext::peer(), "ipv4:10.0.0.5:41234"); its host, without the port,
     // is the identity failures count against (FailurePolicy).
+    // What a registered worker says of itself (its host name and release), shown in the
+    // workers list and deciding nothing; an unknown name is ignored.
+    void describe_worker(const std::string& name, std::string host, std::string version);
     Registration register_worker(const std::string& name, uint32_t threads,
                                  const std::string& peer);
     std::optional<LeaseGrant> lease(const std::string& session,
@@ -279,7 +284,9 @@ private:
         uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
         double rate = 0;          // samples/s, smoothed over recent jobs
         bool lost = false;
-        bool registered = false;  // called register_worker here (not only heard from)
+        bool registered = false;    // called register_worker here (not only heard from)
+        std::string host, version;  // describe_worker: for the workers list only
+        uint32_t failures = 0;      // jobs it reported failed (fail())
         // last_seen_ms as the store last has it: refreshed now and then (tick), so that
         // a row silent for forget_workers_after is a worker gone, not an idle one.
         int64_t stored_seen_ms = 0;
