@@ -21,6 +21,7 @@
 #include "http_session.h"
 #include "scene_loader.h"
 #include "store.h"
+#include "thumbnail_cache.h"
 
 namespace aliquot {
 
@@ -418,6 +419,11 @@ struct HttpServer::Impl {
     static constexpr int kMaxExrDownloads = 2;
     std::atomic<int> exr_downloads{0};
 
+    // The renders list's thumbnails: at most this many pixels on a side, and made again
+    // only when a render changed (ThumbnailCache), for as many renders as a list shows.
+    static constexpr uint32_t kThumbnailSide = 96;
+    ThumbnailCache thumbnails{1000};
+
     std::shared_ptr<StreamSlot> take_stream_slot() {
         std::lock_guard lock(streams_mutex);
         if (streams >= options.max_event_streams) return nullptr;
@@ -765,6 +771,7 @@ struct HttpServer::Impl {
                           const std::string id = req.matches[1];
                           switch (coordinator.remove(id)) {
                               case Coordinator::Removal::Removed:
+                                  thumbnails.forget(id);
                                   res.status = 204;
                                   return;
                               case Coordinator::Removal::Unknown:
@@ -848,6 +855,25 @@ struct HttpServer::Impl {
                        res.set_content(http_api::preview_png(*image, exposure, size),
                                        "image/png");
                    }));
+        server.Get(
+            R"(/api/renders/([^/]+)/thumbnail\.png)",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const std::string id = req.matches[1];
+                const RenderInfo info = render_or_404(id);
+                // Whatever changes the image changes one of these.
+                const std::string version = std::to_string(info.created_ms) + "/" +
+                                            std::to_string(info.samples_done) + "/" +
+                                            std::to_string(info.rounds_done) + "/" +
+                                            std::to_string(int(info.state));
+                const std::string png = thumbnails.get(id, version, [&] {
+                    const std::optional<Image> image = coordinator.image(id, false);
+                    if (!image)
+                        throw ApiError(404, "render '" + id + "' has no image yet");
+                    return http_api::preview_png(*image, 0, kThumbnailSide);
+                });
+                res.set_header("Cache-Control", "no-store");
+                res.set_content(png, "image/png");
+            }));
         server.Get(
             R"(/api/renders/([^/]+)/image\.exr)",
             guarded([this](const httplib::Request& req, auto& res) {

@@ -678,6 +678,48 @@ TEST_F(HttpServerTest, WorkersShowStateAndLeases) {
     EXPECT_GT(w["workers"][1]["last_seen_ms"].get<int64_t>(), 0);
 }
 
+// Issue 32: the workers page shows where a worker runs, its release and its failed jobs.
+TEST_F(HttpServerTest, WorkersShowHostVersionAndFailures) {
+    const std::string alpha = coordinator_->register_worker("alpha", 4).session;
+    coordinator_->describe_worker("alpha", "render-07", "0.1.0");
+    coordinator_->describe_worker("nobody", "x", "y");  // unknown: ignored
+    submit({{"resolution", "64x64"}, {"strategy", {{"spp", 4}}}});
+    const auto grant = coordinator_->lease(alpha, std::chrono::milliseconds(0));
+    ASSERT_TRUE(grant);
+    ASSERT_TRUE(coordinator_->fail(alpha, grant->lease_id, "out of memory"));
+    const json w = get_json("/api/workers");
+    ASSERT_EQ(w["workers"].size(), 1u);
+    EXPECT_EQ(w["workers"][0]["host"], "render-07");
+    EXPECT_EQ(w["workers"][0]["version"], "0.1.0");
+    EXPECT_EQ(w["workers"][0]["failures"], 1);
+}
+
+// Issue 32: the renders list's thumbnail, small whatever the render's size.
+TEST_F(HttpServerTest, AThumbnailIsASmallPngOfTheRender) {
+    const std::string id = submit(
+        {{"resolution", "400x240"}, {"strategy", {{"method", "uniform"}, {"spp", 1}}}});
+    fake_jobs(*coordinator_, "w1");
+    auto png = client_->Get(("/api/renders/" + id + "/thumbnail.png").c_str());
+    ASSERT_TRUE(png);
+    ASSERT_EQ(png->status, 200);
+    EXPECT_EQ(png->get_header_value("Content-Type"), "image/png");
+    ASSERT_GT(png->body.size(), 24u);
+    EXPECT_EQ(png->body.substr(12, 4), "IHDR");
+    auto be32 = [&](size_t at) {
+        return uint32_t(uint8_t(png->body[at])) << 24 |
+               uint32_t(uint8_t(png->body[at + 1])) << 16 |
+               uint32_t(uint8_t(png->body[at + 2])) << 8 |
+               uint32_t(uint8_t(png->body[at + 3]));
+    };
+    EXPECT_LE(be32(16), 96u);
+    EXPECT_LE(be32(20), 96u);
+    EXPECT_GE(be32(16), 48u);
+    auto again = client_->Get(("/api/renders/" + id + "/thumbnail.png").c_str());
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->body, png->body);
+    get_json("/api/renders/r-999999/thumbnail.png", 404);
+}
+
 TEST_F(HttpServerTest, EventsAnnounceRendersRoundsAndWorkers) {
     std::mutex mutex;
     std::vector<json> events;
@@ -1030,6 +1072,7 @@ std::vector<std::string> guarded_paths(const std::string& id) {
     return {"/api/renders",
             "/api/renders/" + id,
             "/api/renders/" + id + "/preview.png",
+            "/api/renders/" + id + "/thumbnail.png",
             "/api/renders/" + id + "/image.exr",
             "/api/renders/" + id + "/maps?kind=error",
             "/api/renders/" + id + "/rounds",
