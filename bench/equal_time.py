@@ -19,13 +19,16 @@ with mitsuba and numpy; matplotlib too, for the chart).
    budget t, interleaved: Mitsuba uniform at the spp that fits t, then each of our --methods with
    the budget (samples) that fits t. Each renderer's next budget uses the samples/s of
    its last run, so a change of machine load is followed. Times are each renderer's own
-   render time (not process start, scene building or JIT compilation).
+   render time (not process start, scene building or JIT compilation); the whole
+   process's wall time is recorded beside it (process_seconds: for ours, loading the
+   scene and writing the EXR too).
 3. E = mean |image - reference| over pixels and RGB (`aliquot compare --json`, the seed's
    error). Per seed and budget: E_ours / E_mitsuba (raw, at the times actually taken) and
    the relative efficiency (E_peer^2 t_peer) / (E_ours^2 t_ours): how many times less
    time we need for the same error (Monte Carlo error ~ 1/sqrt(time)); > 1: we lead.
    E at exactly equal time, from that: E_ours / E_mitsuba = efficiency^-1/2. Over all
-   pairs: the geometric mean of the efficiencies (a ratio's mean).
+   pairs: the geometric mean of the efficiencies (a ratio's mean); the spread over seeds:
+   each seed's geometric mean over its budgets, their min, max and standard deviation.
 
 Written: REPORT_DIR/results.json, results.csv and charts/error-vs-time.svg|png (E against
 seconds, log-log, both renderers). Both E include the reference's own noise, which pulls
@@ -70,13 +73,7 @@ def efficiency(e_ours, t_ours, e_peer, t_peer):
 
 def ensure_setup(install):
     """The .venv of peers_speed.py (re-exec in it), matplotlib, and libLLVM 19."""
-    if not ps.in_venv():
-        if not os.path.exists(ps.VENV_PY):
-            if not install:
-                raise SystemExit("equal-time: no .venv (run without --no-install)")
-            subprocess.run([sys.executable, "-m", "venv", ps.VENV], check=True)
-        os.execv(ps.VENV_PY, [ps.VENV_PY, os.path.abspath(__file__)] + sys.argv[1:])
-    ps.ensure_venv(["mitsuba-llvm"], install)
+    ps.ensure_venv(["mitsuba-llvm"], install, script=__file__)
     try:
         import matplotlib  # noqa: F401
     except ImportError:
@@ -130,7 +127,9 @@ class Runner:
 
 
 def make_reference(args, env, out_dir):
-    path = os.path.join(out_dir, "mitsuba-ref-256x256-seed100000.exr")
+    # Named by its spp, so that a short trial's reference is never taken for the real one.
+    path = os.path.join(out_dir,
+                        f"mitsuba-ref-256x256-{args.reference_spp}spp-seed100000.exr")
     meta = path + ".json"
     if not os.path.exists(path):
         # Seeds 100000.. are far from the measured runs' seed*1000 .. +passes.
@@ -147,8 +146,8 @@ def make_reference(args, env, out_dir):
 
 
 def write_csv(rows, path):
-    keys = ["seed", "target_seconds", "renderer", "samples", "spp", "seconds", "E",
-            "load_before"]
+    keys = ["seed", "target_seconds", "renderer", "samples", "spp", "seconds",
+            "process_seconds", "E", "load_before"]
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(keys)
@@ -206,6 +205,10 @@ def summarize(rows, methods):
             out.append({"method": m, "target_seconds": t, "seeds": len(cells),
                         "t_ours": statistics.mean(c[m]["seconds"] for c in cells),
                         "t_mitsuba": statistics.mean(c["mitsuba"]["seconds"] for c in cells),
+                        "t_ours_process": statistics.mean(
+                            c[m]["process_seconds"] for c in cells),
+                        "t_mitsuba_process": statistics.mean(
+                            c["mitsuba"]["process_seconds"] for c in cells),
                         "E_ours": statistics.mean(c[m]["E"] for c in cells),
                         "E_mitsuba": statistics.mean(c["mitsuba"]["E"] for c in cells),
                         "E_ratio_raw": statistics.mean(ratio),
@@ -215,19 +218,33 @@ def summarize(rows, methods):
     return out
 
 
+def geomean(values):
+    return math.exp(statistics.mean(math.log(v) for v in values))
+
+
 def overall(rows, methods):
-    """Per method: the geometric mean of every (seed, budget) pair's efficiency."""
+    """Per method: the geometric mean of every (seed, budget) pair's efficiency, and its
+    spread over seeds (each seed's geometric mean over its budgets)."""
     by = {}
     for r in rows:
         by.setdefault((r["seed"], r["target_seconds"]), {})[r["renderer"]] = r
     out = {}
     for m in methods:
-        eff = [efficiency(v[m]["E"], v[m]["seconds"], v["mitsuba"]["E"], v["mitsuba"]["seconds"])
-               for v in by.values() if m in v and "mitsuba" in v]
+        per_seed = {}
+        for (seed, _), v in sorted(by.items()):
+            if m in v and "mitsuba" in v:
+                per_seed.setdefault(seed, []).append(efficiency(
+                    v[m]["E"], v[m]["seconds"], v["mitsuba"]["E"], v["mitsuba"]["seconds"]))
+        eff = [e for seed_eff in per_seed.values() for e in seed_eff]
         if eff:
-            g = math.exp(statistics.mean(math.log(e) for e in eff))
+            g = geomean(eff)
+            seeds = {seed: geomean(e) for seed, e in per_seed.items()}
             out[m] = {"pairs": len(eff), "efficiency_geomean": g, "E_ratio_equal_time": g ** -0.5,
-                      "efficiency_min": min(eff), "efficiency_max": max(eff)}
+                      "efficiency_min": min(eff), "efficiency_max": max(eff),
+                      "efficiency_per_seed": seeds,
+                      "seed_min": min(seeds.values()), "seed_max": max(seeds.values()),
+                      "seed_stdev": (statistics.stdev(seeds.values())
+                                     if len(seeds) > 1 else 0.0)}
     return out
 
 
@@ -275,6 +292,7 @@ def main():
                 rows.append({"seed": seed, "target_seconds": t, "renderer": name,
                              "samples": r["samples"], "spp": r["samples"] / PIXELS,
                              "seconds": round(r["seconds"], 4),
+                             "process_seconds": r["process_seconds"],
                              "E": run.error(r["output"], ref_path),
                              "load_before": r["load_before"]})
                 log(f"  {name}: {r['seconds']:.2f} s, E {rows[-1]['E']:.6f}")
@@ -302,18 +320,22 @@ def main():
     write_csv(rows, os.path.join(args.report_dir, "results.csv"))
     chart(rows, args.report_dir, f"cornell-box {RES}, equal time, {len(args.seeds)} seed(s)")
 
-    print("| method | t budget | t ours / Mitsuba (s) | E ours | E Mitsuba | E ratio (raw) | "
-          "efficiency (min-max) | E ratio at equal t |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| method | t budget | t ours / Mitsuba (s) | process ours / Mitsuba (s) | E ours | "
+          "E Mitsuba | E ratio (raw) | efficiency (min-max) | E ratio at equal t |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for s in summary:
         print(f"| {s['method']} | {s['target_seconds']:g} s | {s['t_ours']:.2f} / "
-              f"{s['t_mitsuba']:.2f} | {s['E_ours']:.5f} | {s['E_mitsuba']:.5f} | "
+              f"{s['t_mitsuba']:.2f} | {s['t_ours_process']:.2f} / "
+              f"{s['t_mitsuba_process']:.2f} | {s['E_ours']:.5f} | {s['E_mitsuba']:.5f} | "
               f"{s['E_ratio_raw']:.3f} | {s['efficiency']:.2f} ({s['efficiency_min']:.2f}-"
               f"{s['efficiency_max']:.2f}) | {s['E_ratio_equal_time']:.3f} |")
     for m, o in result["overall"].items():
         print(f"\n{m}, all {o['pairs']} pairs: efficiency {o['efficiency_geomean']:.3f} "
               f"(geometric mean; {o['efficiency_min']:.2f}-{o['efficiency_max']:.2f}), "
-              f"E ratio at equal time {o['E_ratio_equal_time']:.3f}")
+              f"E ratio at equal time {o['E_ratio_equal_time']:.3f}; over "
+              f"{len(o['efficiency_per_seed'])} seed(s) {o['seed_min']:.2f}-"
+              f"{o['seed_max']:.2f} (standard deviation {o['seed_stdev']:.2f}): " +
+              ", ".join(f"seed {k} {v:.2f}" for k, v in o["efficiency_per_seed"].items()))
     print(f"\nreference: {ref_spp} spp, estimated E {ref_error:.6f}; load before runs "
           f"{result['load_before_runs']}")
     return 0

@@ -7,7 +7,8 @@
         [--no-install]
 
 Peers (each in its own process, each timing its render alone: not start-up, scene
-building or writing the image):
+building or writing the image; the whole process's wall time is recorded beside it,
+`process_seconds`, for ours what a user waits for: loading, rendering, writing the EXR):
   mitsuba-llvm    Mitsuba 3 llvm_ad_rgb: Dr.Jit compiles the path tracer into one
                   vectorised kernel. Needs a system libLLVM 19 (Debian's libllvm19;
                   Mitsuba 3.9.1 aborts in code generation with bookworm's LLVM 14-16);
@@ -116,8 +117,11 @@ def summarize(runs):
     best = max(runs, key=lambda r: r["samples_per_second"])
     return {"samples": best["samples"],
             "seconds": best["seconds"],
+            "process_seconds": best.get("process_seconds"),
             "samples_per_second": best["samples_per_second"],
             "samples_per_second_all": [r["samples_per_second"] for r in runs],
+            "seconds_all": [r["seconds"] for r in runs],
+            "process_seconds_all": [r.get("process_seconds") for r in runs],
             "load_before_all": [r.get("load_before") for r in runs]}
 
 
@@ -165,15 +169,16 @@ def in_venv():
     return os.path.realpath(sys.prefix) == os.path.realpath(VENV)
 
 
-def ensure_venv(peers, install):
-    """Make .venv and pip-install what the peers need; re-exec in it. Returns notes."""
+def ensure_venv(peers, install, script=__file__):
+    """Make .venv and pip-install what the peers need; re-exec `script` (this one by
+    default) in it, with the same arguments. Returns notes."""
     if not in_venv():
         if not os.path.exists(VENV_PY):
             if not install:
                 raise SystemExit("bench: no .venv (run without --no-install to make it)")
             log("creating .venv")
             subprocess.run([sys.executable, "-m", "venv", VENV], check=True)
-        os.execv(VENV_PY, [VENV_PY, os.path.abspath(__file__)] + sys.argv[1:])
+        os.execv(VENV_PY, [VENV_PY, os.path.abspath(script)] + sys.argv[1:])
     notes = {}
     want = [("mitsuba", MITSUBA_PIN), ("numpy", "numpy>=1.24")]
     if "cycles" in peers:
@@ -201,7 +206,9 @@ def ensure_venv(peers, install):
 def run_json(cmd, what, env=None):
     load = os.getloadavg()[0]
     log(f"{what} (load {load:.2f}): {' '.join(cmd)}")
+    start = time.monotonic()
     p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    process_seconds = time.monotonic() - start
     if p.returncode != 0:
         sys.stderr.write(p.stdout[-4000:] + p.stderr[-4000:])
         raise SystemExit(f"bench: {what} failed with exit status {p.returncode}")
@@ -216,22 +223,33 @@ def run_json(cmd, what, env=None):
         if key not in obj:
             raise SystemExit(f"bench: {what}: JSON lacks {key!r}: {obj}")
     obj["load_before"] = round(load, 2)
-    log(f"  {obj['samples_per_second'] / 1e6:.3f} M samples/s")
+    # From start to exit, beside the render's own seconds: ours adds loading the scene,
+    # writing the EXR and freeing; a peer its interpreter, imports and JIT warm-up.
+    obj["process_seconds"] = round(process_seconds, 4)
+    log(f"  {obj['samples_per_second'] / 1e6:.3f} M samples/s; render "
+        f"{obj['seconds']:.2f} s, process {process_seconds:.2f} s")
     return obj
+
+
+def seconds_pair(summary):
+    """'render / process' seconds of a summarized renderer's best run."""
+    process = summary.get("process_seconds")
+    return (f"{summary['seconds']:.2f} / " +
+            (f"{process:.2f}" if process is not None else "?"))
 
 
 def markdown(scene, spp, res, results, headline):
     rows = [f"{scene} {res}, {spp} spp:", "",
-            "| renderer | samples/s (all runs) | best | noise | mean vs ref | "
-            "speed ratio | noise ratio | efficiency |",
-            "|---|---|---|---|---|---|---|---|"]
+            "| renderer | samples/s (all runs) | best | render / process s (best) | noise | "
+            "mean vs ref | speed ratio | noise ratio | efficiency |",
+            "|---|---|---|---|---|---|---|---|---|"]
     for name, r in results["renderers"].items():
         runs = " / ".join(f"{x / 1e6:.2f}" for x in r["samples_per_second_all"])
         cmp = results["ratios"].get(name, {})
         fmt = (lambda k: f"{cmp[k]:.2f}" if k in cmp else "")
         noise_ratio = f"{cmp['noise_ratio']:.3f}" if "noise_ratio" in cmp else ""
         rows.append(f"| {name} | {runs} M | {r['samples_per_second'] / 1e6:.2f} M | "
-                    f"{r['noise']:.6f} | {100 * r['mean_rel']:+.3f} % | "
+                    f"{seconds_pair(r)} | {r['noise']:.6f} | {100 * r['mean_rel']:+.3f} % | "
                     f"{fmt('speed_ratio')} | {noise_ratio} | {fmt('efficiency_ratio')} |")
     if headline:
         rows.append(f"\nheadline: {headline}")
