@@ -29,7 +29,8 @@ nlohmann::json spec_json(const RenderSpec& spec) {
     return {
         {"scene_name", spec.scene_name}, {"width", spec.width},
         {"height", spec.height},         {"seed", spec.seed},
-        {"strategy", spec.strategy},     {"has_reference", spec.reference.has_value()}};
+        {"strategy", spec.strategy},     {"has_reference", spec.reference.has_value()},
+        {"name", spec.name}};
 }
 
 // The outcome's key, in the store only, for what a render's end records besides it.
@@ -94,6 +95,7 @@ Coordinator::Coordinator(CoordinatorOptions options) : options_(std::move(option
         make_private_dir(options_.data_dir);
         make_private_dir(options_.data_dir / "renders");
         store_ = std::make_unique<RunStore>(options_.data_dir);
+        events_.record_to(store_.get(), &backlog_);
         // Checkpoints, images and store writes run on the backlog's thread, in order,
         // not under mutex_ (a 2048x2048 checkpoint and EXR held it for 1.4 s).
         backlog_.start_writer();
@@ -185,7 +187,7 @@ std::vector<Coordinator::SlotPtr> Coordinator::slots_by_priority() const {
     return out;
 }
 
-void Coordinator::attach(std::unique_ptr<RenderSession> session) {
+void Coordinator::attach(std::unique_ptr<RenderSession> session, bool queued) {
     auto slot = std::make_shared<RenderSlot>();
     RenderSlot* raw = slot.get();  // the slot owns the session: it outlives the callbacks
     RenderSession* s = session.get();
@@ -201,13 +203,25 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session) {
     alive_workers();  // brings alive_cores_ up to date: the first round is cut for them
     s->set_worker_cores(alive_cores_);
     s->start();
+    const bool waits = queued && s->state() == RenderState::Running;
+    if (waits) queue_.add(s->id(), raw->priority, raw->number);  // running at its lease
     if (store_ && s->state() == RenderState::Running) {
-        backlog_.submit("record " + s->id() + " as running", [this, id = s->id()] {
-            store_->update_render_state(id, RenderState::Running, "", unix_millis_now());
-        });
+        if (!waits)
+            backlog_.submit("record " + s->id() + " as running", [this, id = s->id()] {
+                store_->update_render_state(id, RenderState::Running, "",
+                                            unix_millis_now());
+            });
         prepare_checkpoint_copy(*raw);
     }
     changed();
+}
+
+void Coordinator::note_started(const std::string& id) {
+    if (store_)
+        backlog_.submit("record " + id + " as running", [this, id] {
+            store_->update_render_state(id, RenderState::Running, "", unix_millis_now());
+        });
+    events_.on_render(EventKind::Started, id);
 }
 
 // The first checkpoint's copy went into fresh pages at the first round's end, under the
@@ -241,6 +255,7 @@ void Coordinator::prepare_checkpoint_copy(RenderSlot& slot) {
 
 void Coordinator::record_round(RenderSlot& slot, const RoundSummary& round) {
     RenderSession& r = *slot.session;
+    events_.on_render(EventKind::RoundEnded, r.id(), round_fields(round));
     slot.round_history.push_back(round);  // for rounds(): see the end of this file
     if (!store_) return;
     try {
@@ -356,6 +371,7 @@ void Coordinator::queue_checkpoint(RenderSlot& slot, const RoundSummary& round) 
 
 void Coordinator::record_end(RenderSlot& slot) {
     RenderSession& r = *slot.session;
+    events_.on_render(end_event(r.state()), r.id(), end_fields(r));
     if (!store_) return;  // the embedded render keeps its session: no disk to read
     // The session stays in memory until this is written, so a retry finds its
     // buffers; then this write drops it. A finished session changes no more, so the
@@ -438,7 +454,8 @@ std::string Coordinator::submit(RenderSpec spec) {
         std::lock_guard lock(mutex_);
         reserved_memory_ -= needed;
         scenes_[hash] = spec.scene_json;
-        attach(std::move(session));
+        events_.on_render(EventKind::Submitted, id, submitted_fields(spec));
+        attach(std::move(session), true);
     } catch (...) {
         {
             std::lock_guard lock(mutex_);
@@ -501,6 +518,7 @@ void Coordinator::resume_unfinished() {
             if (!rec.reference_path.empty())
                 spec.reference = read_exr(rec.reference_path);
             spec.priority = int32_t(rec.priority);
+            spec.name = j.value("name", "");
             auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
                 session->restore(std::move(cp->merged), cp->strategy_state,
@@ -508,7 +526,9 @@ void Coordinator::resume_unfinished() {
                                  std::move(cp->planned_round));
             std::lock_guard lock(mutex_);  // the backlog's thread may evict meanwhile
             scenes_[rec.scene_hash] = spec.scene_json;
-            attach(std::move(session));
+            events_.resume(rec.id);
+            events_.on_render(EventKind::Resumed, rec.id);
+            attach(std::move(session), rec.state == RenderState::Queued);
         } catch (const std::exception& e) {
             log_error("cannot resume " + rec.id + ": " + e.what());
             backlog_.submit("record that " + rec.id + " cannot resume",
@@ -529,6 +549,7 @@ RenderInfo Coordinator::info_of(const RenderSlot& slot, int32_t priority) const 
     info.priority = priority;
     info.id = s.id();
     info.scene_name = s.spec().scene_name;
+    info.name = s.spec().name;
     info.width = s.spec().width;
     info.height = s.spec().height;
     info.seed = s.spec().seed;
@@ -564,14 +585,21 @@ std::optional<double> Coordinator::plan_wait_seconds(const std::string& id) {
 std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     SlotPtr slot;
     int32_t priority = 0;
+    uint32_t queued_at = 0;
     {
         std::lock_guard lock(mutex_);
         slot = slot_of(id);
         if (slot) priority = slot->priority;
+        queued_at = queue_.position(id);
     }
     if (slot) {
         std::lock_guard lock(slot->mutex);
-        return info_of(*slot, priority);
+        RenderInfo out = info_of(*slot, priority);
+        if (queued_at > 0 && out.state == RenderState::Running) {
+            out.state = RenderState::Queued;  // the session is ready; no worker has it yet
+            out.queue_position = queued_at;
+        }
+        return out;
     }
     // Not in memory: finished and evicted (its end is in the store), or unknown.
     if (!store_) return std::nullopt;
@@ -582,6 +610,7 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     info.id = rec->id;
     const nlohmann::json j = nlohmann::json::parse(rec->spec_json);
     info.scene_name = j.value("scene_name", "");
+    info.name = j.value("name", "");
     info.width = j.value("width", 0u);
     info.height = j.value("height", 0u);
     info.seed = j.value("seed", uint64_t(0));
@@ -646,6 +675,7 @@ std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
         }
         std::lock_guard lock(mutex_);
         forget_ended_leases({}, {id});
+        queue_.leave(id);
         changed();
     } else if (!store_ || !store_->get_render(id)) {
         return std::nullopt;
@@ -672,6 +702,7 @@ std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
     {
         std::lock_guard lock(mutex_);
         slot->priority = priority;
+        queue_.set_priority(id, priority);
         changed();  // waiting workers look again, in the new order
     }
     if (store_) {
@@ -985,6 +1016,8 @@ Registration Coordinator::register_session(const std::string& name, uint32_t thr
     // A new session each time; earlier ones of the same name stay valid (their leases are
     // still theirs), so registering with a worker's name neither takes its leases nor
     // locks it out.
+    events_.on_worker(EventKind::WorkerRegistered, name,
+                      {log_number("threads", int64_t(threads)), log_text("host", identity)});
     std::string session;
     do session = random_hex(16);
     while (worker_sessions_.count(session));
@@ -1053,6 +1086,7 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
         }
         if (grant) {
             lease_render_[lease_id] = {grant->render_id, session};
+            if (queue_.leave(grant->render_id)) note_started(grant->render_id);
             changed();
             return grant;
         }
@@ -1219,6 +1253,10 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
         RenderSession& s = *slot->session;
         if (!s.fail_job(lease_id, worker, reason, *alive, options_.failure_policy))
             return false;
+        if (s.failures_of(worker) == options_.failure_policy.blocklist_after)
+            events_.on_render(EventKind::WorkerBlocklisted, s.id(),
+                              {log_text("worker", worker_name), log_text("host", worker),
+                               log_text("reason", reason)});
         render_failed = s.state() == RenderState::Failed;
         if (render_failed) log_error(s.id() + " failed: " + s.error());
     }
@@ -1410,6 +1448,8 @@ void Coordinator::tick() {
                 w.lost = true;
                 set_alive(name, false);
                 any = true;
+                events_.on_worker(EventKind::WorkerLost, name,
+                                  {log_number("last_seen_ms", w.last_seen_ms)});
                 queue_worker_write("record that " + name + " is lost", [this, name] {
                     store_->mark_worker_state(name, "lost");
                 });
@@ -1501,6 +1541,11 @@ std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& 
     return out;
 }
 
+std::optional<EventPage> Coordinator::events(const std::string& id, int64_t after_seq,
+                                             size_t limit) {
+    return events_.read(id, after_seq, limit);
+}
+
 std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
     SlotPtr slot;
     {
@@ -1538,63 +1583,6 @@ std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
 }
 
 // ---- Memory: the budget, and finished renders leaving it ----
-
-namespace {
-
-uint64_t cgroup_memory_limit() {
-    // A container's limit (cgroup v2), which sysconf does not see; 0 when there is none.
-    std::FILE* f = std::fopen("/sys/fs/cgroup/memory.max", "r");
-    if (!f) return 0;
-    unsigned long long v = 0;
-    const bool number = std::fscanf(f, "%llu", &v) == 1;  // "max" when unlimited
-    std::fclose(f);
-    return number ? uint64_t(v) : 0;
-}
-
-std::string mib(uint64_t bytes) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / (1024.0 * 1024.0));
-    return text;
-}
-
-}  // namespace
-
-uint64_t default_memory_limit() {
-    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
-    uint64_t physical = pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : 0;
-    if (const uint64_t cg = cgroup_memory_limit();
-        cg > 0 && (physical == 0 || cg < physical))
-        physical = cg;
-    return physical > 0 ? physical / 2 : uint64_t(4) << 30;
-}
-
-uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
-    const uint64_t pixels = uint64_t(width) * height;
-    uint64_t per_pixel =
-        Accumulator::kBytesPerPixel      // the accumulator
-        + Accumulator::kBytesPerPixel    // the copy a checkpoint is written from,
-        + 4                              // with the counts of a round planned ahead
-        + 12                             // a round's jobs: counts, first indices
-        + 16                             // the round's spp; a strategy's per pixel
-        + 72                             // optimal's planning, the round ahead
-        + 8                              // optimal's weights kept
-        + (sizeof(PixelSums) + 12) / 4   // a round opened ahead: held results, jobs
-        + 20;                            // the final image: RGB, spp, variance
-    if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
-    return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
-}
-
-MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t renders,
-                                     uint64_t limit_)
-    : std::runtime_error("not enough memory for this render: it needs " + mib(needed_) +
-                         " and the " + std::to_string(renders) +
-                         " render(s) in memory use " + mib(in_use_) +
-                         " of the coordinator's " + mib(limit_) +
-                         " (--memory-limit); wait for renders to finish, or submit a "
-                         "smaller one"),
-      needed(needed_),
-      in_use(in_use_),
-      limit(limit_) {}
 
 uint64_t Coordinator::memory_in_use_locked() const {
     uint64_t total = reserved_memory_;
@@ -1646,6 +1634,8 @@ void Coordinator::evict(const std::string& id) {
     sessions_.erase(it);  // a call that found the slot before keeps it until it is done
     drop_scene_if_unused(hash);
     order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
+    queue_.leave(id);
+    events_.forget(id);  // its events are the store's to serve now
     // Leases of a cancelled render that workers still hold: their results are now
     // answered as unknown, which is what they were (ignored) before.
     std::erase_if(lease_render_,

@@ -30,30 +30,15 @@
 #include <vector>
 
 #include "checkpoint.h"
+#include "memory_budget.h"
 #include "record_backlog.h"
+#include "render_events.h"
+#include "render_queue.h"
 #include "render_session.h"
 
 namespace aliquot {
 
 class RunStore;
-
-// Half of the machine's physical memory (sysconf), or 4 GiB when it cannot be read: the
-// default budget for the buffers of the renders a coordinator holds in memory.
-uint64_t default_memory_limit();
-
-// What a render's session may hold in memory at its peak, in bytes: the accumulator (96
-// bytes a pixel), a round's jobs and the strategy's per-pixel state, the copy of the
-// buffers a checkpoint is written from, the final image, and the reference with its
-// per-round comparison image when there is one. docs/FARM.md has the measured numbers.
-uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference);
-
-// Coordinator::submit refuses a render whose buffers would take the renders in memory
-// past the budget. Nothing has changed when it is thrown: no render id, no directory.
-class MemoryBudgetError : public std::runtime_error {
-public:
-    MemoryBudgetError(uint64_t needed, uint64_t in_use, size_t renders, uint64_t limit);
-    uint64_t needed, in_use, limit;
-};
 
 struct CoordinatorOptions {
     std::filesystem::path data_dir;  // empty: in memory only (the embedded render)
@@ -115,6 +100,10 @@ struct RenderInfo {
     double seconds = 0, samples_per_second = 0;
     double error_estimate = -1, error_vs_reference = -1;
     int64_t created_ms = 0, finished_ms = 0;
+    std::string name;  // RenderSpec::name
+    // While the render is Queued (no job leased yet), its place in the queue: 1 is
+    // leased next (RenderQueue); 0 otherwise.
+    uint32_t queue_position = 0;
 };
 
 struct WorkerStatus {
@@ -157,6 +146,10 @@ public:
     // while it is in memory, or when there is none: what FetchImage sends as it reads.
     std::optional<std::filesystem::path> image_file(const std::string& id);
     std::vector<WorkerStatus> workers();
+    // The render's events numbered after `after_seq` (-1: from its first), at most
+    // `limit` (render_events.h); nullopt for an unknown render.
+    std::optional<EventPage> events(const std::string& id, int64_t after_seq,
+                                    size_t limit);
     // A counter that grows whenever any render changes; waits up to `timeout` for it to
     // pass `seen` and returns it.
     uint64_t wait_for_change(uint64_t seen, std::chrono::milliseconds timeout);
@@ -308,7 +301,12 @@ private:
     std::string store_reference(const Image& reference) const;
     // Wires a new session's callbacks, starts it and makes it visible; under `mutex_`
     // (no one else can reach the session yet).
-    void attach(std::unique_ptr<RenderSession> session);
+    // `queued`: none of its jobs was leased yet (a submission, or a resumed render the
+    // store has queued); it waits in queue_ until one is.
+    void attach(std::unique_ptr<RenderSession> session, bool queued);
+    // Its first job was leased: out of the queue, so running in the record and the log.
+    // Under `mutex_`.
+    void note_started(const std::string& id);
     // The render `id` in memory, or null; under `mutex_`.
     SlotPtr slot_of(const std::string& id) const;
     // Every render in memory, in submission order; under `mutex_`.
@@ -414,6 +412,8 @@ private:
            round_end_wait_seconds_ = 0;
     uint64_t rounds_ended_ = 0;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
+    RenderEvents events_;  // its own lock, a leaf
+    RenderQueue queue_;    // under mutex_: renders no job of which was leased yet
     bool stopping_ = false;
     std::thread ticker_;
 

@@ -1,0 +1,70 @@
+#include "memory_budget.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <string>
+
+#include "accumulator.h"
+#include "sample_job.h"
+
+namespace aliquot {
+
+namespace {
+
+uint64_t cgroup_memory_limit() {
+    // A container's limit (cgroup v2), which sysconf does not see; 0 when there is none.
+    std::FILE* f = std::fopen("/sys/fs/cgroup/memory.max", "r");
+    if (!f) return 0;
+    unsigned long long v = 0;
+    const bool number = std::fscanf(f, "%llu", &v) == 1;  // "max" when unlimited
+    std::fclose(f);
+    return number ? uint64_t(v) : 0;
+}
+
+std::string mib(uint64_t bytes) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / (1024.0 * 1024.0));
+    return text;
+}
+
+}  // namespace
+
+uint64_t default_memory_limit() {
+    const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+    uint64_t physical = pages > 0 && page > 0 ? uint64_t(pages) * uint64_t(page) : 0;
+    if (const uint64_t cg = cgroup_memory_limit();
+        cg > 0 && (physical == 0 || cg < physical))
+        physical = cg;
+    return physical > 0 ? physical / 2 : uint64_t(4) << 30;
+}
+
+uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
+    const uint64_t pixels = uint64_t(width) * height;
+    uint64_t per_pixel =
+        Accumulator::kBytesPerPixel      // the accumulator
+        + Accumulator::kBytesPerPixel    // the copy a checkpoint is written from,
+        + 4                              // with the counts of a round planned ahead
+        + 12                             // a round's jobs: counts, first indices
+        + 16                             // the round's spp; a strategy's per pixel
+        + 72                             // optimal's planning, the round ahead
+        + 8                              // optimal's weights kept
+        + (sizeof(PixelSums) + 12) / 4   // a round opened ahead: held results, jobs
+        + 20;                            // the final image: RGB, spp, variance
+    if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
+    return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
+}
+
+MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t renders,
+                                     uint64_t limit_)
+    : std::runtime_error("not enough memory for this render: it needs " + mib(needed_) +
+                         " and the " + std::to_string(renders) +
+                         " render(s) in memory use " + mib(in_use_) +
+                         " of the coordinator's " + mib(limit_) +
+                         " (--memory-limit); wait for renders to finish, or submit a "
+                         "smaller one"),
+      needed(needed_),
+      in_use(in_use_),
+      limit(limit_) {}
+
+}  // namespace aliquot
