@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "render_state.h"
@@ -116,6 +117,16 @@ struct StudyResult {
     std::optional<double> mean_abs, rmse, relative_mse, max_bucket, p99_bucket;
     std::string outcome_json;
     int64_t updated_at = 0;
+};
+
+// One event of a render (coordinator/farm/render_events.h): its number within the render
+// (from 0), when, its kind's spelling and its fields as a JSON object.
+struct RenderEventRecord {
+    std::string render_id;
+    int64_t seq = 0;
+    int64_t at_ms = 0;
+    std::string kind;
+    std::string fields_json;
 };
 
 // One connection, guarded by a mutex: every method may be called from any thread. Each
@@ -237,6 +248,17 @@ public:
     std::vector<StudyResult> study_results(const std::string& study_id);
     // Forgets one key (the study file no longer has it); its render record stays.
     void remove_study_result(const std::string& study_id, const std::string& render_key);
+
+    // ---- A render's events (coordinator/farm/render_events.h) ----
+    // Records an event (again: a no-op) and deletes the render's events numbered from
+    // keep_first to e.seq - keep_last, so a render keeps at most keep_first + keep_last.
+    void add_render_event(const RenderEventRecord& e, int64_t keep_first,
+                          int64_t keep_last);
+    // Those numbered after `after_seq`, in order, at most `limit`.
+    std::vector<RenderEventRecord> render_events(const std::string& render_id,
+                                                 int64_t after_seq, size_t limit);
+    // How many events of the render are kept, and the highest number (-1: none).
+    std::pair<int64_t, int64_t> render_event_span(const std::string& render_id);
 };
 
 }  // namespace aliquot
