@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { legendValue, logRange, pilotRounds, pilotSamples, positiveExtent } from "./axes";
+import { legendValue, logRange, logSplits, pilotRounds, pilotSamples, positiveExtent } from "./axes";
 
 describe("axes fitted to the render", () => {
   it("a 268 M-sample, 140 s render is not drawn to 1 G samples and 16 minutes", () => {
@@ -39,6 +39,30 @@ describe("the pilot", () => {
     // The probe render of issue 32: rounds of 147456, 147456, 147456, 73728, ...
     expect(pilotRounds([147456, 294912, 442368, 516096], 294912)).toBe(2);
     expect(pilotRounds([147456], null)).toBe(0);
+  });
+});
+
+describe("log ticks", () => {
+  it("are 1, 2, 5 per decade over a fitted range, a bounded number however wide", () => {
+    // Less than a decade: every digit.
+    expect(logSplits(0.0054, 0.0153)).toEqual([0.006, 0.007, 0.008, 0.009, 0.01]);
+    // Where even the digits are few, they are what there is; an axis narrower than a digit has its ends.
+    expect(logSplits(0.0708, 0.141)).toEqual([0.08, 0.09, 0.1]);
+    expect(logSplits(3, 140)).toEqual([5, 10, 20, 50, 100]);
+    expect(logSplits(0.95, 1.05)).toEqual([0.95, 1.05]);
+    expect(logSplits(1e-300, 1e300).length).toBeLessThanOrEqual(12);
+    expect(logSplits(1e-300, 1e300).length).toBeGreaterThanOrEqual(2);
+    for (const [lo, hi] of [[655.36, 86390], [0.07, 4.3], [1.5e6, 3.9e8], [2.2e-5, 3e-3]] as const) {
+      const s = logSplits(lo, hi);
+      expect(s.length).toBeGreaterThanOrEqual(2);
+      expect(s.length).toBeLessThanOrEqual(12);
+      for (const v of s) expect(v >= lo && v <= hi).toBe(true);
+    }
+  });
+  it("never loop or fail on nothing to show", () => {
+    expect(logSplits(0, 10)).toEqual([]);
+    expect(logSplits(5, 5)).toEqual([5]);
+    expect(logSplits(NaN, 1)).toEqual([]);
   });
 });
 

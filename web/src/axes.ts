@@ -76,3 +76,36 @@ export function legendValue(column: (number | null | undefined)[], idx: number |
   const v = column[idx];
   return v === null || v === undefined ? "" : format(v);
 }
+
+/**
+ * Tick values of a log axis over [lo, hi]: 1, 2 and 5 times powers of ten, fewer when the
+ * range spans many decades, and the ends themselves when fewer than two fall inside.
+ * uPlot's own log splits assume a range that starts on a power of ten (its default
+ * ranges do); over a range fitted to the data they could loop until the array overflowed.
+ */
+export function logSplits(lo: number, hi: number, maxTicks = 8): number[] {
+  if (!(lo > 0) || !(hi > lo) || !Number.isFinite(hi)) return lo > 0 && Number.isFinite(lo) ? [lo] : [];
+  const first = Math.floor(Math.log10(lo));
+  const last = Math.ceil(Math.log10(hi));
+  const ticks = (steps: number[], every = 1) => {
+    const out: number[] = [];
+    for (let e = first; e <= last; e += every)
+      for (const m of steps) {
+        const v = Number((m * 10 ** e).toPrecision(12));
+        if (v >= lo && v <= hi) out.push(v);
+      }
+    return out;
+  };
+  const nice = ticks([1, 2, 5]);
+  if (nice.length >= 3 && nice.length <= maxTicks) return nice;
+  if (nice.length < 3) {
+    // Less than a decade: every digit, so the axis still has a few labels.
+    const dense = ticks([1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    if (dense.length >= 2 && dense.length <= maxTicks) return dense;
+    return nice.length >= 2 ? nice : [lo, hi];
+  }
+  // Many decades: every n-th power of ten.
+  const every = Math.ceil((last - first + 1) / maxTicks);
+  const sparse = ticks([1], every);
+  return sparse.length >= 2 ? sparse : [lo, hi];
+}

@@ -3,7 +3,7 @@
 // end-to-end test can check that every round added one.
 import uPlot from "uplot";
 import "uplot/dist/uPlot.min.css";
-import { legendValue, logRange, positiveExtent } from "./axes";
+import { legendValue, logRange, logSplits, positiveExtent } from "./axes";
 import * as fmt from "./format";
 
 export interface SeriesSpec {
@@ -135,12 +135,15 @@ export class ErrorChart {
       axes: [
         {
           label: s.xLabel,
+          // Our own ticks on log axes, every one labelled (uPlot's filter keeps powers of ten).
+          ...(s.logX ? { splits: (_u: uPlot, _i: number, min: number, max: number) => logSplits(min, max, 7), filter: (_u: uPlot, splits: number[]) => splits } : {}),
           stroke: "#52606d",
           grid: { stroke: "#e4e7eb" },
           values: (_u, splits) => splits.map((v) => (v == null ? "" : s.xLabel === "seconds" ? fmt.seconds(v) : fmt.count(v))),
         },
         {
           label: s.yLabel,
+          ...(s.logY ? { splits: (_u: uPlot, _i: number, min: number, max: number) => logSplits(min, max), filter: (_u: uPlot, splits: number[]) => splits } : {}),
           stroke: "#52606d",
           grid: { stroke: "#e4e7eb" },
           size: 64,
@@ -174,7 +177,14 @@ export class ErrorChart {
     } else {
       // Resetting the scales calls the range functions again: the view may have moved.
       this.plot.setData(this.data, true);
+      // uPlot refreshes legends only as the cursor moves: the latest values when nothing is
+      // hovered (legendValue), not those of the first, empty, data.
+      if (this.plot.cursor.idx === null || this.plot.cursor.idx === undefined) this.plot.setLegend({ idx: null as unknown as number });
     }
+    // For the end-to-end test: where the axes end and what is shaded as the pilot.
+    this.el.dataset.xMax = String(Number(this.xRange()[1].toPrecision(4)));
+    this.el.dataset.yMax = String(Number(this.yRange()[1].toPrecision(4)));
+    this.el.dataset.pilot = this.view.pilot ? this.view.pilot.map((v) => Number(v.toPrecision(6))).join(",") : "";
   }
 
   private resize(): void {
