@@ -14,6 +14,7 @@ import os from "node:os";
 import path from "node:path";
 import { fileURLToPath } from "node:url";
 import { chromium } from "playwright-core";
+import { compareWithBaseline, stableShot } from "./screenshots.mjs";
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, "../..");
@@ -253,7 +254,10 @@ page.on("response", async (r) => {
     /* navigation discarded it */
   }
 });
-page.on("pageerror", (e) => pageErrors.push(String(e)));
+page.on("pageerror", (e) => {
+  pageErrors.push(String(e));
+  log(`  page error: ${e.stack ?? e}`);
+});
 page.on("console", (m) => {
   if (m.type() === "error" && !/Failed to load resource/.test(m.text())) pageErrors.push(m.text());
 });
@@ -423,6 +427,12 @@ await check("the exposure slider brightens the preview", async () => {
   await waitFor(async () => (await attr("#preview", "src"))?.includes("exposure=0"), { what: "exposure back to 0" });
   await sleep(300);
   await shot("render");
+  await stableShot(page, OUT, "render", {
+    freeze: [".stats dd", "#render-progress .label", "#render-events li", "#rounds-table td", "#render-outcome", "#round-note"],
+    mask: ["#preview", "#bucket-overlay", ".heatmap", ".legend", ".chart"],
+    keep: { "#rounds-table tbody": 3, "#render-events": 3 },
+  });
+  await compareWithBaseline(context, OUT, "render", log);
 });
 
 await check("nothing is fetched faster than once a second while a render runs", async () => {
@@ -439,13 +449,123 @@ await check("nothing is fetched faster than once a second while a render runs", 
   log(`  ${fetches.length} fetches while watching the render, ${maps} of the spp map`);
 });
 
-await check("cancel from the renders page", async () => {
+await check("a render's page: submission time, no raw outcome, EXR and PNG downloads", async () => {
+  // The finished Dammertz render's page, unfrozen (the screenshot above froze its numbers).
+  await page.reload();
+  await page.waitForSelector('.render-header[data-state="done"]');
+  assert(/\d/.test(await page.textContent('dd[data-stat="submitted"]')), "no submission time");
+  assert((await page.textContent('dd[data-stat="eta"]')).trim() === "–", "a finished render has an ETA");
+  const outcome = await page.textContent("#render-outcome");
+  assert(!outcome.includes("{") && !outcome.includes('"'), `outcome shown as JSON: ${outcome}`);
+  assert(await page.isHidden("#priority-controls"), "a finished render offers a priority change");
+  const exr = await page.request.get(BASE + (await attr("#download-exr", "href")));
+  assert(exr.status() === 200, `EXR download: ${exr.status()}`);
+  const exrBytes = await exr.body();
+  assert(exrBytes.readUInt32LE(0) === 20000630, "the EXR download is not an OpenEXR file");
+  const png = await page.request.get(BASE + (await attr("#download-png", "href")));
+  const pngBytes = await png.body();
+  assert(png.status() === 200 && pngBytes.toString("latin1", 1, 4) === "PNG", `PNG download: ${png.status()}`);
+  assert(pngBytes.readUInt32BE(16) === 128 && pngBytes.readUInt32BE(20) === 128, "the PNG is not the render's size");
+});
+
+await check("a render's events are listed, or the page says the coordinator keeps none", async () => {
+  const res = await fetch(`${BASE}/api/renders/${renderId}/events`, { headers: withToken() });
+  if (res.status === 404) {
+    await waitFor(async () => /no event log/.test(await page.textContent("#render-events-note")), { what: "the no-log note" });
+    log("  the coordinator serves no render events yet (404): the page says so");
+    return;
+  }
+  assert(res.ok, `GET events: ${res.status}`);
+  const body = await res.json();
+  const count = (Array.isArray(body) ? body : body.events).length;
+  assert(count >= 1, "no events for a finished render");
+  await page.reload();
+  await waitFor(async () => Number(await attr("#render-events", "data-count")) === count, { what: `${count} events listed` });
+});
+
+let resubmitted = null;
+await check("resubmit with changes: the form holds the render's spec", async () => {
+  await page.click("#resubmit");
+  await page.waitForSelector('#submit-form[data-from]');
+  const value = (sel) => page.$eval(sel, (e) => e.value);
+  assert((await value("#submit-method")) === "dammertz", "method not prefilled");
+  assert((await value("#submit-resolution")) === "128x128", "resolution not prefilled");
+  assert((await value("#submit-seed")) === "5", "seed not prefilled");
+  assert((await value('input[data-param="max_spp"]')) === "1024", "max_spp not prefilled");
+  await page.fill("#submit-resolution", "64x64");
+  await page.click("#submit-button");
+  const text = await page.locator(".form-message:not(.error)", { hasText: /submitted r-/ }).textContent();
+  resubmitted = /submitted (r-\d+)/.exec(text)?.[1];
+  const r = await api(`/api/renders/${resubmitted}`);
+  assert(r.method === "dammertz" && r.width === 64 && r.seed === "5" && r.strategy.max_spp === 1024, `resubmitted ${JSON.stringify(r)}`);
+  await waitFor(async () => (await api(`/api/renders/${resubmitted}`)).state === "done", { timeout: 60000, what: "the resubmitted render" });
+});
+
+await check("delete asks first, then removes the render", async () => {
+  await page.goto(`${BASE}/#/render/${resubmitted}`);
+  await page.waitForSelector('.render-header[data-state="done"]');
+  page.once("dialog", (d) => d.dismiss());
+  await page.click("#delete-render");
+  await sleep(300);
+  assert((await api(`/api/renders/${resubmitted}`)).id === resubmitted, "deleted although the dialog was dismissed");
+  page.once("dialog", (d) => d.accept());
+  await page.click("#delete-render");
+  await page.waitForSelector("#renders-table");
+  const gone = await fetch(`${BASE}/api/renders/${resubmitted}`, { headers: withToken() });
+  assert(gone.status === 404, `the deleted render answers ${gone.status}`);
+  assert(!(await page.$(`tr[data-id="${resubmitted}"]`)), "the deleted render is still listed");
+});
+
+// Names (submit --name) and the queued state come from the API of issue 32; a coordinator
+// without them yet is said so in the log, and what it has is still checked.
+const served = await api(`/api/renders/${renderId}`).catch(() => ({}));
+const hasNames = "name" in served;
+
+let longId = null;
+await check("queued → running → done with a priority change; ETA; cancel from the list", async () => {
+  // One worker of one thread: the long render holds it, the next ones wait their turn.
   const long = await submitJSON({ scene: "cornell-box", resolution: "128x128", strategy: { method: "uniform", spp: 100000 } });
+  longId = long.id;
+  await waitFor(async () => (await api(`/api/renders/${long.id}`)).samples_done > 0, { what: "the long render to start" });
+  const small = (name) => ({ scene: "cornell-box", resolution: "64x64", strategy: { method: "uniform", spp: 16 }, ...(hasNames ? { name } : {}) });
+  const b = await submitJSON(small("e2e second"));
+  const c = await submitJSON(small("e2e third"));
+  await page.goto(`${BASE}/#/renders`);
+  await page.waitForSelector(`tr[data-id="${c.id}"]`);
+  const queued = (await api(`/api/renders/${c.id}`)).state === "queued";
+  if (queued) {
+    const position = (await api(`/api/renders/${c.id}`)).queue_position;
+    assert(position >= 1, `queue_position ${position}`);
+    await waitFor(async () => (await page.textContent(`tr[data-id="${c.id}"] td[data-col="eta"]`)).trim() === `queued #${(await api(`/api/renders/${c.id}`)).queue_position}`, {
+      what: "the queued render's place in the ETA column",
+    });
+    assert((await attr(`tr[data-id="${c.id}"]`, "data-state")) === "queued", "the row is not queued");
+  } else log("  the API has no queued state yet: queued renders read running at 0 samples");
+  if (hasNames) assert((await page.textContent(`tr[data-id="${b.id}"] a.render-link`)).trim() === "e2e second", "the name is not shown");
+  await waitFor(async () => /\d/.test(await page.textContent(`tr[data-id="${long.id}"] td[data-col="eta"]`)), { what: "the running render's ETA" });
+
+  // The second render jumps the queue: priority 10 from its page.
+  await page.goto(`${BASE}/#/render/${b.id}`);
+  await page.waitForSelector("#priority-input");
+  assert(await page.isVisible("#priority-controls"), "no priority control on an unfinished render");
+  assert(await page.isHidden("#delete-render"), "delete offered on an unfinished render");
+  await page.fill("#priority-input", "10");
+  await page.click("#priority-set");
+  await waitFor(async () => (await api(`/api/renders/${b.id}`)).priority === 10, { what: "priority 10 in the API" });
+  await page.waitForSelector('.render-header[data-state="done"]', { timeout: 60000 });
+  assert((await api(`/api/renders/${long.id}`)).state === "running", "the long render finished before the prioritised one");
+  if (queued) assert((await api(`/api/renders/${c.id}`)).state === "queued", "the third render left the queue before the long one");
+
   await page.goto(`${BASE}/#/renders`);
   await page.click(`button[data-cancel="${long.id}"]`);
   await page.waitForSelector(`tr[data-id="${long.id}"][data-state="cancelled"]`);
   assert((await api(`/api/renders/${long.id}`)).state === "cancelled", "the API does not say cancelled");
+  await page.waitForSelector(`tr[data-id="${c.id}"][data-state="done"]`, { timeout: 60000 });
 });
+
+// Whatever failed above, the long render must not hold the only worker for what follows.
+if (longId && (await api(`/api/renders/${longId}`)).state === "running")
+  await api(`/api/renders/${longId}/cancel`, { method: "POST", headers: { "Content-Type": "application/json" }, body: "{}" });
 
 let uniformId = null;
 await check("compare two renders of one scene", async () => {
@@ -463,14 +583,80 @@ await check("compare two renders of one scene", async () => {
   await shot("compare");
 });
 
-await check("the renders page lists every render", async () => {
+let optimalId = null;
+await check("charts: the pilot shown, axes scaled to the render, legends without --", async () => {
+  const o = await submitJSON({ scene: "cornell-box", resolution: "128x128", seed: 2, strategy: { method: "optimal", spp: 64 } });
+  optimalId = o.id;
+  await page.goto(`${BASE}/#/render/${o.id}`);
+  await page.waitForSelector(".render-header[data-state]");
+  await waitFor(async () => (await api(`/api/renders/${o.id}`)).state === "done", { timeout: 60000, what: "the optimal render" });
+  const r = await api(`/api/renders/${o.id}`);
+  const rows = (await api(`/api/renders/${o.id}/rounds`)).rows;
+  await waitFor(async () => Number(await attr("#chart-samples", "data-points")) === rows.length, { what: `${rows.length} points` });
+  const pilot = Math.max(4, Math.floor(0.5 * 64)) * 128 * 128; // docs/STRATEGIES.md
+  assert((await attr("#chart-samples", "data-pilot")).split(",")[1] === String(pilot), `pilot shaded as ${await attr("#chart-samples", "data-pilot")}`);
+  assert((await attr("#chart-time", "data-pilot")) !== "", "no pilot on the time chart");
+  assert((await attr("#chart-note", "data-pilot")) === "done", "the pilot is not counted done");
+  const xMax = Number(await attr("#chart-samples", "data-x-max"));
+  assert(xMax >= r.samples_done && xMax < 1.5 * r.samples_done, `samples axis ends at ${xMax} for ${r.samples_done} samples`);
+  const tMax = Number(await attr("#chart-time", "data-x-max"));
+  const lastT = rows.at(-1)[3];
+  assert(tMax >= lastT && tMax < 1.5 * lastT, `time axis ends at ${tMax} s for a ${lastT} s render`);
+  const legend = () => page.textContent("#chart-samples .u-legend");
+  assert(!(await legend()).includes("--"), `legend without hover: ${await legend()}`);
+  const box = await page.locator("#chart-samples .u-over").boundingBox();
+  for (const f of [0.1, 0.5, 0.9]) {
+    await page.mouse.move(box.x + box.width * f, box.y + box.height / 2);
+    await sleep(100);
+    assert(!(await legend()).includes("--"), `hover legend at ${f}: ${await legend()}`);
+  }
+  await page.mouse.move(0, 0);
+  await shot("render-optimal");
+});
+
+await check("the renders page lists every render with its thumbnail; sort and filter", async () => {
   await page.goto(`${BASE}/#/renders`);
   await page.waitForSelector(`tr[data-id="${uniformId}"][data-state="done"]`);
+  const all = (await api("/api/renders")).renders;
   const rows = await page.$$eval("#renders-table tbody tr", (r) => r.length);
-  assert(rows === 3, `${rows} rows`);
+  assert(rows === all.length, `${rows} rows for ${all.length} renders`);
   const done = await page.textContent(`tr[data-id="${renderId}"] .progress-cell`);
   assert(done.includes("100 %"), `progress cell "${done}"`);
+  assert(/\d/.test(await page.textContent(`tr[data-id="${renderId}"] td[data-col="submitted"]`)), "no submission time");
+  await waitFor(
+    () => page.$eval(`tr[data-id="${renderId}"] img.thumb`, (i) => i.complete && i.naturalWidth > 0 && i.naturalWidth <= 96),
+    { what: "the thumbnail" },
+  );
+  const visibleIds = () => page.$$eval("#renders-table tbody tr:not([hidden])", (r) => r.map((x) => x.dataset.id));
+  // Sort by name (an unnamed render by its id), then back.
+  await page.click('th[data-sort="name"]');
+  const byName = [...all].sort((a, b) => ((a.name || a.id).toLowerCase() < (b.name || b.id).toLowerCase() ? -1 : 1)).map((r) => r.id);
+  assert(JSON.stringify(await visibleIds()) === JSON.stringify(byName), `sorted by name: ${await visibleIds()}`);
+  assert(page.url().includes("sort=name"), `the address keeps no sort: ${page.url()}`);
+  await page.click('th[data-sort="created"]');
+  await page.selectOption("#filter-state", "done");
+  const doneIds = all.filter((r) => r.state === "done").map((r) => r.id);
+  assert((await visibleIds()).length === doneIds.length, `state filter shows ${await visibleIds()}`);
+  assert(page.url().includes("state=done"), "the address keeps no filter");
+  await page.selectOption("#filter-method", "dammertz");
+  assert(JSON.stringify(await visibleIds()) === JSON.stringify([renderId]), `method filter shows ${await visibleIds()}`);
+  await page.selectOption("#filter-state", "");
+  await page.selectOption("#filter-method", "");
+  await page.selectOption("#filter-scene", "cornell-box");
+  assert((await visibleIds()).length === all.length, "scene filter hides cornell-box renders");
+  await page.fill("#filter-text", hasNames ? "E2E THIRD" : uniformId);
+  assert((await visibleIds()).length === 1, `text filter shows ${await visibleIds()}`);
+  await page.reload(); // the view comes back from the address
+  await page.waitForSelector(`tr[data-id="${uniformId}"]`);
+  assert((await visibleIds()).length === 1, "the filter did not survive a reload");
+  await page.goto(`${BASE}/#/renders`);
+  await page.waitForSelector(`tr[data-id="${uniformId}"]`);
   await shot("renders");
+  await stableShot(page, OUT, "renders", {
+    freeze: ["#renders-table td.num", "#renders-table .progress .label", ".form-message"],
+    mask: ["img.thumb"],
+  });
+  await compareWithBaseline(context, OUT, "renders", log);
 });
 
 await check("studies: none yet, then a report with its table and chart", async () => {
@@ -509,7 +695,15 @@ await check("studies: none yet, then a report with its table and chart", async (
 await check("a killed worker turns lost on the workers page", async () => {
   await page.goto(`${BASE}/#/workers`);
   await page.waitForSelector('tr[data-name="e2e-worker"][data-state="idle"], tr[data-name="e2e-worker"][data-state="busy"]');
+  const cell = (c) => page.textContent(`tr[data-name="e2e-worker"] td.${c}`).then((t) => t.trim());
+  assert((await cell("host")) === os.hostname().slice(0, 128), `host ${await cell("host")}`);
+  assert(/^\d+\.\d+\.\d+/.test(await cell("version")), `version ${await cell("version")}`);
+  assert((await cell("failures")) === "0", `failures ${await cell("failures")}`);
   await shot("workers");
+  await stableShot(page, OUT, "workers", {
+    freeze: ["#workers-table td.num", "#workers-table td.host", "#workers-table td.version", "#workers-table td.lease", "#workers-table td.state"],
+  });
+  await compareWithBaseline(context, OUT, "workers", log);
   worker.kill("SIGKILL");
   await page.waitForSelector('tr[data-name="e2e-worker"][data-state="lost"]', { timeout: 15000 });
   assert((await page.textContent('tr[data-name="e2e-worker"] .state')).trim() === "lost", "badge does not say lost");

@@ -84,7 +84,7 @@ export class RenderPage implements Page {
   private bySamples = errorChart("error vs samples", "samples");
   private byTime = errorChart("error vs wall time", "seconds");
   private roundBody = h("tbody");
-  private roundNote = h("p", { class: "muted" });
+  private roundNote = h("p", { class: "muted", id: "round-note" });
   private chartNote = h("p", { class: "muted chart-note", id: "chart-note" });
   private hasReference = false;
   private eventList = h("ol", { class: "events", id: "render-events" });
