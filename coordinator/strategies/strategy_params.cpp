@@ -12,6 +12,7 @@
 #include "json_field.h"
 #include "optimal_strategy.h"
 #include "oracle_strategy.h"
+#include "strategy_parameters.h"
 #include "uniform_strategy.h"
 
 namespace aliquot {
@@ -19,85 +20,10 @@ namespace aliquot {
 using nlohmann::json;
 
 void to_json(json& j, const StrategyParams& p) {
-    j = json{{"method", p.method},
-             {"spp", p.spp},
-             {"budget", p.budget},
-             {"max_variance", p.max_variance},
-             {"samples_per_iteration", p.samples_per_iteration},
-             {"split_factor", p.split_factor},
-             {"min_bucket_size", p.min_bucket_size},
-             {"error_norm", p.error_norm},
-             {"initial_spp", p.initial_spp},
-             {"alpha", p.alpha},
-             {"bucket_size", p.bucket_size},
-             {"min_spp", p.min_spp},
-             {"sigma_radius", p.sigma_radius},
-             {"sigma_prior", p.sigma_prior},
-             {"floor_fraction", p.floor_fraction},
-             {"steer_rounds", p.steer_rounds},
-             {"plan_ahead", p.plan_ahead},
-             {"noise_threshold", p.noise_threshold},
-             {"adaptive_min_samples", p.adaptive_min_samples},
-             {"adaptive_step", p.adaptive_step},
-             {"max_spp", p.max_spp},
-             {"max_samples", p.max_samples}};
+    j = json{{"method", p.method}};
+    for (const StrategyParameter& parameter : strategy_parameters())
+        j[parameter.key] = parameter.get(p);
 }
-
-namespace {
-
-template <typename Unsigned>
-Unsigned whole(const JsonField& f) {
-    return Unsigned(f.whole(0, std::numeric_limits<Unsigned>::max()));
-}
-
-void read_member(const std::string& key, const JsonField& v, StrategyParams& p) {
-    if (key == "method")
-        p.method = v.string();
-    else if (key == "spp")
-        p.spp = whole<uint64_t>(v);
-    else if (key == "budget")
-        p.budget = whole<uint64_t>(v);
-    else if (key == "max_variance")
-        p.max_variance = v.number();
-    else if (key == "samples_per_iteration")
-        p.samples_per_iteration = whole<uint32_t>(v);
-    else if (key == "split_factor")
-        p.split_factor = v.number();
-    else if (key == "min_bucket_size")
-        p.min_bucket_size = whole<uint32_t>(v);
-    else if (key == "error_norm")
-        p.error_norm = v.string();
-    else if (key == "initial_spp")
-        p.initial_spp = whole<uint32_t>(v);
-    else if (key == "alpha")
-        p.alpha = v.number();
-    else if (key == "bucket_size")
-        p.bucket_size = whole<uint32_t>(v);
-    else if (key == "min_spp")
-        p.min_spp = whole<uint32_t>(v);
-    else if (key == "sigma_radius")
-        p.sigma_radius = whole<uint32_t>(v);
-    else if (key == "sigma_prior")
-        p.sigma_prior = whole<uint32_t>(v);
-    else if (key == "floor_fraction")
-        p.floor_fraction = v.number();
-    else if (key == "steer_rounds")
-        p.steer_rounds = whole<uint32_t>(v);
-    else if (key == "plan_ahead")
-        p.plan_ahead = v.number();
-    else if (key == "noise_threshold")
-        p.noise_threshold = v.number();
-    else if (key == "adaptive_min_samples")
-        p.adaptive_min_samples = whole<uint32_t>(v);
-    else if (key == "adaptive_step")
-        p.adaptive_step = whole<uint32_t>(v);
-    else if (key == "max_spp")
-        p.max_spp = whole<uint32_t>(v);
-    else if (key == "max_samples")
-        p.max_samples = whole<uint64_t>(v);
-}
-
-}  // namespace
 
 void from_json(const json& j, StrategyParams& p) {
     try {
@@ -107,29 +33,16 @@ void from_json(const json& j, StrategyParams& p) {
             sigma->fail(
                 "the oracle's sigma is not a parameter: it is given in-process (aliquot "
                 "render --sigma FILE.exr, or a study), never to a coordinator");
-        root.allow_keys({"method",
-                         "spp",
-                         "budget",
-                         "max_variance",
-                         "samples_per_iteration",
-                         "split_factor",
-                         "min_bucket_size",
-                         "error_norm",
-                         "initial_spp",
-                         "alpha",
-                         "bucket_size",
-                         "min_spp",
-                         "sigma_radius",
-                         "sigma_prior",
-                         "floor_fraction",
-                         "steer_rounds",
-                         "plan_ahead",
-                         "noise_threshold",
-                         "adaptive_min_samples",
-                         "adaptive_step",
-                         "max_spp",
-                         "max_samples"});
-        for (const auto& [key, v] : root.members()) read_member(key, v, p);
+        std::vector<std::string> keys = {"method"};
+        for (const StrategyParameter& parameter : strategy_parameters())
+            keys.push_back(parameter.key);
+        root.allow_keys(keys);
+        for (const auto& [key, v] : root.members()) {
+            if (key == "method")
+                p.method = v.string();
+            else
+                find_strategy_parameter(key)->read(v, p);
+        }
     } catch (const JsonError& e) {
         // Parameters arrive inside other documents (a request, a study): name the
         // parameter, and let the caller say where its parameters sit.
@@ -174,6 +87,10 @@ constexpr uint64_t kMaxBudget = uint64_t(1) << 53;
 
 }  // namespace
 
+bool needs_budget(const std::string& method) {
+    return method != "dammertz" && method != "cycles";
+}
+
 void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t height) {
     const auto& methods = strategy_methods();
     if (std::find(methods.begin(), methods.end(), p.method) == methods.end())
@@ -183,33 +100,23 @@ void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t heigh
              " has no pixels");
     const uint64_t pixels = uint64_t(width) * height;
 
+    // Each parameter's own bounds, from the one table: JSON refuses the same.
+    for (const StrategyParameter& parameter : strategy_parameters()) {
+        const std::string why = parameter.out_of_bounds(p);
+        if (!why.empty()) fail(parameter.key + " " + why);
+    }
+
+    // What no parameter's bounds say alone.
     if (p.spp && p.budget) fail("spp and budget are alternatives: give one of them");
-    if (p.spp > UINT32_MAX) fail("spp " + std::to_string(p.spp) + " exceeds 4294967295");
     if (p.spp && p.spp > kMaxBudget / pixels)
         fail("spp " + std::to_string(p.spp) + " times " + std::to_string(pixels) +
              " pixels exceeds the largest budget, 2^53 samples");
-    if (p.budget > kMaxBudget)
-        fail("budget " + std::to_string(p.budget) + " exceeds 2^53 samples");
     if (p.budget / pixels > UINT32_MAX)
         fail("budget " + std::to_string(p.budget) +
              " gives more than 4294967295 samples per pixel");
-    if (p.method != "dammertz" && p.method != "cycles" && p.spp == 0 && p.budget == 0)
+    if (needs_budget(p.method) && p.spp == 0 && p.budget == 0)
         fail("spp and budget are both 0: method '" + p.method +
              "' needs a sample budget");
-
-    if (std::isnan(p.max_variance) || p.max_variance <= 0)
-        fail("max_variance must be greater than 0");
-    if (p.samples_per_iteration == 0) fail("samples_per_iteration must be at least 1");
-    if (std::isnan(p.split_factor) || p.split_factor < 1)
-        fail(
-            "split_factor must be at least 1 (a bucket splits when E <= split_factor * "
-            "V)");
-    if (p.min_bucket_size == 0) fail("min_bucket_size must be at least 1");
-    if (p.error_norm != "seed" && p.error_norm != "paper")
-        fail("unknown error_norm '" + p.error_norm + "'; valid: seed, paper");
-    if (std::isnan(p.alpha) || p.alpha < 0) fail("alpha must be 0 or more");
-    if (std::isinf(p.alpha)) fail("alpha must be finite");
-    if (p.bucket_size == 0) fail("bucket_size must be at least 1");
     if (p.max_spp && p.method == "adaptive" && p.initial_spp > p.max_spp)
         fail("initial_spp (" + std::to_string(p.initial_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
@@ -217,18 +124,6 @@ void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t heigh
         p.min_spp > p.max_spp)
         fail("min_spp (" + std::to_string(p.min_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
-    if (p.max_samples > kMaxBudget) fail("max_samples exceeds 2^53 samples");
-    // A radius beyond 64 pools over more than 16641 pixels: not a neighbourhood.
-    if (p.sigma_radius > 64) fail("sigma_radius must be at most 64");
-    if (p.sigma_prior > (1u << 24)) fail("sigma_prior must be at most 16777216 samples");
-    if (!(p.floor_fraction >= 0 && p.floor_fraction < 1))
-        fail("floor_fraction must be at least 0 and below 1");
-    if (p.steer_rounds > 64) fail("steer_rounds must be at most 64");
-    if (!(p.plan_ahead >= 0 && p.plan_ahead <= 1))
-        fail("plan_ahead must be at least 0 and at most 1");
-    if (!(p.noise_threshold > 0) || std::isinf(p.noise_threshold))
-        fail("noise_threshold must be greater than 0 and finite");
-    if (p.adaptive_step == 0) fail("adaptive_step must be at least 1");
     if (p.max_spp && p.method == "cycles" && p.adaptive_min_samples > p.max_spp)
         fail("adaptive_min_samples (" + std::to_string(p.adaptive_min_samples) +
              ") exceeds max_spp (" + std::to_string(p.max_spp) + ")");

@@ -87,8 +87,18 @@ struct StrategyParams {
     uint64_t max_samples = 0;
 };
 
+// Every parameter of strategy_parameters() and the method. Unknown keys are refused, a
+// value out of its bounds too, naming the key and the bounds; missing keys keep their
+// defaults (so a spec stored before a parameter existed still reads).
 void to_json(nlohmann::json& j, const StrategyParams& p);
 void from_json(const nlohmann::json& j, StrategyParams& p);
+
+// Whether `method` needs a sample budget (spp or budget): dammertz and cycles stop by
+// their own measure.
+bool needs_budget(const std::string& method);
+// Samples per pixel a render of a method that needs a budget gets when given neither
+// spp nor budget: on the command line and over HTTP alike.
+inline constexpr uint64_t kDefaultSpp = 64;
 
 // Throws std::invalid_argument with a message naming the parameter that is wrong
 // (unknown method, spp and budget both zero, alpha < 0, ...), including an oracle
