@@ -889,5 +889,111 @@ TEST_F(CoordinatorTest, DeletingARenderTheDiskRefusesAnswersAtOnceWithTheReason)
     EXPECT_TRUE(c.info(id));
 }
 
+// Issue 32: a render is queued until its first job is leased, with its place in the order
+// lease() serves renders; a priority change reorders the queue, and a restart keeps it.
+TEST_F(CoordinatorTest, ARenderIsQueuedUntilItsFirstLeaseInTheOrderLeasesFollow) {
+    std::string a, b, c;
+    {
+        Coordinator coordinator(options);
+        a = coordinator.submit(small_spec());
+        b = coordinator.submit(small_spec());
+        RenderSpec urgent = small_spec();
+        urgent.priority = 5;
+        c = coordinator.submit(urgent);
+        const auto place = [&](const std::string& id) {
+            const RenderInfo info = *coordinator.info(id);
+            EXPECT_EQ(info.state, RenderState::Queued) << id;
+            EXPECT_EQ(info.seconds, 0.0) << id;
+            return info.queue_position;
+        };
+        EXPECT_EQ(place(c), 1u);
+        EXPECT_EQ(place(a), 2u);
+        EXPECT_EQ(place(b), 3u);
+        ASSERT_TRUE(coordinator.set_priority(b, 9));
+        EXPECT_EQ(place(b), 1u);
+        EXPECT_EQ(place(c), 2u);
+        EXPECT_EQ(place(a), 3u);
+        // What was 1 is what a worker gets; it runs, and the others move up.
+        const std::string session = coordinator.register_worker("w", 1).session;
+        EXPECT_EQ(coordinator.lease(session, std::chrono::milliseconds(0))->render_id, b);
+        EXPECT_EQ(coordinator.info(b)->state, RenderState::Running);
+        EXPECT_EQ(coordinator.info(b)->queue_position, 0u);
+        EXPECT_EQ(place(c), 1u);
+        EXPECT_EQ(place(a), 2u);
+        // Cancelled while queued: out of the queue.
+        coordinator.cancel(c);
+        EXPECT_EQ(coordinator.info(c)->queue_position, 0u);
+        EXPECT_EQ(place(a), 1u);
+    }
+    Coordinator again(options);
+    EXPECT_EQ(again.info(a)->state, RenderState::Queued);
+    EXPECT_EQ(again.info(a)->queue_position, 1u);
+    EXPECT_EQ(again.info(b)->state, RenderState::Running);
+    EXPECT_EQ(again.info(c)->state, RenderState::Cancelled);
+}
+
+// Issue 32: a render's events, in order, kept in the store for after a restart; an
+// unknown render has none.
+TEST_F(CoordinatorTest, ARendersEventsAreServedInOrderAndOutliveTheCoordinator) {
+    std::string id;
+    const auto kinds = [](const EventPage& page) {
+        std::vector<std::string> out;
+        for (const RenderEvent& e : page.events)
+            out.push_back(std::string(to_string(e.kind)));
+        return out;
+    };
+    const std::vector<std::string> want = {"submitted", "started", "round_ended",
+                                           "finished"};
+    {
+        Coordinator c(options);
+        RenderSpec spec = small_spec();
+        spec.name = "shot 12, take 3";
+        id = c.submit(spec);
+        fake_render(c);
+        const std::optional<EventPage> page = c.events(id, -1, 100);
+        ASSERT_TRUE(page);
+        EXPECT_EQ(kinds(*page), want);
+        EXPECT_EQ(page->omitted, 0u);
+        for (size_t i = 0; i < page->events.size(); ++i)
+            EXPECT_EQ(page->events[i].seq, i);
+        const LogFields& submitted = page->events.front().fields;
+        EXPECT_NE(std::find_if(submitted.begin(), submitted.end(),
+                               [](const LogField& f) {
+                                   return f.key == "name" && f.value == "shot 12, take 3";
+                               }),
+                  submitted.end());
+        // After a number: only what came after.
+        EXPECT_EQ(c.events(id, 2, 100)->events.size(), 1u);
+        EXPECT_FALSE(c.events("r-999999", -1, 100));
+        EXPECT_FALSE(c.events("../../etc/passwd", -1, 100));
+    }
+    Coordinator again(options);
+    const std::optional<EventPage> page = again.events(id, -1, 100);
+    ASSERT_TRUE(page);
+    EXPECT_EQ(kinds(*page), want);
+    EXPECT_EQ(again.info(id)->name, "shot 12, take 3");
+}
+
+// Issue 32: a name is for people; one that could forge a log line or fill a page is
+// refused, and the refused render leaves nothing.
+TEST_F(CoordinatorTest, ANameWithControlCharactersOrTooLongIsRefused) {
+    Coordinator c(options);
+    for (const std::string& bad :
+         {std::string("a\nb"), std::string("tab\there"), std::string("esc\x1b[31m"),
+          std::string("c1\xc2\x85"), std::string("bad utf-8 \xff"),
+          std::string(kMaxRenderName + 1, 'n')}) {
+        RenderSpec spec = small_spec();
+        spec.name = bad;
+        EXPECT_THROW(c.submit(spec), std::invalid_argument) << bad.substr(0, 20);
+    }
+    EXPECT_TRUE(c.list(10).empty());
+    RenderSpec spec = small_spec();
+    spec.name = std::string(kMaxRenderName - 6, 'n') + " été";  // UTF-8, at the bound
+    ASSERT_EQ(spec.name.size(), kMaxRenderName);
+    const std::string id = c.submit(spec);
+    EXPECT_EQ(c.info(id)->name, spec.name);
+    EXPECT_EQ(c.list(10).at(0).name, spec.name);
+}
+
 }  // namespace
 }  // namespace aliquot

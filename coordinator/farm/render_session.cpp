@@ -61,7 +61,7 @@ Image RenderSession::image(bool aovs) const {
 
 double RenderSession::seconds() const {
     if (final_seconds_) return *final_seconds_;
-    if (!started_) return seconds_before_;
+    if (!started_ || !leased_any_) return seconds_before_;  // queued: no time of its own
     return seconds_before_ +
            std::chrono::duration<double>(Clock::now() - *started_).count();
 }
@@ -283,6 +283,8 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
     slot.worker = worker;
     slot.deadline = deadline;
     lease_to_job_[lease_id] = j;
+    if (!leased_any_) started_ = Clock::now();  // time queued is not the render's
+    leased_any_ = true;
     return slot.job;
 }
 

@@ -234,7 +234,8 @@ private:
     RoundSummary last_round_;
 
     double seconds_before_ = 0;
-    std::optional<Clock::time_point> started_;
+    std::optional<Clock::time_point> started_;  // start(), then its first lease
+    bool leased_any_ = false;
     std::optional<double> final_seconds_;
 
     // Since when a lease found nothing while a plan made ahead was still being made.

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "log_line.h"
 #include "sampler.h"
 
 namespace aliquot {
@@ -32,6 +33,13 @@ std::string content_hash(const std::string& text) {
 }
 
 void validate(const RenderSpec& spec, uint32_t max_side) {
+    if (spec.name.size() > kMaxRenderName)
+        throw std::invalid_argument("name: at most " + std::to_string(kMaxRenderName) +
+                                    " bytes, got " + std::to_string(spec.name.size()));
+    if (!printable_utf8(spec.name))
+        throw std::invalid_argument(
+            "name: must be UTF-8 text without control characters (tabs, newlines, "
+            "escapes)");
     if (spec.width == 0 || spec.height == 0 || spec.width > max_side ||
         spec.height > max_side)
         throw std::invalid_argument(

@@ -21,7 +21,12 @@ struct RenderSpec {
     // Scheduling, not output: leases go to the highest priority first, in submission
     // order within one; changeable while the render runs (Coordinator::set_priority).
     int32_t priority = 0;
+    // For people (`submit --name`): at most kMaxRenderName bytes of UTF-8, no control
+    // characters; may be empty.
+    std::string name;
 };
+
+constexpr size_t kMaxRenderName = 200;
 
 // A 128-bit content address (32 hex digits) of any bytes; not cryptographic.
 std::string content_hash(const std::string& bytes);
@@ -31,7 +36,8 @@ inline std::string scene_hash(const std::string& scene_json) {
     return content_hash(scene_json);
 }
 
-// Throws std::invalid_argument naming what is wrong: resolution 0 or above `max_side`,
+// Throws std::invalid_argument naming what is wrong: a name too long or with control
+// characters, resolution 0 or above `max_side`,
 // strategy parameters, a reference of another resolution.
 void validate(const RenderSpec& spec, uint32_t max_side = 8192);
 
