@@ -614,6 +614,45 @@ await check("charts: the pilot shown, axes scaled to the render, legends without
   await shot("render-optimal");
 });
 
+// The issue's own example, too long to run here: an optimal render of 268 M samples in its
+// pilot (half the budget, one long round) 35 s in, served by the browser's router.
+await check("a render in its pilot: the charts show it, scaled to the render, not empty", async () => {
+  const id = "r-999999";
+  const now = Date.now();
+  const render = {
+    id, scene: "cornell-box", method: "optimal", state: "running", width: 1024, height: 1024, seed: "1",
+    samples_done: 70e6, samples_planned: 268435456, rounds: 0, seconds: 35, samples_per_second: 2e6,
+    error_estimate: null, error_vs_reference: null, created_ms: now - 36000, progress: 70e6 / 268435456,
+    priority: 0, rays: 0, outcome: {}, strategy: { method: "optimal", spp: 256, budget: 0, min_spp: 4, floor_fraction: 0.5 },
+  };
+  const json = (route, status, body) => route.fulfill({ status, contentType: "application/json", body: JSON.stringify(body) });
+  const handler = (route) => {
+    const p = new URL(route.request().url()).pathname;
+    if (p === `/api/renders/${id}`) return json(route, 200, render);
+    if (p === `/api/renders/${id}/rounds`) return json(route, 200, { id, columns: [], rows: [], count: 0, since: 0, next: null });
+    return json(route, 404, { error: "render 'r-999999' has no image yet" });
+  };
+  const matcher = (url) => url.pathname.startsWith(`/api/renders/${id}`);
+  await page.route(matcher, handler);
+  try {
+    await page.goto(`${BASE}/#/render/${id}`);
+    await page.waitForSelector('#chart-note[data-pilot="running"]');
+    const note = await page.textContent("#chart-note");
+    assert(/pilot: 70.0M of its 134.2M samples traced/.test(note), `note says "${note}"`);
+    assert((await attr("#chart-samples", "data-pilot")).split(",")[1] === "134218000", `pilot shaded as ${await attr("#chart-samples", "data-pilot")}`);
+    const xMax = Number(await attr("#chart-samples", "data-x-max"));
+    assert(xMax > 268e6 && xMax < 400e6, `samples axis ends at ${xMax}, not near 268 M`);
+    const tMax = Number(await attr("#chart-time", "data-x-max"));
+    // 35 s done, (268 M - 70 M) / 2 M/s = 99 s left: about 134 s, not 16 minutes.
+    assert(tMax > 134 && tMax < 200, `time axis ends at ${tMax} s`);
+    assert((await page.textContent('dd[data-stat="eta"]')).includes("s"), "no ETA in the pilot");
+    assert(!(await page.textContent("#chart-samples .u-legend")).includes("--"), "legend reads --");
+    await shot("render-pilot");
+  } finally {
+    await page.unroute(matcher, handler);
+  }
+});
+
 await check("the renders page lists every render with its thumbnail; sort and filter", async () => {
   await page.goto(`${BASE}/#/renders`);
   await page.waitForSelector(`tr[data-id="${uniformId}"][data-state="done"]`);

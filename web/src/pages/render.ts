@@ -452,7 +452,9 @@ export class RenderPage implements Page {
     const left = running ? etaSeconds(r) : null;
     // Dammertz's plan is a cap it rarely reaches: its axis follows what it traced.
     const planned = r.method === "dammertz" ? r.samples_done : Math.max(r.samples_planned, r.samples_done);
-    const firstX = x.find((v) => v > 0) ?? (pilot ? pilot / 2 : planned / 100);
+    // Before the first round ends, the axis starts two decades below the plan, so that the
+    // pilot's band and the "now" line have room.
+    const firstX = x.find((v) => v > 0) ?? Math.max(1, Math.min(planned / 100, r.samples_done / 10));
     const firstT = t.find((v) => v > 0) ?? Math.max(0.1, r.seconds / 10);
     const pilotEndT = pilotOpen ? r.seconds : inPilot ? t[inPilot - 1] : null;
     this.chartNote.textContent = pilotOpen
