@@ -543,34 +543,6 @@ void Coordinator::resume_unfinished() {
     }
 }
 
-RenderInfo Coordinator::info_of(const RenderSlot& slot, int32_t priority) const {
-    const RenderSession& s = *slot.session;
-    RenderInfo info;
-    info.priority = priority;
-    info.id = s.id();
-    info.scene_name = s.spec().scene_name;
-    info.name = s.spec().name;
-    info.width = s.spec().width;
-    info.height = s.spec().height;
-    info.seed = s.spec().seed;
-    info.method = s.spec().strategy.method;
-    info.strategy_json = nlohmann::json(s.spec().strategy).dump();
-    info.state = s.state();
-    info.error = s.error();
-    info.samples_done = s.merged().total_samples();
-    info.samples_planned = s.samples_planned();
-    info.rays = s.merged().total_rays();
-    info.rounds_done = s.rounds_done();
-    info.seconds = s.seconds();
-    info.samples_per_second =
-        info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
-    info.error_estimate = s.error_estimate();
-    info.error_vs_reference = s.error_vs_reference();
-    info.created_ms = s.created_ms();
-    info.outcome_json = s.strategy().outcome().dump();
-    return info;
-}
-
 std::optional<double> Coordinator::plan_wait_seconds(const std::string& id) {
     SlotPtr slot;
     {
@@ -594,7 +566,7 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
     }
     if (slot) {
         std::lock_guard lock(slot->mutex);
-        RenderInfo out = info_of(*slot, priority);
+        RenderInfo out = info_of(*slot->session, priority);
         if (queued_at > 0 && out.state == RenderState::Running) {
             out.state = RenderState::Queued;  // the session is ready; no worker has it yet
             out.queue_position = queued_at;

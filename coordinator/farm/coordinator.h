@@ -34,6 +34,7 @@
 #include "record_backlog.h"
 #include "render_events.h"
 #include "render_queue.h"
+#include "render_info.h"
 #include "render_session.h"
 
 namespace aliquot {
@@ -86,35 +87,6 @@ public:
 class TooManyWorkers : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
-};
-
-// A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
-// are store/render_state.h's alone.
-struct RenderInfo {
-    std::string id, scene_name, method, strategy_json, error, outcome_json;
-    RenderState state = RenderState::Queued;
-    uint32_t width = 0, height = 0;
-    uint64_t seed = 0, samples_done = 0, samples_planned = 0, rays = 0;
-    uint32_t rounds_done = 0;
-    int32_t priority = 0;
-    double seconds = 0, samples_per_second = 0;
-    double error_estimate = -1, error_vs_reference = -1;
-    int64_t created_ms = 0, finished_ms = 0;
-    std::string name;  // RenderSpec::name
-    // While the render is Queued (no job leased yet), its place in the queue: 1 is
-    // leased next (RenderQueue); 0 otherwise.
-    uint32_t queue_position = 0;
-};
-
-struct WorkerStatus {
-    std::string name, state;  // idle | busy | lost
-    uint32_t threads = 0;
-    std::vector<std::string> leases;
-    uint64_t samples_traced = 0;
-    double samples_per_second = 0;
-    int64_t last_seen_ms = 0;
-    std::string host, version;  // as the worker said when it registered
-    uint32_t failures = 0;      // jobs it reported failed, every render's
 };
 
 class Coordinator : public WorkerLink {
@@ -314,7 +286,6 @@ private:
     // The same, highest priority first, submission order within one: whom lease()
     // serves first.
     std::vector<SlotPtr> slots_by_priority() const;
-    RenderInfo info_of(const RenderSlot& slot, int32_t priority) const;
     std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
     // Queues a write of workers' rows on the backlog (no-op without a store).
