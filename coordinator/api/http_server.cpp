@@ -21,6 +21,7 @@
 #include "http_session.h"
 #include "scene_loader.h"
 #include "store.h"
+#include "stored_image.h"
 #include "thumbnail_cache.h"
 
 namespace aliquot {
@@ -893,13 +894,26 @@ struct HttpServer::Impl {
                     std::atomic<int>& n;
                     ~Release() { --n; }
                 } release{exr_downloads};
-                const std::optional<Image> image = coordinator.image(id, aovs == "1");
-                if (!image) throw ApiError(404, "render '" + id + "' has no image yet");
+                std::string bytes;
+                if (const auto file = coordinator.image_file(id)) {
+                    // A finished render's stored file as it is, as FetchImage sends it:
+                    // decoding it to encode it again was a second ZIP of the image.
+                    std::ifstream in(stored_image(*file, aovs == "1"), std::ios::binary);
+                    if (!in) throw ApiError(404, "render '" + id + "' has no image");
+                    std::ostringstream read;
+                    read << in.rdbuf();
+                    bytes = std::move(read).str();
+                } else {
+                    const std::optional<Image> image = coordinator.image(id, aovs == "1");
+                    if (!image)
+                        throw ApiError(404, "render '" + id + "' has no image yet");
+                    bytes = encode_exr(*image);
+                }
                 res.set_header("Cache-Control", "no-store");
                 res.set_header("Content-Disposition",
                                "attachment; filename=\"" + id + ".exr\"");
                 // OpenEXR's own name for its type; not compressed again (ZIP inside).
-                res.set_content(encode_exr(*image), "image/x-exr");
+                res.set_content(bytes, "image/x-exr");
             }));
         server.Get(R"(/api/renders/([^/]+)/maps)",
                    guarded([this](const httplib::Request& req, auto& res) {

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
@@ -946,6 +947,51 @@ TEST_F(HttpServerTest, AStreamWhoseClientLeftFreesItsSlot) {
         for (RawStream& s : streams) s.close();
     }
     EXPECT_EQ(get_json("/healthz")["ok"], true);
+}
+
+// A finished render's EXR is its stored file, sent as it is: not decoded and encoded
+// again (with its layers the file itself; without, the copy stored beside it).
+TEST(HttpServerStorage, AFinishedRendersExrIsTheStoredFile) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-http-stored-exr-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    {
+        CoordinatorOptions co;
+        co.data_dir = dir / "data";
+        Coordinator coordinator(co);
+        HttpServer server(coordinator, "127.0.0.1:0", options_with_tokens());
+        httplib::Client c("127.0.0.1", server.port());
+        c.set_read_timeout(10, 0);
+        c.set_bearer_token_auth(testing::kTestTokens.client);
+        auto submitted =
+            c.Post("/api/renders", R"({"resolution":"16x16","strategy":{"spp":4}})",
+                   "application/json");
+        ASSERT_TRUE(submitted);
+        ASSERT_EQ(submitted->status, 201) << submitted->body;
+        const std::string id = json::parse(submitted->body)["id"];
+        coordinator.register_worker("w1", 1);
+        fake_jobs(coordinator, "w1");
+        // The backlog's thread writes the image, then the session leaves memory: wait
+        // for it (a generous deadline, not a timing check).
+        for (int i = 0; i < 600 && !coordinator.image_file(id); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const std::optional<fs::path> file = coordinator.image_file(id);
+        ASSERT_TRUE(file);
+        const auto bytes_of = [](const fs::path& path) {
+            std::ifstream in(path, std::ios::binary);
+            return std::string(std::istreambuf_iterator<char>(in), {});
+        };
+        auto layers = c.Get(("/api/renders/" + id + "/image.exr?aovs=1").c_str());
+        ASSERT_TRUE(layers);
+        ASSERT_EQ(layers->status, 200) << layers->body;
+        EXPECT_EQ(layers->body, bytes_of(*file));
+        auto plain = c.Get(("/api/renders/" + id + "/image.exr").c_str());
+        ASSERT_TRUE(plain);
+        ASSERT_EQ(plain->status, 200) << plain->body;
+        EXPECT_EQ(plain->body, bytes_of(file->parent_path() / "image-rgb.exr"));
+        EXPECT_TRUE(decode_exr(plain->body, "download").extra.empty());
+    }
+    fs::remove_all(dir);
 }
 
 // The coordinator's record cannot be written (here the render's directory was replaced
