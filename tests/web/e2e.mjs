@@ -430,9 +430,10 @@ await check("the exposure slider brightens the preview", async () => {
   await stableShot(page, OUT, "render", {
     freeze: [".stats dd", "#render-progress .label", "#render-events li", "#rounds-table td", "#render-outcome", "#round-note"],
     mask: ["#preview", "#bucket-overlay", ".heatmap", ".legend", ".chart"],
-    keep: { "#rounds-table tbody": 3, "#render-events": 3 },
+    keep: { "#rounds-table tbody": 3 },
+    hide: ["p.params", "#render-events-note", ".events-card"],
   });
-  await compareWithBaseline(context, OUT, "render", log);
+  await compareWithBaseline(page, OUT, "render", log);
 });
 
 await check("nothing is fetched faster than once a second while a render runs", async () => {
@@ -692,10 +693,11 @@ await check("the renders page lists every render with its thumbnail; sort and fi
   await page.waitForSelector(`tr[data-id="${uniformId}"]`);
   await shot("renders");
   await stableShot(page, OUT, "renders", {
-    freeze: ["#renders-table td.num", "#renders-table .progress .label", ".form-message"],
+    freeze: ["#renders-table td.num", "#renders-table .progress .label", "#renders-table td.name-cell"],
     mask: ["img.thumb"],
+    hide: ["#submit-form"],
   });
-  await compareWithBaseline(context, OUT, "renders", log);
+  await compareWithBaseline(page, OUT, "renders", log);
 });
 
 await check("studies: none yet, then a report with its table and chart", async () => {
@@ -742,7 +744,7 @@ await check("a killed worker turns lost on the workers page", async () => {
   await stableShot(page, OUT, "workers", {
     freeze: ["#workers-table td.num", "#workers-table td.host", "#workers-table td.version", "#workers-table td.lease", "#workers-table td.state"],
   });
-  await compareWithBaseline(context, OUT, "workers", log);
+  await compareWithBaseline(page, OUT, "workers", log);
   worker.kill("SIGKILL");
   await page.waitForSelector('tr[data-name="e2e-worker"][data-state="lost"]', { timeout: 15000 });
   assert((await page.textContent('tr[data-name="e2e-worker"] .state')).trim() === "lost", "badge does not say lost");

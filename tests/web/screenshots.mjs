@@ -16,10 +16,14 @@ const PIXEL_SHARE = 0.004;
 
 /**
  * Freezes what moves, masks what is drawn, keeps only the first rows of lists whose length
- * depends on timing (`keep`: {selector of the list: rows}); saves OUT/NAME-stable.png.
+ * depends on timing (`keep`: {selector of the list: rows}), and hides (`hide`) regions
+ * that other parts of the project change (the submit form's method parameters, a render's
+ * parameter line) or whose presence depends on the coordinator's release (its event log);
+ * they are checked by the assertions instead. Saves OUT/NAME-stable.png.
  */
-export async function stableShot(page, out, name, { freeze = [], mask = [], keep = {} } = {}) {
-  await page.evaluate(({ selectors, keep }) => {
+export async function stableShot(page, out, name, { freeze = [], mask = [], keep = {}, hide = [] } = {}) {
+  await page.evaluate(({ selectors, keep, hide }) => {
+    for (const sel of hide) for (const el of document.querySelectorAll(sel)) el.style.display = "none";
     for (const [sel, n] of Object.entries(keep))
       for (const list of document.querySelectorAll(sel)) while (list.children.length > n) list.lastElementChild.remove();
     for (const sel of selectors)
@@ -29,7 +33,7 @@ export async function stableShot(page, out, name, { freeze = [], mask = [], keep
         el.removeAttribute("title");
       }
     document.activeElement?.blur?.();
-  }, { selectors: freeze, keep });
+  }, { selectors: freeze, keep, hide });
   const file = path.join(out, `${name}-stable.png`);
   await page.screenshot({
     path: file,
@@ -46,7 +50,7 @@ export async function stableShot(page, out, name, { freeze = [], mask = [], keep
  * Compares OUT/NAME-stable.png with its baseline in a page of the browser (no image
  * library needed); writes OUT/NAME-diff.png where they differ. Throws on a difference.
  */
-export async function compareWithBaseline(context, out, name, log) {
+export async function compareWithBaseline(page, out, name, log) {
   const actual = path.join(out, `${name}-stable.png`);
   const baseline = path.join(BASELINES, `${name}.png`);
   if (process.env.WEB_E2E_UPDATE_BASELINES === "1" || !fs.existsSync(baseline)) {
@@ -55,7 +59,11 @@ export async function compareWithBaseline(context, out, name, log) {
     log(`  wrote baseline ${path.relative(process.cwd(), baseline)}: look at it, then commit it`);
     return;
   }
-  const page = await context.newPage();
+  // A page of its own: the tested page keeps its state. Brought back to the front after,
+  // or Chromium treats the tested page as hidden and stops its animation frames (and
+  // with them Playwright's waiting for selectors).
+  const tested = page;
+  page = await tested.context().newPage();
   try {
     const url = (f) => `data:image/png;base64,${fs.readFileSync(f).toString("base64")}`;
     const result = await page.evaluate(
@@ -107,5 +115,6 @@ export async function compareWithBaseline(context, out, name, log) {
       throw new Error(`${name}: ${(share * 100).toFixed(2)} % of pixels differ from tests/web/baselines/${name}.png (see ${name}-diff.png)`);
   } finally {
     await page.close();
+    await tested.bringToFront();
   }
 }
