@@ -103,7 +103,10 @@ export class RenderPage implements Page {
       this.loadPreview();
     });
     this.showBuckets.addEventListener("change", () => this.drawBuckets());
+    // No image yet (a queued render, or nothing merged): an empty frame, not a broken icon.
+    this.preview.addEventListener("error", () => (this.preview.style.visibility = "hidden"));
     this.preview.addEventListener("load", () => {
+      this.preview.style.visibility = "";
       this.preview.dataset.samples = this.preview.dataset.pending ?? "";
       this.drawBuckets();
     });
