@@ -298,7 +298,11 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     const bool one_band = bands <= 1;  // then a histogram would cost more than it saves
     std::vector<uint64_t> band_floors(bands, 0);
     std::vector<size_t> band_kept(bands, 0);
-    std::vector<std::vector<uint32_t>> histogram(bands);
+    ApportionScratch local;
+    ApportionScratch& kept_buffers = scratch ? *scratch : local;
+    // Every band's is filled anew by the floors' pass (several bands) or not read (one).
+    std::vector<std::vector<uint32_t>>& histogram = kept_buffers.histogram;
+    histogram.resize(bands);
     // With costs, each band's cheapest kept item, and what its items of each run of the
     // remainder order cost (that order is sorted only as far as these say it will be
     // read).
@@ -453,8 +457,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         const uint64_t ha = mix64(a.index), hb = mix64(b.index);
         return ha != hb ? ha < hb : a.index < b.index;
     };
-    ApportionScratch local;
-    std::vector<Key>& sorted = (scratch ? *scratch : local).keys;
+    std::vector<Key>& sorted = kept_buffers.keys;
     sorted.resize(kept);
     std::vector<size_t> start(kRuns + 1, 0);  // where each run's keys go
     std::vector<std::vector<size_t>> at;      // where each band's next key of a run goes

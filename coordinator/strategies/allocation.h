@@ -27,6 +27,7 @@ struct RemainderKey {
 };
 struct ApportionScratch {
     std::vector<RemainderKey> keys;
+    std::vector<std::vector<uint32_t>> histogram;  // each band's fraction buckets
 };
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
                                 const std::vector<uint32_t>& caps,

@@ -141,13 +141,17 @@ std::vector<double> box_mean(const std::vector<double>& v, uint32_t w, uint32_t 
 // finite and >= +0: their bit patterns sort as the values do, so a histogram of the top
 // 16 bits, counted in bands, finds the bucket that holds the rank and selection runs on
 // that bucket alone. A median is a value, so the result is the same as sorting's.
-double median_value(const std::vector<double>& v) {
+// `counts` and `candidates` are kept by the caller from one plan to the next.
+double median_value(const std::vector<double>& v,
+                    std::vector<std::vector<uint32_t>>& counts,
+                    std::vector<double>& candidates) {
     const size_t n = v.size();
     if (n == 0) return 0.0;
     if (n <= kBandPixels) {  // one band: a histogram would cost more
-        std::vector<double> sorted = v;
-        std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
-        return sorted[n / 2];
+        candidates.assign(v.begin(), v.end());
+        std::nth_element(candidates.begin(), candidates.begin() + n / 2,
+                         candidates.end());
+        return candidates[n / 2];
     }
     const auto bits = [&](size_t i) {
         uint64_t b;
@@ -157,7 +161,7 @@ double median_value(const std::vector<double>& v) {
     constexpr int kShift = 48;
     constexpr size_t kBuckets = size_t(1) << (64 - kShift);
     const size_t bands = band_count(n, kBandPixels);
-    std::vector<std::vector<uint32_t>> counts(bands);
+    counts.resize(bands);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         std::vector<uint32_t>& c = counts[band];
         c.assign(kBuckets, 0);
@@ -173,7 +177,7 @@ double median_value(const std::vector<double>& v) {
     // The bucket's values, band by band in pixel order.
     std::vector<size_t> offset(bands + 1, 0);
     for (size_t b = 0; b < bands; ++b) offset[b + 1] = offset[b] + counts[b][bucket];
-    std::vector<double> candidates(offset[bands]);
+    candidates.resize(offset[bands]);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         size_t k = offset[band];
         for (size_t i = begin; i < end; ++i)
@@ -269,7 +273,7 @@ void OptimalStrategy::estimate_sigma(Planning& b, uint32_t width, uint32_t heigh
         for (size_t i = begin; i < end; ++i)
             if (!std::isfinite(var[i])) var[i] = b.largest;
     });
-    const double median = median_value(var);
+    const double median = median_value(var, b.median_counts, b.median_candidates);
     const auto each_pixel = [&](auto&& f) {
         for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
             for (size_t i = begin; i < end; ++i) f(i);
@@ -625,8 +629,10 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
     // past their target get nothing, so the gaps are scaled to the share.
     // With no noise seen anywhere every pixel weighs the same.
     std::vector<double>& gap = b.gap;
-    optimal_counts(noise_seen ? weight_ : std::vector<double>(pixels, 1.0), cost,
-                   spent + share, double(min_spp_), double(cap_), gap);
+    // In place: `noise_seen ? weight_ : std::vector(...)` copied the weights every plan
+    // (a conditional of an lvalue and a temporary is a temporary), 16 MB at 1920x1080.
+    if (!noise_seen) std::fill(weight_.begin(), weight_.end(), 1.0);
+    optimal_counts(weight_, cost, spent + share, double(min_spp_), double(cap_), gap);
     std::vector<uint32_t>& room = b.room;
     room.resize(pixels);
     for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
