@@ -26,11 +26,22 @@
 // every idle moment counted (round ends, a round planned ahead that is late, a round's
 // last jobs, and this process's own CPU for the synthetic results).
 //
+// coordinator_cpu_s_per_g_samples is the coordinator's CPU seconds for each 10^9
+// pixel-samples merged, whatever the machine's cores or load: the process's CPU time
+// (getrusage) over the render, less what the simulated workers spent making their
+// synthetic results and what this bench's own polling thread spent (each thread's clock).
+// So it holds leases, merges and round ends on every thread (the calls' threads, the
+// band pool, plans made ahead, the record writer). worker_cores_per_coordinator_core is
+// then how many worker cores tracing RATE samples a second (2 M without one, about
+// today's worker core) one coordinator core keeps fed: 10^9 ÷ (that × RATE).
+//
 // Usage: farm_scale [WxH] [seconds] [workers,...] [method,...] [rate]
 //        (defaults: 1920x1080 10 1,16,64,256
 //        uniform,dammertz,adaptive,optimal,optimal-time 0)
 // A method written `optimal:K` (or `optimal-time:K`) runs with steer_rounds K, and
 // `optimal/P` with plan_ahead P (both: `optimal:K/P`).
+#include <sys/resource.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -63,6 +74,21 @@ std::vector<std::string> split(const std::string& text) {
     return out;
 }
 
+// CPU seconds of the calling thread, and of the whole process.
+double thread_cpu() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+double process_cpu() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    const auto seconds = [](const timeval& t) {
+        return double(t.tv_sec) + 1e-6 * double(t.tv_usec);
+    };
+    return seconds(u.ru_utime) + seconds(u.ru_stime);
+}
+
 double percentile(std::vector<double> v, double q) {
     if (v.empty()) return 0;
     std::sort(v.begin(), v.end());
@@ -80,6 +106,7 @@ struct Run {
     std::string state;
     std::vector<double> lease_ms, complete_ms;
     double largest_round_wait_share = 0;
+    double coordinator_cpu_seconds = 0;  // see the top of this file
 };
 
 // "optimal:K/P": the method, steer_rounds K and plan_ahead P, each optional.
@@ -126,9 +153,11 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         parse_method(method, spec.strategy);
         spec.strategy.budget = uint64_t(64) * width * height;  // 64 spp on average
         spec.strategy.max_variance = 1e-4;  // dammertz: keep splitting past a few rounds
+        const double process_began = process_cpu(), poller_began = thread_cpu();
         const std::string id = coordinator.submit(spec);
 
         std::atomic<bool> stop{false};
+        double synthetic_cpu = 0;  // the simulated workers' own work, under `mutex`
         std::mutex mutex;
         const auto start = Clock::now();
         std::vector<std::thread> threads;
@@ -137,13 +166,16 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                 const std::string session =
                     coordinator.register_worker("sim-" + std::to_string(w), 1).session;
                 std::vector<double> leases, completes;
+                double made = 0;  // CPU seconds making synthetic results
                 while (!stop) {
                     const auto asked = Clock::now();
                     auto grant =
                         coordinator.lease(session, std::chrono::milliseconds(100));
                     if (!grant) continue;
                     const auto granted = Clock::now();
+                    const double making = thread_cpu();
                     const SampleJobResult result = bench::synthetic_result(*grant);
+                    made += thread_cpu() - making;
                     if (rate > 0)
                         std::this_thread::sleep_until(
                             granted + std::chrono::duration_cast<Clock::duration>(
@@ -159,6 +191,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                         std::chrono::duration<double, std::milli>(done - sent).count());
                 }
                 std::lock_guard lock(mutex);
+                synthetic_cpu += made;
                 out.lease_ms.insert(out.lease_ms.end(), leases.begin(), leases.end());
                 out.complete_ms.insert(out.complete_ms.end(), completes.begin(),
                                        completes.end());
@@ -195,9 +228,14 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         out.seconds = std::chrono::duration<double>(Clock::now() - start).count();
         const RenderInfo info = *coordinator.info(id);
         out.plan_wait_seconds = coordinator.plan_wait_seconds(id).value_or(0);
+        const double poller_cpu = thread_cpu() - poller_began;
         stop = true;
         coordinator.stop();
         for (std::thread& t : threads) t.join();
+        // After the joins: every synthetic result counted. What the workers did between
+        // the render's end and `stop` is a few empty leases.
+        out.coordinator_cpu_seconds =
+            process_cpu() - process_began - synthetic_cpu - poller_cpu;
         out.samples = info.samples_done;
         out.rounds = info.rounds_done;
         out.state = std::string(to_string(info.state));
@@ -224,6 +262,8 @@ int main(int argc, char** argv) try {
     for (const std::string& method : methods)
         for (const int workers : counts) {
             const Run r = run(size.width, size.height, method, workers, seconds, rate);
+            const double per_g =
+                r.samples ? r.coordinator_cpu_seconds / (double(r.samples) * 1e-9) : 0.0;
             std::printf(
                 "{\"image\": \"%ux%u\", \"method\": \"%s\", \"workers\": %d, "
                 "\"seconds\": %.2f, \"state\": \"%s\", \"rounds\": %u, "
@@ -233,7 +273,9 @@ int main(int argc, char** argv) try {
                 "\"round_end_share\": %.4f, \"round_end_ms\": %.1f, "
                 "\"round_end_cpu_ms\": %.1f, \"round_end_wait_share\": %.4f, "
                 "\"round_end_wait_ms\": %.1f, \"plan_wait_share\": %.4f, "
-                "\"largest_round_wait_share\": %.4f, \"farm_efficiency\": %.3f}\n",
+                "\"largest_round_wait_share\": %.4f, \"farm_efficiency\": %.3f, "
+                "\"coordinator_cpu_s_per_g_samples\": %.2f, "
+                "\"worker_cores_per_coordinator_core\": %.0f}\n",
                 size.width, size.height, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
@@ -244,7 +286,8 @@ int main(int argc, char** argv) try {
                 r.round_end_wait_seconds / r.seconds,
                 r.rounds ? 1e3 * r.round_end_wait_seconds / r.rounds : 0.0,
                 r.plan_wait_seconds / r.seconds, r.largest_round_wait_share,
-                rate > 0 ? double(r.samples) / r.seconds / (workers * rate) : 0.0);
+                rate > 0 ? double(r.samples) / r.seconds / (workers * rate) : 0.0, per_g,
+                per_g > 0 ? 1e9 / (per_g * (rate > 0 ? rate : 2e6)) : 0.0);
             std::fflush(stdout);
         }
 } catch (const std::exception& e) {
