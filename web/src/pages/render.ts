@@ -457,14 +457,16 @@ export class RenderPage implements Page {
     const planned = r.method === "dammertz" ? r.samples_done : Math.max(r.samples_planned, r.samples_done);
     // Before the first round ends, the axis starts two decades below the plan, so that the
     // pilot's band and the "now" line have room.
-    const firstX = x.find((v) => v > 0) ?? Math.max(1, Math.min(planned / 100, r.samples_done / 10));
+    const firstX = x.find((v) => v > 0) ?? Math.max(1, Math.min(planned / 100, r.samples_done > 0 ? r.samples_done / 10 : Infinity));
     const firstT = t.find((v) => v > 0) ?? Math.max(0.1, r.seconds / 10);
     const pilotEndT = pilotOpen ? r.seconds : inPilot ? t[inPilot - 1] : null;
     this.chartNote.textContent = pilotOpen
       ? `pilot: ${fmt.count(r.samples_done)} of its ${fmt.count(pilot)} samples traced (${fmt.percent(r.samples_done / pilot)}); its error comes when its round ends`
       : x.length === 0 && running
         ? "waiting for the first round to end"
-        : "";
+        : r.state === "queued"
+          ? `queued${r.queue_position ? ` (#${r.queue_position})` : ""}: waiting for a worker`
+          : "";
     this.chartNote.dataset.pilot = pilotOpen ? "running" : inPilot ? "done" : "none";
     return {
       samples: {
