@@ -19,10 +19,11 @@
 #include "http_api.h"
 #include "http_front.h"
 #include "http_session.h"
+#include "render_state.h"
 #include "scene_loader.h"
-#include "store.h"
 #include "stored_image.h"
 #include "thumbnail_cache.h"
+#include "unix_millis.h"
 
 namespace aliquot {
 

@@ -9,7 +9,7 @@
 
 namespace aliquot {
 
-// The C++ side keeps its own RenderState (store/render_state.h) rather than using
+// The C++ side keeps its own RenderState (lifecycle/render_state.h) rather than using
 // v1::RenderState: the store and the farm stay free of protobuf, and a switch over an
 // enum class with no "unspecified" value is checked for completeness by the compiler.
 // This is the one mapping between the two; it lives here, not in proto/wire, because

@@ -13,7 +13,7 @@ namespace aliquot {
 class RenderSession;
 
 // A render as clients see it. The state is the C++ enum; its spellings ("running", ...)
-// are store/render_state.h's alone.
+// are lifecycle/render_state.h's alone.
 struct RenderInfo {
     std::string id, scene_name, method, strategy_json, error, outcome_json;
     RenderState state = RenderState::Queued;

@@ -161,11 +161,6 @@ std::optional<std::string_view> or_null(const std::string& text) {
 
 }  // namespace
 
-int64_t unix_millis_now() {
-    using namespace std::chrono;
-    return duration_cast<milliseconds>(system_clock::now().time_since_epoch()).count();
-}
-
 // The connection and its prepared statements, finalized before the connection closes.
 struct RunStore::Connection {
     sqlite3* db = nullptr;

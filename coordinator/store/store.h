@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "render_state.h"
+#include "unix_millis.h"
 
 struct sqlite3;
 
@@ -34,11 +35,6 @@ public:
 private:
     int sqlite_code_;
 };
-
-// Times in the store are unix milliseconds, always supplied by the caller (records carry
-// them, methods that stamp a row take `now_ms`), so the store has no hidden clock and
-// tests choose their times. This is the value the coordinator passes.
-int64_t unix_millis_now();
 
 // Optional text columns are NULL in the database and empty strings here.
 struct SceneRecord {

@@ -1,8 +1,9 @@
 // RenderState: where a render is in its life, and its one spelling table: the store, the
 // JSON of the HTTP API and the CLI all write "running" etc. through to_string. gRPC
 // carries v1::RenderState instead, mapped in coordinator/api/render_proto.h. It lives in
-// the store, the lowest room that records it, so nothing below the api room sees
-// protobuf.
+// the lifecycle room, below the store that records it and the rooms that read it, so the
+// api, the study and the CLI name a state without seeing the store, and nothing below the
+// api room sees protobuf.
 #pragma once
 
 #include <optional>
