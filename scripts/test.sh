@@ -15,6 +15,7 @@ run() {
 }
 
 run "format" bash scripts/format.sh --check
+run "docs" python3 tests/docs/json_blocks_test.py
 run "unit tests" ctest --test-dir build --output-on-failure --timeout 600
 run "cli" bash tests/cli/render_test.sh build/bin/aliquot
 run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
