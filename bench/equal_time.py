@@ -262,8 +262,7 @@ def main():
     ap.add_argument("--report-dir", default=os.path.join(ROOT, "docs", "studies", "equal-time"))
     ap.add_argument("--no-install", action="store_true")
     args = ap.parse_args()
-    args.aliquot = os.path.abspath(args.aliquot if os.path.exists(args.aliquot)
-                                   else os.path.join(ROOT, args.aliquot))
+    args.aliquot = ps.aliquot_binary(args.aliquot, "equal-time")
     if min(args.times) <= 0 or args.threads < 1:
         ap.error("--times and --threads must be positive")
 

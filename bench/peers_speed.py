@@ -137,6 +137,16 @@ def ratios(ours, peer, paired):
 
 # ---------------------------------------------------------------- set-up
 
+def aliquot_binary(path, who="bench"):
+    """`path` as given, else under the repository's root; absolute. Exits unless it runs."""
+    if not os.path.isabs(path) and not os.path.exists(path):
+        path = os.path.join(ROOT, path)
+    found = os.path.abspath(path)
+    if not os.access(found, os.X_OK):
+        raise SystemExit(f"{who}: aliquot binary not found: {path}")
+    return found
+
+
 def libllvm19_path():
     """Debian's libLLVM 19 shared library, or None (read from the package's file list)."""
     try:
@@ -314,12 +324,7 @@ def main(argv=None):
     os.makedirs(args.out_dir, exist_ok=True)
     py = sys.executable
     res = args.resolution
-    aliquot = args.aliquot
-    if not os.path.isabs(aliquot) and not os.path.exists(aliquot):
-        aliquot = os.path.join(ROOT, aliquot)
-    aliquot = os.path.abspath(aliquot)
-    if not os.access(aliquot, os.X_OK):
-        raise SystemExit(f"bench: aliquot binary not found: {args.aliquot}")
+    aliquot = aliquot_binary(args.aliquot)
 
     # Reference first, so that making it cannot disturb the timings.
     ref_path = args.reference

@@ -32,15 +32,6 @@ sys.path.insert(0, HERE)
 import peers_speed as ps  # noqa: E402  (a run's JSON and wall time, as the peers bench)
 
 
-def binary(path):
-    if not os.path.isabs(path) and not os.path.exists(path):
-        path = os.path.join(ROOT, path)
-    path = os.path.abspath(path)
-    if not os.access(path, os.X_OK):
-        raise SystemExit(f"process-time: aliquot binary not found: {path}")
-    return path
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description="aliquot render: process time beside render time.")
     ap.add_argument("--aliquot", nargs="+", default=[os.path.join("build", "bin", "aliquot")])
@@ -53,7 +44,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.repeat < 1 or args.threads < 1:
         ap.error("--repeat and --threads must be positive")
-    binaries = [binary(b) for b in args.aliquot]
+    binaries = [ps.aliquot_binary(b, "process-time") for b in args.aliquot]
     cases = []
     for c in args.cases:
         res, _, spp = c.partition(":")

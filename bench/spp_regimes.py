@@ -139,12 +139,7 @@ def main(argv=None):
     sys.path.insert(0, os.path.join(ROOT, "tests", "validation"))
     from compare_to_mitsuba import InputError, mean_abs_diff, read_exr_rgb
 
-    aliquot = args.aliquot
-    if not os.path.isabs(aliquot) and not os.path.exists(aliquot):
-        aliquot = os.path.join(ROOT, aliquot)
-    aliquot = os.path.abspath(aliquot)
-    if not os.access(aliquot, os.X_OK):
-        raise SystemExit(f"spp-regimes: aliquot binary not found: {args.aliquot}")
+    aliquot = ps.aliquot_binary(args.aliquot, "spp-regimes")
     os.makedirs(args.out_dir, exist_ok=True)
     py = sys.executable
 
