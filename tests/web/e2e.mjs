@@ -433,7 +433,7 @@ await check("the exposure slider brightens the preview", async () => {
     keep: { "#rounds-table tbody": 3 },
     hide: ["p.params", "#render-events-note", ".events-card"],
   });
-  await compareWithBaseline(page, OUT, "render", log);
+  await compareWithBaseline(OUT, "render", log);
 });
 
 await check("nothing is fetched faster than once a second while a render runs", async () => {
@@ -708,7 +708,7 @@ await check("the renders page lists every render with its thumbnail; sort and fi
     mask: ["img.thumb"],
     hide: ["#submit-form"],
   });
-  await compareWithBaseline(page, OUT, "renders", log);
+  await compareWithBaseline(OUT, "renders", log);
 });
 
 await check("studies: none yet, then a report with its table and chart", async () => {
@@ -755,7 +755,7 @@ await check("a killed worker turns lost on the workers page", async () => {
   await stableShot(page, OUT, "workers", {
     freeze: ["#workers-table td.num", "#workers-table td.host", "#workers-table td.version", "#workers-table td.lease", "#workers-table td.state"],
   });
-  await compareWithBaseline(page, OUT, "workers", log);
+  await compareWithBaseline(OUT, "workers", log);
   worker.kill("SIGKILL");
   await page.waitForSelector('tr[data-name="e2e-worker"][data-state="lost"]', { timeout: 15000 });
   assert((await page.textContent('tr[data-name="e2e-worker"] .state')).trim() === "lost", "badge does not say lost");

@@ -2,10 +2,11 @@
 // first: every text that moves from run to run (times, rates, host names, versions) is
 // replaced by a fixed placeholder, images and charts (whose noise and time axis differ
 // between runs) are masked, animations are off; then the two PNGs are compared pixel by
-// pixel in the browser with a tolerance for anti-aliasing. A missing baseline is written
+// pixel with a tolerance for anti-aliasing. A missing baseline is written
 // (and said so); WEB_E2E_UPDATE_BASELINES=1 writes them all again after a deliberate change.
 import fs from "node:fs";
 import path from "node:path";
+import { decodePng, encodePng } from "./png.mjs";
 
 const BASELINES = path.join(path.dirname(new URL(import.meta.url).pathname), "baselines");
 
@@ -47,10 +48,10 @@ export async function stableShot(page, out, name, { freeze = [], mask = [], keep
 }
 
 /**
- * Compares OUT/NAME-stable.png with its baseline in a page of the browser (no image
- * library needed); writes OUT/NAME-diff.png where they differ. Throws on a difference.
+ * Compares OUT/NAME-stable.png with its baseline (png.mjs, in Node: no second browser
+ * page); writes OUT/NAME-diff.png where they differ. Throws on a difference.
  */
-export async function compareWithBaseline(page, out, name, log) {
+export async function compareWithBaseline(out, name, log) {
   const actual = path.join(out, `${name}-stable.png`);
   const baseline = path.join(BASELINES, `${name}.png`);
   if (process.env.WEB_E2E_UPDATE_BASELINES === "1" || !fs.existsSync(baseline)) {
@@ -59,62 +60,25 @@ export async function compareWithBaseline(page, out, name, log) {
     log(`  wrote baseline ${path.relative(process.cwd(), baseline)}: look at it, then commit it`);
     return;
   }
-  // A page of its own: the tested page keeps its state. Brought back to the front after,
-  // or Chromium treats the tested page as hidden and stops its animation frames (and
-  // with them Playwright's waiting for selectors).
-  const tested = page;
-  page = await tested.context().newPage();
-  try {
-    const url = (f) => `data:image/png;base64,${fs.readFileSync(f).toString("base64")}`;
-    const result = await page.evaluate(
-      async ({ a, b, tolerance }) => {
-        const load = (src) =>
-          new Promise((resolve, reject) => {
-            const img = new Image();
-            img.onload = () => resolve(img);
-            img.onerror = () => reject(new Error("cannot decode a screenshot"));
-            img.src = src;
-          });
-        const [ia, ib] = await Promise.all([load(a), load(b)]);
-        if (ia.width !== ib.width || ia.height !== ib.height)
-          return { size: `${ia.width}x${ia.height} against the baseline's ${ib.width}x${ib.height}` };
-        const pixelsOf = (img) => {
-          const c = document.createElement("canvas");
-          c.width = img.width;
-          c.height = img.height;
-          const ctx = c.getContext("2d");
-          ctx.drawImage(img, 0, 0);
-          return ctx.getImageData(0, 0, c.width, c.height);
-        };
-        const da = pixelsOf(ia);
-        const db = pixelsOf(ib).data;
-        const diff = new ImageData(ia.width, ia.height);
-        let differing = 0;
-        for (let i = 0; i < db.length; i += 4) {
-          const d = Math.max(Math.abs(da.data[i] - db[i]), Math.abs(da.data[i + 1] - db[i + 1]), Math.abs(da.data[i + 2] - db[i + 2]));
-          const off = d > tolerance;
-          if (off) differing++;
-          diff.data[i] = off ? 255 : da.data[i] / 3;
-          diff.data[i + 1] = off ? 0 : da.data[i + 1] / 3;
-          diff.data[i + 2] = off ? 0 : da.data[i + 2] / 3;
-          diff.data[i + 3] = 255;
-        }
-        const c = document.createElement("canvas");
-        c.width = ia.width;
-        c.height = ia.height;
-        c.getContext("2d").putImageData(diff, 0, 0);
-        return { differing, total: db.length / 4, diff: differing ? c.toDataURL("image/png") : null };
-      },
-      { a: url(actual), b: url(baseline), tolerance: CHANNEL_TOLERANCE },
-    );
-    if (result.size) throw new Error(`${name}: screenshot is ${result.size}`);
-    const share = result.differing / result.total;
-    log(`  ${name}: ${result.differing} of ${result.total} pixels differ from the baseline (${(share * 100).toFixed(3)} %)`);
-    if (result.diff) fs.writeFileSync(path.join(out, `${name}-diff.png`), Buffer.from(result.diff.split(",")[1], "base64"));
-    if (share > PIXEL_SHARE)
-      throw new Error(`${name}: ${(share * 100).toFixed(2)} % of pixels differ from tests/web/baselines/${name}.png (see ${name}-diff.png)`);
-  } finally {
-    await page.close();
-    await tested.bringToFront();
+  const a = decodePng(fs.readFileSync(actual));
+  const b = decodePng(fs.readFileSync(baseline));
+  if (a.width !== b.width || a.height !== b.height)
+    throw new Error(`${name}: screenshot is ${a.width}x${a.height} against the baseline's ${b.width}x${b.height}`);
+  const diff = Buffer.alloc(a.data.length);
+  let differing = 0;
+  for (let i = 0; i < a.data.length; i += 4) {
+    const d = Math.max(Math.abs(a.data[i] - b.data[i]), Math.abs(a.data[i + 1] - b.data[i + 1]), Math.abs(a.data[i + 2] - b.data[i + 2]));
+    const off = d > CHANNEL_TOLERANCE;
+    if (off) differing++;
+    diff[i] = off ? 255 : a.data[i] / 3;
+    diff[i + 1] = off ? 0 : a.data[i + 1] / 3;
+    diff[i + 2] = off ? 0 : a.data[i + 2] / 3;
+    diff[i + 3] = 255;
   }
+  const total = a.width * a.height;
+  const share = differing / total;
+  log(`  ${name}: ${differing} of ${total} pixels differ from the baseline (${(share * 100).toFixed(3)} %)`);
+  if (differing) fs.writeFileSync(path.join(out, `${name}-diff.png`), encodePng({ width: a.width, height: a.height, data: diff }));
+  if (share > PIXEL_SHARE)
+    throw new Error(`${name}: ${(share * 100).toFixed(2)} % of pixels differ from tests/web/baselines/${name}.png (see ${name}-diff.png)`);
 }
