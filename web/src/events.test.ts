@@ -14,6 +14,15 @@ describe("a render's events as log lines", () => {
     expect(lines[1].kind).toBe("round_ended");
     expect(lines[1].detail).toBe("round=3 samples=1024");
   });
+  it("reads the coordinator's own shape (docs/API.md, GET /api/renders/{id}/events)", () => {
+    const lines = eventLines({
+      id: "r-1",
+      events: [{ seq: 2, at_ms: 5000, kind: "round_ended", fields: { round: 0, samples: 262144 } }],
+      omitted: 0,
+      next: 3,
+    });
+    expect(lines).toEqual([{ timeMs: 5000, kind: "round_ended", detail: "round=0 samples=262144" }]);
+  });
   it("accepts a bare list and ignores what is not a list of objects", () => {
     expect(eventLines([{ type: "finished" }])).toEqual([{ timeMs: null, kind: "finished", detail: "" }]);
     expect(eventLines({ events: "nope" })).toEqual([]);

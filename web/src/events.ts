@@ -9,7 +9,7 @@ export interface EventLine {
   detail: string;
 }
 
-const TIME_KEYS = ["time_ms", "unix_ms", "ms", "time", "at"];
+const TIME_KEYS = ["at_ms", "time_ms", "unix_ms", "ms", "time", "at"];
 const KIND_KEYS = ["event", "kind", "type"];
 const HIDDEN = new Set([...TIME_KEYS, ...KIND_KEYS, "seq", "render", "id", "fields"]);
 

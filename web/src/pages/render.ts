@@ -207,7 +207,9 @@ export class RenderPage implements Page {
       );
     this.eventList.dataset.count = String(lines.length);
     this.eventList.parentElement!.hidden = false;
-    this.eventNote.textContent = lines.length ? "" : "No events yet.";
+    // A long render keeps its first and last events; the coordinator says how many it dropped.
+    const omitted = body && typeof body === "object" && "omitted" in body ? Number((body as { omitted: unknown }).omitted) : 0;
+    this.eventNote.textContent = !lines.length ? "No events yet." : omitted > 0 ? `${omitted} events between the first and the last are not kept.` : "";
   }
 
   private loadPreview(): void {

@@ -221,7 +221,7 @@ export class RendersPage implements Page {
         h("label", {}, "resolution", h("input", { name: "resolution", id: "submit-resolution", value: "128x128", pattern: "\\d+x\\d+", required: true, size: 9 })),
         h("label", {}, "seed", h("input", { name: "seed", id: "submit-seed", inputmode: "numeric", pattern: "[0-9]+", value: "0" })),
         h("label", {}, "method", method),
-        h("label", {}, "name", h("input", { name: "name", id: "submit-name", maxlength: 128, placeholder: "optional", size: 16 })),
+        h("label", {}, "name", h("input", { name: "name", id: "submit-name", maxlength: 200, placeholder: "optional", size: 16 })),
       ),
       this.fields,
       h("div", { class: "form-row" }, h("button", { type: "submit", id: "submit-button" }, "Submit"), this.message),
