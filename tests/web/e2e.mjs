@@ -698,7 +698,7 @@ await check("the renders page lists every render with its thumbnail; sort and fi
   await page.fill("#filter-text", hasNames ? "E2E THIRD" : uniformId);
   assert((await visibleIds()).length === 1, `text filter shows ${await visibleIds()}`);
   await page.reload(); // the view comes back from the address
-  await page.waitForSelector(`tr[data-id="${uniformId}"]`);
+  await page.waitForSelector("#renders-table tbody tr:not([hidden])");
   assert((await visibleIds()).length === 1, "the filter did not survive a reload");
   await page.goto(`${BASE}/#/renders`);
   await page.waitForSelector(`tr[data-id="${uniformId}"]`);
