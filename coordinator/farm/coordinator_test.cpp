@@ -119,6 +119,32 @@ TEST_F(CoordinatorTest, CountsSamplesMergedAndRendersByState) {
     }
 }
 
+// The live workers' threads are what a round is cut for: with 32 of them the render's one
+// round is cut into at least 64 jobs (round_cutter.h), where one thread gets 28.
+TEST_F(CoordinatorTest, ARoundIsCutForTheLiveWorkersCores) {
+    for (const uint32_t threads : {1u, 32u}) {
+        CoordinatorOptions o = options;
+        o.data_dir.clear();
+        Coordinator c(o);
+        const std::string session = c.register_worker("w", threads).session;
+        RenderSpec spec = small_spec();
+        spec.width = spec.height = 256;
+        spec.strategy.spp = 8;  // one round
+        c.submit(spec);
+        size_t jobs = 0;
+        while (auto grant = c.lease(session, std::chrono::milliseconds(0))) {
+            ASSERT_EQ(c.complete(session, grant->lease_id, zero_result(*grant)).status,
+                      CompleteStatus::Merged);
+            ++jobs;
+        }
+        if (threads == 1)
+            EXPECT_EQ(jobs, 28u);
+        else
+            EXPECT_GE(jobs, 2u * threads);
+        c.stop();
+    }
+}
+
 // Issue 12, reproduction 1: a Lease from a worker that never registered here made an
 // in-memory worker with no store row; once it was lost, marking it threw on the ticker.
 // Since issue 13 a call with a session this coordinator never issued is refused with
