@@ -31,15 +31,13 @@
 
 #include "checkpoint.h"
 #include "memory_budget.h"
-#include "record_backlog.h"
+#include "render_archive.h"
 #include "render_events.h"
-#include "render_queue.h"
 #include "render_info.h"
+#include "render_queue.h"
 #include "render_session.h"
 
 namespace aliquot {
-
-class RunStore;
 
 struct CoordinatorOptions {
     std::filesystem::path data_dir;  // empty: in memory only (the embedded render)
@@ -204,44 +202,6 @@ public:
     void stop();
 
 private:
-    struct CheckpointTiming {
-        std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
-        double cost_seconds = 0;                        // how long writing it took
-        bool in_flight = false;  // a copy waits for the writer: no second one meanwhile
-    };
-    // The copy of a render's buffers a checkpoint is written from, kept between
-    // checkpoints so that taking the next copy reuses its memory: a fresh 150 MB copy
-    // at 1920x1080 was mostly the kernel zeroing new pages.
-    struct CheckpointCopy {
-        Checkpoint cp;
-        bool saved = false;  // written to disk (a retried write does not write it again)
-        std::chrono::steady_clock::time_point written{};
-        double write_seconds = 0;
-    };
-    // A bucket's place and whether it converged: a round's buckets are stored when
-    // these changed since the last stored layout.
-    struct BucketShape {
-        PixelRect rect;
-        bool converged = false;
-        bool operator==(const BucketShape&) const = default;
-    };
-    // A render in memory with its own lock, which guards everything here.
-    struct RenderSlot : std::enable_shared_from_this<RenderSlot> {
-        std::mutex mutex;
-        std::unique_ptr<RenderSession> session;
-        // Its completed rounds (for rounds()): from memory for a live render; a resumed
-        // one's earlier rounds are read from the store once.
-        std::vector<RoundSummary> round_history;
-        std::vector<BucketShape> bucket_shape;  // the last layout stored (record_round)
-        CheckpointTiming checkpoint;
-        std::shared_ptr<CheckpointCopy> checkpoint_copy;  // the backlog's while in flight
-        // Guarded by the coordinator's `mutex_`, not this slot's: lease() orders renders
-        // by it before taking any render's lock.
-        int32_t priority = 0;
-        uint64_t number = 0;  // submission order: FIFO within a priority
-    };
-    using SlotPtr = std::shared_ptr<RenderSlot>;
-
     struct WorkerEntry {
         uint32_t threads = 0;
         int64_t last_seen_ms = 0;
@@ -258,19 +218,6 @@ private:
     };
 
     void resume_unfinished();
-    // A session's round and end, queued on the backlog (attach wires them).
-    // Called under the render's lock (RenderSession's callbacks): they touch the slot and
-    // queue writes on the backlog, never `mutex_`.
-    void record_round(RenderSlot& slot, const RoundSummary& round);
-    void queue_checkpoint(RenderSlot& slot, const RoundSummary& round);
-    // Allocates the render's checkpoint copy on the backlog's thread, off every lock.
-    void prepare_checkpoint_copy(RenderSlot& slot);
-    void record_end(RenderSlot& slot);
-    uint64_t first_free_render_number() const;
-    std::string claim_render_id();
-    // Writes a submitted reference under data_dir/references (once per content); its
-    // path.
-    std::string store_reference(const Image& reference) const;
     // Wires a new session's callbacks, starts it and makes it visible; under `mutex_`
     // (no one else can reach the session yet).
     // `queued`: none of its jobs was leased yet (a submission, or a resumed render the
@@ -286,10 +233,7 @@ private:
     // The same, highest priority first, submission order within one: whom lease()
     // serves first.
     std::vector<SlotPtr> slots_by_priority() const;
-    std::filesystem::path render_dir(const std::string& id) const;
     WorkerEntry& touch_worker(const std::string& name);
-    // Queues a write of workers' rows on the backlog (no-op without a store).
-    void queue_worker_write(std::string what, std::function<void()> write);
     struct SessionEntry {
         std::string worker;    // its name
         std::string identity;  // whom its failures count against (FailurePolicy)
@@ -347,13 +291,11 @@ private:
     void evict(const std::string& id);
 
     CoordinatorOptions options_;
-    std::unique_ptr<RunStore> store_;
-    RecordBacklog backlog_;  // store writes waiting for the disk, in order
+    RenderArchive archive_;  // the store, the backlog of writes, the render directories
     std::mutex mutex_;
     std::condition_variable work_ready_;
     std::condition_variable progress_;
     uint64_t version_ = 0;
-    uint64_t next_render_number_ = 1;
     uint64_t submissions_ = 0;  // renders attached so far: RenderSlot::number
     // Memory of submissions being set up off the lock (submit), not yet attached.
     uint64_t reserved_memory_ = 0;
@@ -383,8 +325,8 @@ private:
            round_end_wait_seconds_ = 0;
     uint64_t rounds_ended_ = 0;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
-    RenderEvents events_;  // its own lock, a leaf
-    RenderQueue queue_;    // under mutex_: renders no job of which was leased yet
+    RenderEvents events_;                      // its own lock, a leaf
+    RenderQueue queue_;  // under mutex_: renders no job of which was leased yet
     bool stopping_ = false;
     std::thread ticker_;
 
