@@ -11,9 +11,36 @@
 #include "resolution.h"
 #include "scene_loader.h"
 #include "sigma_map.h"
+#include "strategy_parameters.h"
 #include "whole_number_option.h"
 
 namespace aliquot::cli {
+
+namespace {
+
+std::string joined(const std::vector<std::string>& words, const char* separator) {
+    std::string s;
+    for (const std::string& w : words) s += (s.empty() ? "" : separator) + w;
+    return s;
+}
+
+// --help lists each parameter under the methods that read it.
+std::string help_group(const StrategyParameter& p) {
+    if (p.methods == strategy_methods()) return "Budget and caps (every method)";
+    return "Parameters of " + joined(p.methods, ", ");
+}
+
+std::string parameter_help(const StrategyParameter& p) {
+    // The help of a word names its values; a count's bounds go without saying unless the
+    // table narrows them.
+    if (p.kind() == StrategyParameter::Kind::Word) return p.help;
+    if (p.kind() == StrategyParameter::Kind::Whole && p.max >= double(UINT32_MAX))
+        return p.min == 0 ? p.help
+                          : p.help + "; at least " + std::to_string(uint64_t(p.min));
+    return p.help + "; " + p.bounds();
+}
+
+}  // namespace
 
 void add_render_options(CLI::App& cmd, RenderOptions& o) {
     StrategyParams& s = o.strategy;
@@ -21,10 +48,6 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
         ->capture_default_str();
     cmd.add_option("--resolution", o.resolution, "image size as WxH")
         ->capture_default_str();
-    cmd.add_option("--spp", o.spp,
-                   "samples per pixel (uniform; others: budget = spp x pixels); "
-                   "without --spp or --budget, 64")
-        ->check(whole_number());
     cmd.add_option("--seed", o.seed, "render seed")
         ->check(whole_number())
         ->capture_default_str();
@@ -32,74 +55,38 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
         ->check(whole_number());
     cmd.add_option("--reference", o.reference,
                    "reference EXR: error measured every round");
-    cmd.add_option("--method", s.method,
-                   "uniform | dammertz | adaptive | optimal | optimal-time | oracle | "
-                   "cycles")
+    std::string methods;
+    for (const std::string& m : strategy_methods())
+        methods += "\n  " + m + ": " + method_summary(m);
+    cmd.add_option("--method", s.method, "sampling method:" + methods)
         ->capture_default_str();
     cmd.add_option("--sigma", o.sigma,
                    "oracle: EXR of a separate high-spp render with its AOVs (render "
-                   "--aovs, another seed); its per-sample sigma steers the oracle");
-    cmd.add_option("--sigma-radius", s.sigma_radius,
-                   "optimal: pool each pixel's variance over (2r+1)^2 pixels (0: own)")
-        ->capture_default_str();
-    cmd.add_option(
-           "--sigma-prior", s.sigma_prior,
-           "optimal: shrink each pixel's variance towards its pool, a prior worth "
-           "this many samples (0: off)")
-        ->capture_default_str();
-    cmd.add_option("--floor-fraction", s.floor_fraction,
-                   "optimal: pilot and floor at this share of the budget's mean spp "
-                   "(0: min_spp alone)")
-        ->capture_default_str();
-    cmd.add_option("--steer-rounds", s.steer_rounds,
-                   "optimal: spend what the pilot leaves in this many rounds, each at "
-                   "most half of what is left (0: doubling rounds)")
-        ->capture_default_str();
-    cmd.add_option("--plan-ahead", s.plan_ahead,
-                   "optimal: plan the round after a steered round of at most this "
-                   "share of the budget while that round is traced; at least the "
-                   "pilot's share (1/2): the pilot in two halves, no round planned in "
-                   "place, for large farms (0: never)")
-        ->capture_default_str();
-    cmd.add_option("--noise-threshold", s.noise_threshold, "cycles: noise threshold")
-        ->capture_default_str();
-    cmd.add_option("--adaptive-min-samples", s.adaptive_min_samples,
-                   "cycles: samples before the first check (0: automatic)")
-        ->capture_default_str();
-    cmd.add_option("--adaptive-step", s.adaptive_step,
-                   "cycles: samples between convergence checks")
-        ->capture_default_str();
-    cmd.add_option("--budget", s.budget, "total samples to spend")->check(whole_number());
-    cmd.add_option("--max-variance", s.max_variance, "dammertz V; adaptive max variance")
-        ->capture_default_str();
-    cmd.add_option("--samples-per-iteration", s.samples_per_iteration, "dammertz S")
-        ->check(whole_number())
-        ->capture_default_str();
-    cmd.add_option("--split-factor", s.split_factor, "dammertz split factor")
-        ->capture_default_str();
-    cmd.add_option("--min-bucket-size", s.min_bucket_size,
-                   "dammertz smallest bucket side")
-        ->check(whole_number())
-        ->capture_default_str();
-    cmd.add_option("--error-norm", s.error_norm, "dammertz error: seed | paper")
-        ->capture_default_str();
-    cmd.add_option("--initial-spp", s.initial_spp, "adaptive initial uniform pass")
-        ->check(whole_number())
-        ->capture_default_str();
-    cmd.add_option("--alpha", s.alpha, "adaptive distribution exponent")
-        ->capture_default_str();
-    cmd.add_option("--bucket-size", s.bucket_size, "adaptive bucket side")
-        ->check(whole_number())
-        ->capture_default_str();
-    cmd.add_option("--min-spp", s.min_spp, "optimal: samples every pixel gets first")
-        ->check(whole_number())
-        ->capture_default_str();
-    cmd.add_option("--max-spp", s.max_spp,
-                   "cap on any pixel's samples (0: method default)")
-        ->check(whole_number());
-    cmd.add_option("--max-samples", s.max_samples,
-                   "cap on total samples (0: method default)")
-        ->check(whole_number());
+                   "--aovs, another seed); its per-sample sigma steers the oracle")
+        ->group("Parameters of oracle");
+    // Every strategy parameter, from the one table (strategy_parameters.h): its flag,
+    // help, bounds and default; check_render_options() refuses one out of bounds or
+    // given to a method that does not read it.
+    o.parameter_flags.clear();
+    for (const StrategyParameter& p : strategy_parameters()) {
+        CLI::Option* option = nullptr;
+        if (p.key == "spp") {
+            // Its own field: without --spp or --budget, a method that needs a budget
+            // gets 64 samples per pixel.
+            option = cmd.add_option(p.flag(), o.spp, parameter_help(p))
+                         ->default_str(std::to_string(kDefaultSpp) + " unless --budget");
+        } else {
+            option = std::visit(
+                [&](auto member) {
+                    return cmd.add_option(p.flag(), s.*member, parameter_help(p))
+                        ->capture_default_str();
+                },
+                p.member);
+        }
+        if (p.kind() == StrategyParameter::Kind::Whole) option->check(whole_number());
+        option->group(help_group(p));
+        o.parameter_flags.push_back({&p, option});
+    }
 }
 
 void check_render_options(RenderOptions& o) {
@@ -116,9 +103,8 @@ void check_render_options(RenderOptions& o) {
     // Without --spp or --budget every method that needs a sample budget gets the same
     // one, 64 samples per pixel (dammertz and cycles stop by their own measure).
     if (o.spp == kSppNotGiven)
-        o.spp = (o.strategy.budget == 0 && o.strategy.method != "dammertz" &&
-                 o.strategy.method != "cycles")
-                    ? kDefaultSpp
+        o.spp = (o.strategy.budget == 0 && needs_budget(o.strategy.method))
+                    ? int64_t(kDefaultSpp)
                     : 0;
     o.strategy.spp = uint64_t(o.spp);
     if (o.threads < 0) throw UsageError("--threads: must be 0 or more");
@@ -138,6 +124,18 @@ void check_render_options(RenderOptions& o) {
         } catch (const std::exception& e) {
             throw CommandError("--sigma: " + o.sigma + ": " + e.what());
         }
+    }
+    for (const auto& [parameter, option] : o.parameter_flags) {
+        if (option->count() == 0) continue;
+        // A parameter for another method would be ignored without a word: refused,
+        // like --sigma without oracle.
+        if (!parameter->applies_to(o.strategy.method))
+            throw UsageError(parameter->flag() + ": only " +
+                             joined(parameter->methods, ", ") +
+                             (parameter->methods.size() == 1 ? " reads" : " read") +
+                             " it, not --method " + o.strategy.method);
+        const std::string why = parameter->out_of_bounds(o.strategy);
+        if (!why.empty()) throw UsageError(parameter->flag() + ": " + why);
     }
     try {
         validate(o.strategy, o.width, o.height);

@@ -6,10 +6,13 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "render_spec.h"
+#include "strategy_parameters.h"
 
 namespace aliquot::cli {
 
@@ -23,12 +26,18 @@ struct RenderOptions {
     std::string reference;  // optional reference EXR
     std::string sigma;      // oracle: EXR of a separate render with spp and variance
     StrategyParams strategy;
+    // Each strategy parameter's flag, so that check_render_options() knows which were
+    // given (CLI11 keeps them for as long as the command lives).
+    std::vector<std::pair<const StrategyParameter*, const CLI::Option*>> parameter_flags;
 };
 
-// Adds --scene, --resolution, --spp, --seed, --threads, --method and every strategy
-// parameter (--budget, --max-variance, ...) and --reference to `cmd`.
+// Adds --scene, --resolution, --seed, --threads, --reference, --method, --sigma and every
+// strategy parameter of strategy_parameters() (--spp, --budget, --max-variance, ...),
+// grouped in --help by the methods that read them.
 void add_render_options(CLI::App& cmd, RenderOptions& options);
-// Parses the resolution and checks ranges and the scene's name; throws CommandError.
+// Parses the resolution and checks ranges and the scene's name; throws CommandError, or
+// UsageError for a parameter out of its bounds or given to a method that does not read
+// it.
 void check_render_options(RenderOptions& options);
 // A name that is neither a built-in scene nor a scene file: UsageError, with the nearest
 // built-in name.
@@ -43,7 +52,5 @@ RenderSpec make_render_spec(const RenderOptions& options);
 void check_writable(const std::filesystem::path& path, const std::string& option);
 
 constexpr int64_t kSppNotGiven = -1;
-// Samples per pixel when neither --spp nor --budget is given.
-constexpr int64_t kDefaultSpp = 64;
 
 }  // namespace aliquot::cli

@@ -68,6 +68,10 @@ expect_error "compare with a missing file" 1 "missing.exr" "$aliquot" compare "$
 expect_error "compare with bucket size 0" 2 "--bucket-size" "$aliquot" compare "$tmp/a1.exr" "$tmp/b.exr" --bucket-size 0
 expect_error "coordinator with lease 0 s" 2 "--lease-seconds" "$aliquot" coordinator --lease-seconds 0 --data "$tmp/d"
 expect_error "coordinator with a bad memory limit" 2 "--memory-limit" "$aliquot" coordinator --memory-limit 3X --data "$tmp/d"
+expect_error "a render name with a newline" 2 "--name" "$aliquot" render --name $'a\nb' --out "$tmp/x.exr"
+expect_error "a render name of 201 bytes" 2 "at most 200 bytes" "$aliquot" render --name "$(printf 'n%.0s' $(seq 201))" --out "$tmp/x.exr"
+expect_error "a submit name with an escape" 2 "control characters" "$aliquot" submit --name $'\e[2J' --coordinator 127.0.0.1:1
+expect_error "coordinator with a bad log format" 2 "--log-format" "$aliquot" coordinator --log-format xml --data "$tmp/d"
 expect_error "negative connect timeout" 2 "--connect-timeout" "$aliquot" status --connect-timeout -1
 expect_error "unknown study scale" 2 "--scale" "$aliquot" study "$(dirname "$0")/../study/tiny.json" --scale huge --out "$tmp/s"
 # Nothing listens on port 1: the client waits its connect timeout, then says so.
@@ -187,6 +191,38 @@ python3 -c 'import json, sys; s = json.loads(sys.argv[1]); assert s["samples_don
     pass "optimal without --spp or --budget renders 64 samples per pixel" ||
     fail "optimal without --spp or --budget renders 64 samples per pixel ($json)"
 
+# Strategy parameters: one table makes the flags, the spec's JSON and the bounds. The
+# flags --help groups under the methods are the keys of the spec an EXR carries (read
+# by oiiotool), each with its default shown; a value out of bounds names the bound; a
+# parameter for another method is refused, not ignored.
+help=$("$aliquot" render --help)
+spec=$(oiiotool --info -v "$tmp/aov1.exr" 2>/dev/null | sed -n 's/^ *aliquot:strategy: "\(.*\)"$/\1/p')
+flags_test="render's parameter flags are the spec's keys, grouped by method"
+python3 - "$help" "$spec" <<'PY' && pass "$flags_test" || fail "$flags_test"
+import json, re, sys
+help, spec = sys.argv[1], json.loads(sys.argv[2].replace('\\"', '"'))
+groups = re.split(r"\n\n+(?=\S)", help)
+flags = set()
+for g in groups:
+    if g.startswith("Budget and caps") or g.startswith("Parameters of"):
+        for flag, default in re.findall(r"^  (--[a-z-]+) \S+?=(\S+)", g, re.M):
+            flags.add(flag)
+keys = {"--" + k.replace("_", "-") for k in spec if k != "method"}
+assert flags == keys, (sorted(flags ^ keys))
+assert "Parameters of cycles:" in help and "Parameters of dammertz:" in help, help
+PY
+expect_error "a parameter above its bound names the bound" 2 \
+    "--sigma-radius: must be a whole number from 0 to 64, got 65" \
+    "$aliquot" render --method optimal --sigma-radius 65 --out "$tmp/x.exr"
+expect_error "a number parameter out of bounds names the bound" 2 \
+    "--floor-fraction: must be a number at least 0 and below 1, got 1" \
+    "$aliquot" render --method optimal --floor-fraction 1 --out "$tmp/x.exr"
+expect_error "a word parameter names its values" 2 "--error-norm: must be seed or paper" \
+    "$aliquot" render --method dammertz --error-norm l2 --out "$tmp/x.exr"
+expect_error "a parameter of another method is refused" 2 \
+    "--alpha: only adaptive reads it, not --method optimal" \
+    "$aliquot" render --method optimal --alpha 2 --out "$tmp/x.exr"
+
 # A study whose report finds no python3 with matplotlib and numpy (the report module exits
 # 3, as aliquot_report.py does then) names the project's installer, not pip, which Debian's
 # python3 refuses.
@@ -227,6 +263,40 @@ mkdir -p "$tmp/elsewhere"
 expect_error "a client without a token next to a running coordinator says so at once" 1 \
     "no client token: the coordinator at $addr answers" \
     env -C "$tmp/elsewhere" -u ALIQUOT_TOKEN "$(realpath "$aliquot")" status --coordinator "$addr" --connect-timeout 60
+
+# Issue 32: a render's events, its name in status, and the queue while no worker runs.
+client=(--coordinator "$addr" --token-file "$tmp/farm/client.token")
+logs=$("$aliquot" logs "$id" "${client[@]}" 2>&1)
+[[ $logs == *" submitted render=$id "* && $logs == *" started render=$id"* &&
+    $logs == *" round_ended render=$id round=0 "* && $logs == *" finished render=$id "* ]] &&
+    pass "logs prints a render's events from submitted to finished" ||
+    fail "logs prints a render's events from submitted to finished ($logs)"
+grep -q "worker_registered worker=" "$tmp/coordinator.log" && grep -q " round_ended render=$id " "$tmp/coordinator.log" &&
+    pass "the coordinator logs worker and render events on stderr" ||
+    fail "the coordinator logs worker and render events on stderr ($(head -c 600 "$tmp/coordinator.log"))"
+expect_error "logs of an unknown render" 1 "no render r-999999" "$aliquot" logs r-999999 "${client[@]}"
+kill $worker_pid 2>/dev/null
+wait $worker_pid 2>/dev/null
+worker_pid=
+a=$("$aliquot" submit "${client[@]}" --resolution 8x8 --spp 1 --name "shot 1")
+b=$("$aliquot" submit "${client[@]}" --resolution 8x8 --spp 1)
+sa=$("$aliquot" status "$a" "${client[@]}")
+sb=$("$aliquot" status "$b" "${client[@]}")
+[[ $sa == *"queued (position 1)"*"name: shot 1"* && $sb == *"queued (position 2)"* ]] &&
+    pass "status shows queued renders with their place and name" ||
+    fail "status shows queued renders with their place and name ($sa / $sb)"
+"$aliquot" priority "$b" 5 "${client[@]}" >/dev/null
+sa=$("$aliquot" status "$a" "${client[@]}")
+sb=$("$aliquot" status "$b" "${client[@]}")
+[[ $sa == *"queued (position 2)"* && $sb == *"queued (position 1)"* ]] &&
+    pass "a priority change moves a queued render to the front" ||
+    fail "a priority change moves a queued render to the front ($sa / $sb)"
+json=$("$aliquot" status "$b" "${client[@]}" --json)
+python3 - "$json" <<'PY' && pass "status --json has state queued and queue_position" || fail "status --json has state queued and queue_position ($json)"
+import json, sys
+s = json.loads(sys.argv[1])
+assert s["state"] == "queued" and s["queue_position"] == 1 and s["name"] == "", s
+PY
 
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]
