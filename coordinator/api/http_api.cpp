@@ -188,10 +188,11 @@ RenderSpec parse_render_request(const std::string& body) {
         require(have_width == have_height, "'width' and 'height' go together");
         if (!have_width) spec.width = spec.height = 256;
     }
-    // As on the command line: a uniform render with no budget gets 64 samples per pixel.
-    if (spec.strategy.method == "uniform" && spec.strategy.spp == 0 &&
+    // As on the command line: a render that needs a budget and was given none gets 64
+    // samples per pixel, whatever its method (the dashboard's form leaves defaults out).
+    if (needs_budget(spec.strategy.method) && spec.strategy.spp == 0 &&
         spec.strategy.budget == 0)
-        spec.strategy.spp = 64;
+        spec.strategy.spp = kDefaultSpp;
 
     const std::vector<std::string> names = builtin_scene_names();
     if (std::find(names.begin(), names.end(), spec.scene_name) == names.end()) {

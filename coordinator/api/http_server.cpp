@@ -22,6 +22,7 @@
 #include "render_state.h"
 #include "scene_loader.h"
 #include "stored_image.h"
+#include "strategy_parameters.h"
 #include "thumbnail_cache.h"
 #include "unix_millis.h"
 
@@ -971,6 +972,11 @@ struct HttpServer::Impl {
                        send_json(res, {{"scenes", builtin_scene_names()},
                                        {"methods", submittable_methods()},
                                        {"defaults", StrategyParams{}}});
+                   }));
+        // Every method with its parameters: keys, defaults, bounds, help (the dashboard's
+        // form is built from it; strategy_parameters.h is the one table).
+        server.Get("/api/methods", guarded([](const httplib::Request&, auto& res) {
+                       send_json(res, {{"methods", methods_json()}});
                    }));
         server.Get("/api/events", [this](const httplib::Request& req,
                                          httplib::Response& res) { events(req, res); });

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
@@ -237,6 +238,48 @@ TEST_F(HttpServerTest, HealthAndScenes) {
     EXPECT_EQ(scenes["defaults"]["method"], "uniform");
 }
 
+TEST_F(HttpServerTest, MethodsListEachMethodsParametersWithDefaultsAndBounds) {
+    const json methods = get_json("/api/methods")["methods"];
+    ASSERT_EQ(methods.size(), strategy_methods().size());
+    const auto method = [&](const std::string& name) {
+        for (const json& m : methods)
+            if (m["name"] == name) return m;
+        return json();
+    };
+    EXPECT_EQ(method("oracle")["submittable"], false);  // refused on a farm
+    EXPECT_EQ(method("optimal")["submittable"], true);
+    std::map<std::string, json> optimal;
+    for (const json& p : method("optimal")["parameters"])
+        optimal[p["key"].get<std::string>()] = p;
+    EXPECT_EQ(optimal.count("alpha"), 0u);  // adaptive's
+    EXPECT_EQ(optimal["spp"]["default"], 64);
+    EXPECT_EQ(optimal["sigma_radius"]["kind"], "whole");
+    EXPECT_EQ(optimal["sigma_radius"]["max"], 64);
+    EXPECT_EQ(optimal["sigma_radius"]["bounds"], "a whole number from 0 to 64");
+    EXPECT_EQ(optimal["floor_fraction"]["default"], 0.5);
+    EXPECT_EQ(optimal["floor_fraction"]["max_exclusive"], true);
+    EXPECT_FALSE(optimal["plan_ahead"]["help"].get<std::string>().empty());
+    std::map<std::string, json> dammertz;
+    for (const json& p : method("dammertz")["parameters"])
+        dammertz[p["key"].get<std::string>()] = p;
+    EXPECT_EQ(dammertz["error_norm"]["values"], json({"seed", "paper"}));
+    EXPECT_EQ(dammertz["spp"]["default"], 0);  // stops by its own measure
+
+    // A value past its bound is refused naming the key and the bound, as listed.
+    auto res = client_->Post("/api/renders",
+                             R"({"strategy":{"method":"optimal","sigma_radius":65}})",
+                             "application/json");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 400);
+    EXPECT_NE(res->body.find("'sigma_radius': expected a whole number from 0 to 64"),
+              std::string::npos)
+        << res->body;
+    // Any method that needs a budget and is given none gets spp's listed default.
+    const json created = post_json(
+        "/api/renders", R"({"resolution":"8x8","strategy":{"method":"optimal"}})", 201);
+    EXPECT_EQ(created["strategy"]["spp"], 64);
+}
+
 TEST_F(HttpServerTest, SubmittedRenderIsListedAndReadBack) {
     auto res = client_->Post("/api/renders",
                              R"({"scene":"cornell-box","resolution":"24x16","seed":3,
@@ -359,7 +402,8 @@ TEST_F(HttpServerTest, BadRequestsGetA4xxWithAMessage) {
         {"POST", "/api/renders", R"({"scene":"no-such-scene"})", 400},
         {"POST", "/api/renders", R"({"colour":"blue"})", 400},
         {"POST", "/api/renders", R"({"strategy":{"method":"magic"}})", 400},
-        {"POST", "/api/renders", R"({"strategy":{"method":"adaptive"}})", 400},
+        {"POST", "/api/renders", R"({"strategy":{"method":"optimal","sigma_radius":65}})",
+         400},
         {"POST", "/api/renders", R"({"strategy":{"spp":-5}})", 400},
         {"POST", "/api/renders", R"({"strategy":{"spp":1e300}})", 400},
         {"POST", "/api/renders", R"({"strategy":{"budget":18446744073709551615}})", 400},
@@ -1123,6 +1167,7 @@ std::vector<std::string> guarded_paths(const std::string& id) {
             "/api/renders/" + id + "/maps?kind=error",
             "/api/renders/" + id + "/rounds",
             "/api/workers",
+            "/api/methods",
             "/api/studies",
             "/api/studies/data/equal-budget/report.md",
             "/api/studies/data/equal-budget/charts/error.png",
