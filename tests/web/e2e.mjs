@@ -337,6 +337,23 @@ await check("a bad submission shows the server's message", async () => {
   assert((await api("/api/renders")).renders.length === 0, "a render was created");
 });
 
+await check("the form shows only the chosen method's parameters, from /api/methods", async () => {
+  const { methods } = await api("/api/methods");
+  const keys = () => page.$$eval("#submit-form [data-param]", (els) => els.map((e) => e.dataset.param));
+  for (const name of ["optimal", "cycles", "dammertz"]) {
+    await page.selectOption("#submit-method", name);
+    const want = methods.find((m) => m.name === name).parameters.map((p) => p.key);
+    await waitFor(async () => JSON.stringify(await keys()) === JSON.stringify(want), { what: `${name}'s fields ${want}` });
+  }
+  const options = await page.$$eval("#submit-method option", (els) => els.map((e) => e.value));
+  assert(!options.includes("oracle"), `the form offers ${options}`);
+  // Defaults and bounds as declared: dammertz's error norm is a choice, optimal's radius bounded.
+  assert((await page.$eval('select[data-param="error_norm"]', (e) => e.value)) === "seed", "error_norm's default");
+  await page.selectOption("#submit-method", "optimal");
+  assert((await page.$eval('input[data-param="sigma_radius"]', (e) => e.max)) === "64", "sigma_radius's bound");
+  assert((await page.$eval('input[data-param="spp"]', (e) => e.value)) === "64", "spp's default");
+});
+
 let renderId = null;
 await check("submit a render from the page", async () => {
   await page.selectOption("#submit-scene", "cornell-box");
@@ -381,6 +398,13 @@ await check("the render page shows progress reaching 100 %", async () => {
   const label = await page.textContent("#render-progress .label");
   assert(label.includes("100 %"), `progress label "${label}"`);
   assert(early.state === "running", `the first view was already ${early.state}: the render was too quick to watch`);
+});
+
+await check("a render's page shows only its method's parameters", async () => {
+  await waitFor(async () => /max spp 1024/.test((await page.textContent("p.params")) ?? ""), { what: "dammertz's parameters" });
+  const text = await page.textContent("p.params");
+  assert(/error norm seed/.test(text) && !/alpha|noise threshold|sigma radius/.test(text), `parameters: ${text}`);
+  assert(!/[{}]/.test(await page.textContent("#render-outcome")), "raw outcome JSON");
 });
 
 let final = null;

@@ -109,6 +109,30 @@ export interface SceneList {
   defaults: Record<string, number | string>;
 }
 
+/** One parameter of a method (GET /api/methods). */
+export interface ParamInfo {
+  key: string;
+  kind: "whole" | "number" | "word";
+  default: number | string;
+  /** The bounds in words, as the server's refusal says them. */
+  bounds: string;
+  help: string;
+  min?: number;
+  max?: number;
+  min_exclusive?: boolean;
+  max_exclusive?: boolean;
+  /** kind "word": the values allowed. */
+  values?: string[];
+}
+
+export interface MethodInfo {
+  name: string;
+  summary: string;
+  /** False for oracle: its sigma is given in-process, never to a coordinator. */
+  submittable: boolean;
+  parameters: ParamInfo[];
+}
+
 export interface Study {
   source: string;
   name: string;
@@ -233,6 +257,7 @@ export const api = {
     `/api/renders/${enc(id)}/preview.png?exposure=${exposure}&size=${size}&v=${version}`,
   workers: () => getJSON<{ workers: Worker[]; now_ms: number }>("/api/workers"),
   scenes: () => getJSON<SceneList>("/api/scenes"),
+  methods: () => getJSON<{ methods: MethodInfo[] }>("/api/methods"),
   studies: () => getJSON<{ studies: Study[] }>("/api/studies"),
   studyFileUrl: (s: Pick<Study, "source" | "name">, file: string) =>
     `/api/studies/${enc(s.source)}/${enc(s.name)}/${file.split("/").map(enc).join("/")}`,

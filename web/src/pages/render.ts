@@ -1,7 +1,7 @@
 // One render: the converging image with its buckets drawn over it, the sample-count and
 // error heat maps, error charts that grow by one point per round, the round table and the
 // render's log; what an operator does to it (priority, download, resubmit, delete).
-import { api, ApiError, type Buckets, type PixelMap, type RenderDetail, type RoundRow } from "../api";
+import { api, ApiError, type Buckets, type MethodInfo, type PixelMap, type RenderDetail, type RoundRow } from "../api";
 import { pilotRounds, pilotSamples } from "../axes";
 import { ErrorChart, PALETTE, type ChartView } from "../chart";
 import { colorize, cssColor, decodeBase64, ERROR_MAP, SPP_MAP } from "../colormap";
@@ -10,6 +10,7 @@ import { etaSeconds, etaText } from "../eta";
 import { eventLines } from "../events";
 import * as fmt from "../format";
 import { throttle, type LiveEvent } from "../live";
+import { findMethod, paramSummary } from "../params";
 import { progressText } from "./renders";
 import { progressBar, setBadge, setProgress, setText, stateBadge, type Page } from "./page";
 
@@ -93,8 +94,17 @@ export class RenderPage implements Page {
   private resizer: ResizeObserver;
   private refreshImages = throttle(() => void this.loadImages(), 1000);
   private gone = false;
+  // Which parameters each method reads: the render's own are all its page shows.
+  private methods: MethodInfo[] = [];
 
   constructor(private readonly id: string) {
+    api
+      .methods()
+      .then(({ methods }) => {
+        this.methods = methods;
+        this.showHeader();
+      })
+      .catch(() => {}); // without the list the parameters line stays empty
     this.bySamples.el.id = "chart-samples";
     this.byTime.el.id = "chart-time";
     this.exposureInput.addEventListener("input", () => {
@@ -392,11 +402,7 @@ export class RenderPage implements Page {
       ["rays", fmt.count(r.rays ?? 0)],
     ];
     for (const [key, value] of stats) setText(q(`dd[data-stat="${key}"]`), value);
-    const params = Object.entries(r.strategy ?? {})
-      .filter(([k, v]) => k !== "method" && v !== 0 && v !== "")
-      .map(([k, v]) => `${k} ${v}`)
-      .join(" · ");
-    setText(q("p.params"), params);
+    setText(q("p.params"), paramSummary(findMethod(this.methods, r.method), r.strategy));
     setText(q("p.error"), r.error ?? "");
     setText(q("p.outcome"), outcomeText(r.outcome));
   }

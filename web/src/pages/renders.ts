@@ -1,11 +1,12 @@
 // Renders: every render with its thumbnail, progress, ETA and error, sorted and filtered
 // as the address says; a form to submit one (or resubmit one with changes); cancel buttons.
-import { api, ApiError, type RenderDetail, type RenderSummary, type SceneList } from "../api";
+import { api, ApiError, type MethodInfo, type RenderDetail, type RenderSummary, type SceneList } from "../api";
 import { clear, h } from "../dom";
 import { etaText } from "../eta";
 import * as fmt from "../format";
 import { matches, sortRenders, viewFromQuery, type RenderFilter, type SortKey } from "../listing";
 import type { LiveEvent } from "../live";
+import { fieldSpecs, findMethod, strategyFromFields } from "../params";
 import { progressBar, setBadge, setProgress, setText, stateBadge, type Page } from "./page";
 
 // The table's columns: heading, and the sort key a click on it picks.
@@ -28,49 +29,6 @@ const COLUMNS: [string, SortKey | null][] = [
 
 // A thumbnail is fetched again at most this often per render while it changes.
 const THUMBNAIL_MS = 3000;
-
-// The parameters the form offers per method, with the server's defaults filled in.
-const METHOD_FIELDS: Record<string, { key: string; label: string; step?: string }[]> = {
-  uniform: [{ key: "spp", label: "samples per pixel" }],
-  dammertz: [
-    { key: "max_variance", label: "max variance V", step: "any" },
-    { key: "samples_per_iteration", label: "samples per iteration S" },
-    { key: "split_factor", label: "split factor", step: "any" },
-    { key: "min_bucket_size", label: "min bucket size" },
-    { key: "max_spp", label: "max spp (0: default)" },
-  ],
-  adaptive: [
-    { key: "spp", label: "budget (spp x pixels)" },
-    { key: "initial_spp", label: "initial spp" },
-    { key: "max_variance", label: "max variance", step: "any" },
-    { key: "alpha", label: "alpha", step: "any" },
-    { key: "bucket_size", label: "bucket size" },
-  ],
-  optimal: [
-    { key: "spp", label: "budget (spp x pixels)" },
-    { key: "min_spp", label: "min spp" },
-    { key: "max_spp", label: "max spp (0: default)" },
-    { key: "sigma_prior", label: "sigma prior, samples (0: off)" },
-    { key: "sigma_radius", label: "sigma pool radius (0: own pixel)" },
-    { key: "floor_fraction", label: "pilot and floor, share of mean spp", step: "any" },
-    { key: "steer_rounds", label: "steered rounds after the pilot (0: doubling)" },
-    { key: "plan_ahead", label: "plan ahead after rounds of at most this share (0: never)", step: "any" },
-  ],
-  "optimal-time": [
-    { key: "spp", label: "budget (spp x pixels)" },
-    { key: "min_spp", label: "min spp" },
-    { key: "max_spp", label: "max spp (0: default)" },
-    { key: "floor_fraction", label: "pilot and floor, share of mean spp", step: "any" },
-    { key: "steer_rounds", label: "steered rounds after the pilot (0: doubling)" },
-    { key: "plan_ahead", label: "plan ahead after rounds of at most this share (0: never)", step: "any" },
-  ],
-  cycles: [
-    { key: "noise_threshold", label: "noise threshold", step: "any" },
-    { key: "adaptive_min_samples", label: "min samples (0: automatic)" },
-    { key: "adaptive_step", label: "check every N samples" },
-    { key: "max_spp", label: "max spp (0: default)" },
-  ],
-};
 
 export function progressText(r: RenderSummary): string {
   if (r.buckets_total && r.state !== "done")
@@ -99,6 +57,8 @@ export class RendersPage implements Page {
   private fields = h("div", { class: "method-fields" });
   private form!: HTMLFormElement;
   private scenes: SceneList | null = null;
+  // Each method's parameters, as the coordinator declares them (GET /api/methods).
+  private methods: MethodInfo[] = [];
   private filter: RenderFilter;
   private sort: SortKey;
   private descending: boolean;
@@ -236,15 +196,15 @@ export class RendersPage implements Page {
 
   private async loadScenes(): Promise<void> {
     try {
-      this.scenes = await api.scenes();
+      [this.scenes, { methods: this.methods }] = await Promise.all([api.scenes(), api.methods()]);
     } catch (e) {
-      this.setMessage(`cannot load scenes: ${(e as Error).message}`, true);
+      this.setMessage(`cannot load scenes and methods: ${(e as Error).message}`, true);
       return;
     }
     const scene = this.form.querySelector<HTMLSelectElement>("#submit-scene")!;
     const method = this.form.querySelector<HTMLSelectElement>("#submit-method")!;
     for (const s of this.scenes.scenes) scene.append(h("option", { value: s }, s));
-    for (const m of this.scenes.methods) method.append(h("option", { value: m }, m));
+    for (const m of this.methods.filter((m) => m.submittable)) method.append(h("option", { value: m.name, title: m.summary }, m.name));
     this.showFields();
     const fill = (id: string, values: string[], value: string) => {
       const select = this.filterBar.querySelector<HTMLSelectElement>(`#${id}`)!;
@@ -280,24 +240,28 @@ export class RendersPage implements Page {
     this.form.scrollIntoView();
   }
 
+  // The chosen method's parameters only, each with its default, bounds and help.
   private showFields(): void {
     clear(this.fields);
-    const method = this.form.querySelector<HTMLSelectElement>("#submit-method")!.value;
-    const defaults = this.scenes?.defaults ?? {};
-    for (const f of METHOD_FIELDS[method] ?? []) {
-      const value = f.key === "spp" ? 64 : defaults[f.key] ?? 0;
-      this.fields.append(
-        h("label", {}, f.label, h("input", { name: f.key, "data-param": f.key, type: "number", min: 0, step: f.step ?? "1", value: String(value) })),
-      );
+    const method = findMethod(this.methods, this.form.querySelector<HTMLSelectElement>("#submit-method")!.value);
+    if (!method) return;
+    this.fields.dataset.method = method.name;
+    this.fields.append(h("p", { class: "muted method-summary" }, method.summary));
+    for (const f of fieldSpecs(method)) {
+      const control = f.options
+        ? h("select", { name: f.key, "data-param": f.key }, ...f.options.map((o) => h("option", { value: o, selected: o === f.value }, o)))
+        : h("input", { name: f.key, "data-param": f.key, ...f.input, value: f.value });
+      this.fields.append(h("label", { title: f.title }, f.label, control));
     }
   }
 
   private async submit(): Promise<void> {
     const data = new FormData(this.form);
-    const strategy: Record<string, number | string> = { method: String(data.get("method")) };
-    for (const input of this.fields.querySelectorAll<HTMLInputElement>("input[data-param]")) {
-      if (input.value !== "") strategy[input.dataset.param!] = Number(input.value);
-    }
+    const method = findMethod(this.methods, String(data.get("method")));
+    const fields: Record<string, string> = {};
+    for (const field of this.fields.querySelectorAll<HTMLInputElement | HTMLSelectElement>("[data-param]"))
+      fields[field.dataset.param!] = field.value;
+    const strategy = method ? strategyFromFields(method, fields) : { method: String(data.get("method")) };
     const button = this.form.querySelector<HTMLButtonElement>("#submit-button")!;
     button.disabled = true;
     try {
