@@ -202,7 +202,7 @@ struct CoordinatorCommand {
         options.max_side = max_side;
         options.memory_limit = memory;
         options.failure_policy.max_job_failures = max_job_failures;
-        options.fail_on_fewer_hosts = fail_on_fewer_hosts;
+        options.failure_policy.fail_on_fewer_hosts = fail_on_fewer_hosts;
         options.forget_workers_after = forget_after;
         options.max_workers = max_workers;
         options.max_worker_sessions = std::max(options.max_worker_sessions, max_workers);

@@ -19,7 +19,7 @@
 #include "farm_log.h"
 #include "scene_loader.h"
 #include "secret.h"
-#include "wall_clock.h"
+#include "unix_millis.h"
 
 namespace aliquot {
 
@@ -43,13 +43,6 @@ std::string host_of_peer(const std::string& peer) {
         if (!std::isdigit(static_cast<unsigned char>(peer[i]))) return peer;
     return peer.substr(0, colon);
 }
-
-// A host no session has (peers are "ipv4:...", "ipv6:...", "unix:...", in-process
-// workers "process:NAME"): added to the live hosts a failure is counted with, it makes
-// RenderSession see another host that could take the job, so that failures alone on
-// one host never fail the render (fail_on_fewer_hosts). Jobs are issued with the true
-// set.
-constexpr const char* kAnotherHost = "\x01another host";
 
 }  // namespace
 
@@ -182,7 +175,7 @@ std::string Coordinator::submit(RenderSpec spec) {
     // Building the session (its buffers) and writing its record and reference happen
     // off the lock: a 1920x1080 reference is 24 MB to write.
     try {
-        const int64_t created = wall_millis();
+        const int64_t created = unix_millis_now();
         auto session = std::make_unique<RenderSession>(id, spec, created);
         archive_.record_submission(id, spec, hash, created, session->samples_planned());
         recorded = true;
@@ -411,7 +404,7 @@ uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds t
 Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
     const auto [it, is_new] = workers_.try_emplace(name);
     WorkerEntry& w = it->second;
-    const int64_t now = wall_millis();
+    const int64_t now = unix_millis_now();
     w.last_seen_ms = now;
     // A worker first heard of here gets its row now, so that marking it lost later has
     // a row to mark. (Since worker sessions, only register_worker meets a new name.)
@@ -420,7 +413,7 @@ Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
         w.stored_seen_ms = now;
     }
     w.lost = false;
-    if (w.registered) set_alive(name, true);
+    set_alive(name, true);
     return w;
 }
 
@@ -435,8 +428,6 @@ std::shared_ptr<const std::set<std::string>> Coordinator::alive_workers() {
         for (const auto& [session, entry] : worker_sessions_)
             if (alive_.count(entry.worker)) hosts.insert(entry.identity);
         alive_snapshot_ = std::make_shared<const std::set<std::string>>(hosts);
-        hosts.insert(kAnotherHost);
-        alive_and_another_ = std::make_shared<const std::set<std::string>>(hosts);
         alive_cores_ = 0;
         for (const std::string& name : alive_) alive_cores_ += workers_.at(name).threads;
         alive_dirty_ = false;
@@ -444,17 +435,17 @@ std::shared_ptr<const std::set<std::string>> Coordinator::alive_workers() {
     return alive_snapshot_;
 }
 
-std::shared_ptr<const std::set<std::string>> Coordinator::alive_for_failures_of(
-    const SessionEntry& caller) {
-    std::shared_ptr<const std::set<std::string>> alive = alive_workers();
-    return caller.trusted || options_.fail_on_fewer_hosts ? alive : alive_and_another_;
+FailurePolicy Coordinator::failure_policy_of(const SessionEntry& caller) const {
+    FailurePolicy policy = options_.failure_policy;
+    if (caller.trusted) policy.fail_on_fewer_hosts = true;  // the embedded render's
+    return policy;
 }
 
 Coordinator::SessionEntry Coordinator::worker_of_session(const std::string& session) {
     const auto it = worker_sessions_.find(session);
     if (it == worker_sessions_.end())
         throw WorkerUnknown("unknown worker session: register again");
-    it->second.last_seen_ms = wall_millis();
+    it->second.last_seen_ms = unix_millis_now();
     touch_worker(it->second.worker);
     return it->second;
 }
@@ -572,7 +563,6 @@ Registration Coordinator::register_session(const std::string& name, uint32_t thr
     make_room_for_a_worker(name);
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
-    w.registered = true;
     set_alive(name, true);
     // A full disk must not keep workers out: the row is written again when it returns.
     archive_.record_worker(name, threads, w.last_seen_ms);
@@ -587,7 +577,7 @@ Registration Coordinator::register_session(const std::string& name, uint32_t thr
     do session = random_hex(16);
     while (worker_sessions_.count(session));
     worker_sessions_.emplace(
-        session, SessionEntry{name, std::move(identity), trusted, wall_millis()});
+        session, SessionEntry{name, std::move(identity), trusted, unix_millis_now()});
     alive_dirty_ = true;
     changed();
     return {session, uint32_t(options_.lease_time.count())};
@@ -672,6 +662,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     SessionEntry caller;
     SlotPtr slot;
     std::shared_ptr<const std::set<std::string>> alive;
+    FailurePolicy policy;
     size_t cores = 0;
     {
         std::lock_guard lock(mutex_);
@@ -686,7 +677,8 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         slot = slot_of(it->second.render);
         lease_render_.erase(it);  // whatever the outcome, this lease has ended
         if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
-        alive = alive_for_failures_of(caller);  // a rejected result counts as a failure
+        alive = alive_workers();
+        policy = failure_policy_of(caller);  // a rejected result counts as a failure
         cores = alive_cores_;
     }
     // The merge, and when this is the round's last job the round's end, under the
@@ -706,8 +698,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         // well; farm_scale runs one render.
         const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
         s.set_worker_cores(cores);  // the next round is cut for them
-        outcome = s.complete(lease_id, caller.identity, result, *alive,
-                             options_.failure_policy);
+        outcome = s.complete(lease_id, caller.identity, result, *alive, policy);
         // This result ended a round, or two: the round after it, opened ahead, may have
         // merged whole by then. The call's time counts as waited through when the round
         // it left out was not opened ahead.
@@ -800,21 +791,22 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     std::string worker, worker_name;
     SlotPtr slot;
     std::shared_ptr<const std::set<std::string>> alive;
+    FailurePolicy policy;
     {
         std::lock_guard lock(mutex_);
         const SessionEntry caller = worker_of_session(session);
         worker = caller.identity;
         worker_name = caller.worker;
         slot = held_render(session, lease_id);
-        alive = alive_for_failures_of(caller);
+        alive = alive_workers();
+        policy = failure_policy_of(caller);
     }
     if (!slot) return false;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
         RenderSession& s = *slot->session;
-        if (!s.fail_job(lease_id, worker, reason, *alive, options_.failure_policy))
-            return false;
+        if (!s.fail_job(lease_id, worker, reason, *alive, policy)) return false;
         if (s.failures_of(worker) == options_.failure_policy.blocklist_after)
             events_.on_render(EventKind::WorkerBlocklisted, s.id(),
                               {log_text("worker", worker_name), log_text("host", worker),
@@ -835,7 +827,7 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
 bool Coordinator::knows_worker(const std::string& name) {
     std::lock_guard lock(mutex_);
     const auto it = workers_.find(name);
-    return it != workers_.end() && it->second.registered;
+    return it != workers_.end();
 }
 
 size_t Coordinator::leases_out() {
@@ -980,7 +972,7 @@ void Coordinator::tick() {
         std::lock_guard lock(mutex_);
         bool any = !expired.empty() || opened_ahead;
         forget_ended_leases(expired, finished);
-        const int64_t wall = wall_millis();
+        const int64_t wall = unix_millis_now();
         // Not a structured binding: the lambdas below copy the name, and C++17 (clang's,
         // for the fuzz build) cannot capture one.
         for (auto& entry : workers_) {
@@ -1032,7 +1024,7 @@ void Coordinator::tick() {
     // Outside the lock: deleting a render's files can take a while.
     if (retention_due) {
         try {
-            remove_expired(wall_millis());
+            remove_expired(unix_millis_now());
         } catch (const std::exception& e) {
             log_farm_error(std::string("retention: ") +
                            e.what());  // tried again next time

@@ -51,14 +51,10 @@ struct CoordinatorOptions {
     // off one (docs/FARM.md). Failures count per worker host (the address its connection
     // came from), not per name: a name is the client's to choose, so one holder of the
     // worker token registering under three names is still one host.
-    FailurePolicy failure_policy;
-    // Whether a job that failed max_job_failures times fails its render when fewer hosts
-    // than that failed it and no other live host could take it (a farm on fewer machines
-    // than max_job_failures). Off, only max_job_failures distinct hosts fail a render, so
-    // that no single holder of the worker token can fail one alone; such a job is then
-    // retried until the render is cancelled. Workers in this process (the embedded
-    // render) are trusted: for them the rule always holds.
-    bool fail_on_fewer_hosts = false;
+    // Over the network, one host alone never fails a render unless the operator says so
+    // (FailurePolicy::fail_on_fewer_hosts, --fail-on-fewer-hosts); workers in this
+    // process (the embedded render) are trusted: for them the rule always holds.
+    FailurePolicy failure_policy{.fail_on_fewer_hosts = false};
     // Worker sessions are forgotten after this long unheard while they hold no lease (a
     // worker that comes back is told to register again), and so are workers lost this
     // long, in memory and in the store; at most max_worker_sessions sessions and
@@ -209,7 +205,6 @@ private:
         uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
         double rate = 0;          // samples/s, smoothed over recent jobs
         bool lost = false;
-        bool registered = false;    // called register_worker here (not only heard from)
         std::string host, version;  // describe_worker: for the workers list only
         uint32_t failures = 0;      // jobs it reported failed (fail())
         // last_seen_ms as the store last has it: refreshed now and then (tick), so that
@@ -260,11 +255,9 @@ private:
     // building it was 256 string copies a job); an immutable snapshot, so a call can use
     // it under its render's lock alone. Under `mutex_`.
     std::shared_ptr<const std::set<std::string>> alive_workers();
-    // The same with one host more that could take any job: what a failure of `caller` is
-    // counted with when the rule for farms of fewer hosts must not apply to it
-    // (fail_on_fewer_hosts), since that rule is "no other live host could take it".
-    std::shared_ptr<const std::set<std::string>> alive_for_failures_of(
-        const SessionEntry& caller);
+    // The policy a failure of `caller` is counted with: the options', with the rule for
+    // farms of fewer hosts always on for a trusted (in-process) worker.
+    FailurePolicy failure_policy_of(const SessionEntry& caller) const;
     void set_alive(const std::string& name, bool alive);
     // Drops `name` and its sessions from memory, and its row from the store.
     void forget_worker(const std::string& name);
@@ -312,10 +305,8 @@ private:
     std::map<std::string, std::string> scenes_;  // hash -> json
     std::map<std::string, WorkerEntry> workers_;
     std::set<std::string> alive_;  // names in workers_ that registered and are not lost
-    // alive_workers() and alive_for_failures_of(), rebuilt when alive_dirty_.
+    // alive_workers(), rebuilt when alive_dirty_.
     std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
-        std::make_shared<const std::set<std::string>>();
-    std::shared_ptr<const std::set<std::string>> alive_and_another_ =
         std::make_shared<const std::set<std::string>>();
     bool alive_dirty_ = false;
     size_t alive_cores_ = 0;  // the alive workers' threads, rebuilt with them

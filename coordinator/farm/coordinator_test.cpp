@@ -830,7 +830,7 @@ TEST_F(CoordinatorTest, FailuresCountPerHostNotPerName) {
 // ... unless the operator says a farm of fewer hosts may fail a render (a farm on one
 // machine, whose workers all call from one host).
 TEST_F(CoordinatorTest, OneHostFailsARenderOnlyWhenTheOperatorSaysSo) {
-    options.fail_on_fewer_hosts = true;
+    options.failure_policy.fail_on_fewer_hosts = true;
     Coordinator c(options);
     const std::string id = c.submit(small_spec());
     for (const char* name : {"a", "b", "c"}) {

@@ -454,7 +454,7 @@ void RenderSession::count_failure(size_t j, const std::string& worker,
     ++worker_failures_[worker];
     const size_t distinct = slot.failed_on.size();
     if (distinct >= policy.max_job_failures ||
-        (slot.failures >= policy.max_job_failures &&
+        (slot.failures >= policy.max_job_failures && policy.fail_on_fewer_hosts &&
          !another_could_take(slot, "", alive, policy))) {
         const PixelRect& r = slot.job.rect;
         // Appended piece by piece: GCC 12 warns (falsely, -Wrestrict) on `"literal" +

@@ -43,6 +43,13 @@ struct FailurePolicy {
     // A worker with this many failures on one render gets no more of its jobs while a
     // live worker with fewer can take them.
     uint32_t blocklist_after = 2;
+    // Whether a job that failed max_job_failures times fails its render when fewer hosts
+    // than that failed it and no other live host could take it (a farm on fewer machines
+    // than max_job_failures). Off, only max_job_failures distinct hosts fail a render, so
+    // that no single holder of the worker token can fail one alone; such a job is then
+    // retried until the render is cancelled. The workers named here are hosts
+    // (Coordinator: the address a worker's connection came from).
+    bool fail_on_fewer_hosts = true;
 };
 
 class RenderSession {
