@@ -993,6 +993,35 @@ TEST_F(HttpServerTest, AStreamWhoseClientLeftFreesItsSlot) {
     EXPECT_EQ(get_json("/healthz")["ok"], true);
 }
 
+// A coordinator that keeps its record under `dir`/data, its HTTP server, and a client
+// holding the client token.
+struct RecordedCoordinator {
+    static CoordinatorOptions options(const fs::path& dir) {
+        CoordinatorOptions co;
+        co.data_dir = dir / "data";
+        return co;
+    }
+    explicit RecordedCoordinator(const fs::path& dir)
+        : coordinator(options(dir)),
+          server(coordinator, "127.0.0.1:0", options_with_tokens()),
+          client("127.0.0.1", server.port()) {
+        client.set_read_timeout(10, 0);
+        client.set_bearer_token_auth(testing::kTestTokens.client);
+    }
+    // Submits a 16x16 render of 4 spp: its id, empty (and a failure) when refused.
+    std::string submit() {
+        auto res =
+            client.Post("/api/renders", R"({"resolution":"16x16","strategy":{"spp":4}})",
+                        "application/json");
+        const bool created = res && res->status == 201;
+        EXPECT_TRUE(created) << (res ? res->body : "no answer");
+        return created ? json::parse(res->body)["id"].get<std::string>() : "";
+    }
+    Coordinator coordinator;
+    HttpServer server;
+    httplib::Client client;
+};
+
 // A finished render's EXR is its stored file, sent as it is: not decoded and encoded
 // again (with its layers the file itself; without, the copy stored beside it).
 TEST(HttpServerStorage, AFinishedRendersExrIsTheStoredFile) {
@@ -1000,19 +1029,11 @@ TEST(HttpServerStorage, AFinishedRendersExrIsTheStoredFile) {
                          ("aliquot-http-stored-exr-" + std::to_string(::getpid()));
     fs::remove_all(dir);
     {
-        CoordinatorOptions co;
-        co.data_dir = dir / "data";
-        Coordinator coordinator(co);
-        HttpServer server(coordinator, "127.0.0.1:0", options_with_tokens());
-        httplib::Client c("127.0.0.1", server.port());
-        c.set_read_timeout(10, 0);
-        c.set_bearer_token_auth(testing::kTestTokens.client);
-        auto submitted =
-            c.Post("/api/renders", R"({"resolution":"16x16","strategy":{"spp":4}})",
-                   "application/json");
-        ASSERT_TRUE(submitted);
-        ASSERT_EQ(submitted->status, 201) << submitted->body;
-        const std::string id = json::parse(submitted->body)["id"];
+        RecordedCoordinator farm(dir);
+        Coordinator& coordinator = farm.coordinator;
+        httplib::Client& c = farm.client;
+        const std::string id = farm.submit();
+        ASSERT_FALSE(id.empty());
         coordinator.register_worker("w1", 1);
         fake_jobs(coordinator, "w1");
         // The backlog's thread writes the image, then the session leaves memory: wait
@@ -1046,13 +1067,10 @@ TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
                          ("aliquot-http-storage-" + std::to_string(::getpid()));
     fs::remove_all(dir);
     {
-        CoordinatorOptions co;
-        co.data_dir = dir / "data";
-        Coordinator coordinator(co);
-        HttpServer server(coordinator, "127.0.0.1:0", options_with_tokens());
-        httplib::Client c("127.0.0.1", server.port());
-        c.set_read_timeout(10, 0);
-        c.set_bearer_token_auth(testing::kTestTokens.client);
+        RecordedCoordinator farm(dir);
+        Coordinator& coordinator = farm.coordinator;
+        HttpServer& server = farm.server;
+        httplib::Client& c = farm.client;
         auto list = [&] {
             auto res = c.Get("/api/renders");
             EXPECT_TRUE(res && res->status == 200);
@@ -1060,12 +1078,8 @@ TEST(HttpServerStorage, StorageWarningIsShownWhileTheRecordCannotBeWritten) {
         };
         EXPECT_EQ(list()["storage_warning"], "");
 
-        auto submitted =
-            c.Post("/api/renders", R"({"resolution":"16x16","strategy":{"spp":4}})",
-                   "application/json");
-        ASSERT_TRUE(submitted);
-        ASSERT_EQ(submitted->status, 201) << submitted->body;
-        const std::string id = json::parse(submitted->body)["id"];
+        const std::string id = farm.submit();
+        ASSERT_FALSE(id.empty());
         const fs::path render_dir = dir / "data" / "renders" / id;
         ASSERT_TRUE(fs::is_directory(render_dir));
         fs::remove_all(render_dir);
