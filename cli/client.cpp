@@ -79,19 +79,23 @@ std::string describe(const RenderInfo& i) {
     const double pct = i.samples_planned
                            ? 100.0 * double(i.samples_done) / double(i.samples_planned)
                            : 0.0;
+    // "queued (position 2)": which of the queued renders a worker takes next.
+    std::string state(to_string(i.state));
+    if (i.state == RenderState::Queued && i.queue_position > 0)
+        state += " (position " + std::to_string(i.queue_position) + ")";
     std::snprintf(
         line, sizeof line,
         "%s  %-9s %-10s %-16s %ux%u  round %u  %llu/%llu samples (%.1f%%)  %.0f "
         "samples/s  %.1fs  err~%s",
-        i.id.c_str(), std::string(to_string(i.state)).c_str(), i.method.c_str(),
-        i.scene_name.c_str(), i.width, i.height, i.rounds_done,
-        (unsigned long long)i.samples_done, (unsigned long long)i.samples_planned, pct,
-        i.samples_per_second, i.seconds,
+        i.id.c_str(), state.c_str(), i.method.c_str(), i.scene_name.c_str(), i.width,
+        i.height, i.rounds_done, (unsigned long long)i.samples_done,
+        (unsigned long long)i.samples_planned, pct, i.samples_per_second, i.seconds,
         i.error_estimate >= 0 ? std::to_string(i.error_estimate).c_str() : "-");
     std::string s = line;
     if (i.error_vs_reference >= 0)
         s += "  E(ref)=" + std::to_string(i.error_vs_reference);
     if (i.priority != 0) s += "  priority " + std::to_string(i.priority);
+    if (!i.name.empty()) s += "  name: " + i.name;  // printable: the coordinator checks
     if (!i.error.empty()) s += "  error: " + i.error;
     return s;
 }

@@ -36,5 +36,6 @@ void register_farm_clients(CLI::App& app);  // status, watch, fetch, cancel, pri
 void register_reference(CLI::App& app);
 void register_study(CLI::App& app);
 void register_health(CLI::App& app);  // a probe of gRPC health
+void register_logs(CLI::App& app);    // a render's events
 
 }  // namespace aliquot::cli

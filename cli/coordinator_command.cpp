@@ -17,6 +17,7 @@
 #include "commands.h"
 #include "grpc_server.h"
 #include "http_server.h"
+#include "log_format_option.h"
 #include "metrics.h"
 #include "token_file.h"
 #include "whole_number_option.h"
@@ -305,6 +306,7 @@ void register_coordinator(CLI::App& app) {
     cmd->add_option("--max-resolution", c->max_side, "largest accepted image side")
         ->check(whole_number())
         ->capture_default_str();
+    add_log_format_option(*cmd);
     cmd->add_option("--memory-limit", c->memory_limit,
                     "bytes (K, M, G suffixes) the renders in memory may use together; a "
                     "submission past it is refused (default: half the physical memory, " +

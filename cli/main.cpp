@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
     aliquot::cli::register_reference(app);
     aliquot::cli::register_study(app);
     aliquot::cli::register_health(app);
+    aliquot::cli::register_logs(app);
     // A first word that is no option must name a command; CLI11 alone would answer
     // `aliquot rendr` with "A subcommand is required".
     if (argc > 1 && argv[1][0] != '-') {

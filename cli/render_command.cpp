@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "embedded_render.h"
 #include "exr_io.h"
+#include "name_option.h"
 #include "png_output.h"
 #include "progress_bar.h"
 #include "render_json.h"
@@ -22,6 +23,7 @@ struct RenderCommand {
     std::string out;
     bool json = false;
     bool aovs = false;
+    std::string name;
     PngOptions png;
 
     void run() {
@@ -29,7 +31,8 @@ struct RenderCommand {
         check_fits_in_memory(options);
         check_writable(out, "--out");
         const std::string png_path = png.path_beside(out);
-        const RenderSpec spec = make_render_spec(options);
+        RenderSpec spec = make_render_spec(options);
+        spec.name = name;
 
         ProgressBar bar("render");
         const EmbeddedResult result =
@@ -79,6 +82,7 @@ void register_render(CLI::App& app) {
     cmd->add_flag("--aovs", command->aovs,
                   "add the layers sampleCount.Y and variance.Y to the EXR");
     command->png.add_to(*cmd);
+    add_name_option(*cmd, command->name, "--json");
     cmd->callback([command] { command->run(); });
 }
 

@@ -9,6 +9,7 @@
 #include "commands.h"
 #include "endpoint_options.h"
 #include "exr_io.h"
+#include "name_option.h"
 #include "png_output.h"
 #include "progress_bar.h"
 #include "render_json.h"
@@ -27,6 +28,7 @@ struct SubmitCommand {
     bool wait = false, json = false, aovs = false;
     std::string out;
     int32_t priority = 0;
+    std::string name;
     PngOptions png;
 
     void run() {
@@ -45,6 +47,7 @@ struct SubmitCommand {
         req.set_height(options.height);
         req.set_seed(options.seed);
         req.set_priority(priority);
+        req.set_name(name);
         req.set_strategy_json(nlohmann::json(options.strategy).dump());
         if (!options.reference.empty()) {
             std::ifstream in(options.reference, std::ios::binary);
@@ -105,6 +108,7 @@ void register_submit(CLI::App& app) {
                     "one; change it later with `aliquot priority`")
         ->check(signed_whole_number())
         ->capture_default_str();
+    add_name_option(*cmd, c->name, "status and the dashboard");
     cmd->callback([c] { c->run(); });
 }
 

@@ -12,6 +12,7 @@
 #include "endpoint_options.h"
 #include "grpc_link.h"
 #include "health_file.h"
+#include "log_format_option.h"
 #include "whole_number_option.h"
 #include "worker_loop.h"
 
@@ -91,6 +92,7 @@ void register_worker(CLI::App& app) {
     cmd->add_option("--threads", c->threads, "tracing threads (0: all cores)")
         ->check(whole_number());
     cmd->add_option("--name", c->name, "worker name (default: host-pid)");
+    add_log_format_option(*cmd);
     cmd->add_option("--health-file", c->health_file,
                     "a file whose modification time the worker keeps at the moment all "
                     "its threads were last known not stuck, for liveness probes "

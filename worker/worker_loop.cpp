@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "courier.h"
+#include "log_line.h"
 #include "trace_job.h"
 
 namespace aliquot {
@@ -82,7 +83,8 @@ std::chrono::steady_clock::time_point WorkerLoop::stalest_beat() const {
 
 void WorkerLoop::log(const std::string& line) const {
     if (!options_.quiet)
-        std::fprintf(stderr, "worker %s: %s\n", options_.name.c_str(), line.c_str());
+        write_log_line("worker",
+                       {log_text("worker", options_.name), log_text("message", line)});
 }
 
 void WorkerLoop::sleep_unless_stopping(std::chrono::milliseconds duration) {

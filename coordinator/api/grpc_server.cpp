@@ -87,6 +87,7 @@ public:
             spec.height = req->height();
             spec.seed = req->seed();
             spec.priority = req->priority();
+            spec.name = req->name();
             spec.strategy = nlohmann::json::parse(
                 req->strategy_json().empty() ? "{}" : req->strategy_json());
             // The render must fit the budget before its reference is decoded, and the
@@ -265,6 +266,20 @@ public:
             out->set_error_estimate(r.error_estimate);
             out->set_error_vs_reference(r.error_vs_reference);
         }
+        return Status::OK;
+    }
+
+    Status GetEvents(ServerContext* ctx, const v1::GetEventsRequest* req,
+                     v1::GetEventsReply* reply) override {
+        if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
+        const uint32_t limit =
+            req->limit() ? std::min<uint32_t>(req->limit(), 1000) : 100;
+        // Numbers past int64's would wrap round to "from the first".
+        const int64_t from = int64_t(std::min<uint64_t>(req->from(), INT64_MAX));
+        const auto page = c_.events(req->id(), from - 1, limit);
+        if (!page) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        for (const RenderEvent& e : page->events) to_proto(e, *reply->add_events());
+        reply->set_omitted(page->omitted);
         return Status::OK;
     }
 

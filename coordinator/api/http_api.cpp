@@ -169,6 +169,9 @@ RenderSpec parse_render_request(const std::string& body) {
             }
         } else if (key == "priority") {
             spec.priority = priority_number(v);
+        } else if (key == "name") {
+            require(v.is_string(), "'name' must be a string");
+            spec.name = v.get<std::string>();
         } else if (key == "strategy") {
             try {
                 spec.strategy = v.get<StrategyParams>();

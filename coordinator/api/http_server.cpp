@@ -806,6 +806,25 @@ struct HttpServer::Impl {
                                 {"count", all->size()},
                                 {"next", end < all->size() ? json(end) : json(nullptr)}});
             }));
+        server.Get(
+            R"(/api/renders/([^/]+)/events)",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const std::string id = req.matches[1];
+                const auto from = int64_t(
+                    http_api::number_param("from", query(req, "from", "0"), 0, 1e15));
+                const auto limit = size_t(
+                    http_api::number_param("limit", query(req, "limit", "100"), 1, 1000));
+                const auto page = coordinator.events(id, from - 1, limit);
+                if (!page) throw ApiError(404, "no render '" + id + "'");
+                json events = json::array();
+                for (const RenderEvent& e : page->events) events.push_back(event_json(e));
+                send_json(res, {{"id", id},
+                                {"events", events},
+                                {"omitted", page->omitted},
+                                {"next", page->events.empty()
+                                             ? json(from)
+                                             : json(page->events.back().seq + 1)}});
+            }));
     }
 
     // The dashboard's sign-in: the client token opens a session, whose random id the

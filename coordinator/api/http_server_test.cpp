@@ -293,7 +293,8 @@ TEST_F(HttpServerTest, SubmittedRenderIsListedAndReadBack) {
     EXPECT_EQ(created["width"], 24);
     EXPECT_EQ(created["height"], 16);
     EXPECT_EQ(created["strategy"]["spp"], 8);
-    EXPECT_EQ(created["state"], "running");
+    EXPECT_EQ(created["state"], "queued");  // no worker has a job of it yet
+    EXPECT_EQ(created["queue_position"], 1);
 
     const json list = get_json("/api/renders");
     ASSERT_EQ(list["renders"].size(), 1u);
@@ -509,6 +510,58 @@ TEST_F(HttpServerTest, CancelStopsARender) {
     // Cancelling again is harmless.
     EXPECT_EQ(post_json("/api/renders/" + id + "/cancel", "{}", 200)["state"],
               "cancelled");
+}
+
+// Issue 32: renders no worker has taken are queued, with their place in lease order and
+// their names; a priority change moves one to the front; the events route serves a
+// render's events and refuses what it cannot.
+TEST_F(HttpServerTest, QueuedRendersShowTheirPlaceNameAndEvents) {
+    const std::string a = submit({{"resolution", "8x8"}, {"name", "first"}});
+    const std::string b =
+        submit({{"resolution", "8x8"}, {"name", "second \u00e9t\u00e9"}});
+    json first = get_json("/api/renders/" + a);
+    EXPECT_EQ(first["state"], "queued");
+    EXPECT_EQ(first["queue_position"], 1);
+    EXPECT_EQ(first["name"], "first");
+    EXPECT_EQ(get_json("/api/renders/" + b)["queue_position"], 2);
+    auto res = client_->Patch(("/api/renders/" + b).c_str(), R"({"priority": 4})",
+                              "application/json");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200) << res->body;
+    EXPECT_EQ(get_json("/api/renders/" + b)["queue_position"], 1);
+    const json listed = get_json("/api/renders");
+    ASSERT_EQ(listed["renders"].size(), 2u);
+    EXPECT_EQ(listed["renders"][0]["name"], "second \u00e9t\u00e9");
+    EXPECT_EQ(listed["renders"][1]["queue_position"], 2);
+
+    fake_jobs(*coordinator_, "w1");
+    const json done = get_json("/api/renders/" + a);
+    EXPECT_EQ(done["state"], "done");
+    EXPECT_EQ(done["queue_position"], 0);
+    const json events = get_json("/api/renders/" + a + "/events");
+    ASSERT_GE(events["events"].size(), 4u);
+    EXPECT_EQ(events["events"][0]["kind"], "submitted");
+    EXPECT_EQ(events["events"][0]["fields"]["name"], "first");
+    EXPECT_EQ(events["events"][1]["kind"], "started");
+    EXPECT_EQ(events["events"].back()["kind"], "finished");
+    EXPECT_EQ(events["omitted"], 0);
+    const uint64_t next = events["next"];
+    EXPECT_EQ(next, events["events"].size());
+    EXPECT_TRUE(
+        get_json("/api/renders/" + a + "/events?from=" + std::to_string(next))["events"]
+            .empty());
+    EXPECT_EQ(
+        get_json("/api/renders/" + a + "/events?from=1&limit=1")["events"][0]["kind"],
+        "started");
+    get_json("/api/renders/r-999999/events", 404);
+    get_json("/api/renders/" + a + "/events?from=-1", 400);
+    get_json("/api/renders/" + a + "/events?limit=0", 400);
+    // Names that could forge a log line or a page are refused, and add no render.
+    for (const std::string& name :
+         {std::string("a\nb"), std::string("\u001b[2J"), std::string(201, 'x')})
+        post_json("/api/renders", json{{"name", name}}.dump(), 400);
+    post_json("/api/renders", R"({"name": 7})", 400);
+    EXPECT_EQ(get_json("/api/renders")["renders"].size(), 2u);
 }
 
 // Issue 13: what another site's page can make a browser send is refused before any
@@ -1180,6 +1233,7 @@ std::vector<std::string> guarded_paths(const std::string& id) {
             "/api/renders/" + id + "/image.exr",
             "/api/renders/" + id + "/maps?kind=error",
             "/api/renders/" + id + "/rounds",
+            "/api/renders/" + id + "/events",
             "/api/workers",
             "/api/methods",
             "/api/studies",
@@ -1400,7 +1454,7 @@ TEST_F(HttpServerTest, ARefusedRequestChangesNothing) {
     }
     const json list = get_json("/api/renders");
     ASSERT_EQ(list["renders"].size(), 1u);
-    EXPECT_EQ(list["renders"][0]["state"], "running");
+    EXPECT_EQ(list["renders"][0]["state"], "queued");  // as submitted: nothing cancelled it
 }
 
 TEST(HttpServerTokens, RefusesToStartWithoutTwoDifferentTokens) {

@@ -136,5 +136,24 @@ TEST(JsonVocabulary, SeedsAreStringsInTheProtoMappingAndTheApi) {
     EXPECT_EQ(render_detail(info)["seed"], "18446744073709551615");
 }
 
+// A render's event: GetEvents' message and the HTTP API's document have the same fields
+// (`fields_json` carrying the object `fields`).
+TEST(JsonVocabulary, EventsHaveTheSameFieldsEverywhere) {
+    const RenderEvent e{"r-000001",
+                        3,
+                        7,
+                        EventKind::RoundEnded,
+                        {log_number("round", int64_t(2)), log_text("name", "a")}};
+    v1::RenderEvent message;
+    to_proto(e, message);
+    std::set<std::string> proto;
+    for (const std::string& field : keys(proto_json(message)))
+        proto.insert(api_name(field));
+    const json api = event_json(e);
+    EXPECT_EQ(proto, keys(api));
+    EXPECT_EQ(api["fields"], json::parse(message.fields_json()));
+    EXPECT_EQ(api["fields"]["round"], 2);
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -58,6 +58,7 @@ BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t widt
 json render_summary(const RenderInfo& info,
                     const std::optional<BucketProgress>& buckets) {
     json j = {{"id", info.id},
+              {"name", info.name},
               {"scene", info.scene_name},
               {"method", info.method},
               {"state", to_string(info.state)},
@@ -65,6 +66,7 @@ json render_summary(const RenderInfo& info,
               {"height", info.height},
               {"seed", seed_to_json(info.seed)},
               {"priority", info.priority},
+              {"queue_position", info.queue_position},
               {"samples_done", info.samples_done},
               {"samples_planned", info.samples_planned},
               {"rounds", info.rounds_done},
@@ -81,6 +83,13 @@ json render_summary(const RenderInfo& info,
         j["buckets_total"] = buckets->total;
     }
     return j;
+}
+
+json event_json(const RenderEvent& e) {
+    return {{"seq", e.seq},
+            {"at_ms", e.at_ms},
+            {"kind", to_string(e.kind)},
+            {"fields", json::parse(fields_json(e.fields), nullptr, false)}};
 }
 
 json render_detail(const RenderInfo& info, const std::optional<BucketProgress>& buckets) {

@@ -29,6 +29,10 @@ nlohmann::json render_summary(
 nlohmann::json render_detail(const RenderInfo& info,
                              const std::optional<BucketProgress>& buckets = std::nullopt);
 
+// A render's event: {"seq", "at_ms", "kind", "fields": {...}} (GET
+// /api/renders/{id}/events).
+nlohmann::json event_json(const RenderEvent& event);
+
 // Numbers as every document of the API writes them. Six significant digits are more than
 // any chart or table shows, and half the bytes.
 double short_number(double v);

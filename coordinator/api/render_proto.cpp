@@ -59,6 +59,8 @@ void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
     out.set_outcome_json(i.outcome_json);
     out.set_rays(i.rays);
     out.set_priority(i.priority);
+    out.set_name(i.name);
+    out.set_queue_position(i.queue_position);
 }
 
 RenderInfo from_proto(const v1::RenderInfo& in) {
@@ -84,6 +86,8 @@ RenderInfo from_proto(const v1::RenderInfo& in) {
     i.finished_ms = in.finished_ms();
     i.outcome_json = in.outcome_json();
     i.rays = in.rays();
+    i.name = in.name();
+    i.queue_position = in.queue_position();
     return i;
 }
 
@@ -98,6 +102,13 @@ void to_proto(const WorkerStatus& w, v1::WorkerInfo& out) {
     out.set_host(w.host);
     out.set_version(w.version);
     out.set_failures(w.failures);
+}
+
+void to_proto(const RenderEvent& e, v1::RenderEvent& out) {
+    out.set_seq(e.seq);
+    out.set_at_ms(e.at_ms);
+    out.set_kind(std::string(to_string(e.kind)));
+    out.set_fields_json(fields_json(e.fields));
 }
 
 WorkerStatus from_proto(const v1::WorkerInfo& in) {

@@ -27,4 +27,8 @@ RenderInfo from_proto(const v1::RenderInfo& in);
 void to_proto(const WorkerStatus& worker, v1::WorkerInfo& out);
 WorkerStatus from_proto(const v1::WorkerInfo& in);
 
+// A render's event as GetEvents sends it (`aliquot logs` prints its kind and fields as
+// they come: a newer coordinator's kinds included).
+void to_proto(const RenderEvent& event, v1::RenderEvent& out);
+
 }  // namespace aliquot

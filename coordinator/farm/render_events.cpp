@@ -33,21 +33,22 @@ int64_t now_ms() {
 
 }  // namespace
 
+// Ordered: a line reads in the order its event gave its fields (round before samples).
 std::string fields_json(const LogFields& fields) {
-    nlohmann::json j = nlohmann::json::object();
+    nlohmann::ordered_json j = nlohmann::ordered_json::object();
     for (const LogField& f : fields) {
         if (f.number)
-            j[f.key] = nlohmann::json::parse(f.value, nullptr, false);
+            j[f.key] = nlohmann::ordered_json::parse(f.value, nullptr, false);
         else
             j[f.key] = f.value;
     }
     // A worker's name is the network's: bytes that are not UTF-8 become U+FFFD.
-    return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    return j.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
 }
 
 LogFields fields_of_json(const std::string& json) {
     LogFields fields;
-    const nlohmann::json j = nlohmann::json::parse(json, nullptr, false);
+    const nlohmann::ordered_json j = nlohmann::ordered_json::parse(json, nullptr, false);
     if (!j.is_object()) return fields;
     for (const auto& [key, value] : j.items()) {
         if (value.is_string())

@@ -32,14 +32,18 @@ std::string content_hash(const std::string& text) {
     return out;
 }
 
+std::string render_name_error(const std::string& name) {
+    if (name.size() > kMaxRenderName)
+        return "at most " + std::to_string(kMaxRenderName) + " bytes, got " +
+               std::to_string(name.size());
+    if (!printable_utf8(name))
+        return "must be UTF-8 text without control characters (tabs, newlines, escapes)";
+    return "";
+}
+
 void validate(const RenderSpec& spec, uint32_t max_side) {
-    if (spec.name.size() > kMaxRenderName)
-        throw std::invalid_argument("name: at most " + std::to_string(kMaxRenderName) +
-                                    " bytes, got " + std::to_string(spec.name.size()));
-    if (!printable_utf8(spec.name))
-        throw std::invalid_argument(
-            "name: must be UTF-8 text without control characters (tabs, newlines, "
-            "escapes)");
+    if (const std::string why = render_name_error(spec.name); !why.empty())
+        throw std::invalid_argument("name: " + why);
     if (spec.width == 0 || spec.height == 0 || spec.width > max_side ||
         spec.height > max_side)
         throw std::invalid_argument(

@@ -27,6 +27,8 @@ struct RenderSpec {
 };
 
 constexpr size_t kMaxRenderName = 200;
+// Why `name` cannot name a render, or "" when it can.
+std::string render_name_error(const std::string& name);
 
 // A 128-bit content address (32 hex digits) of any bytes; not cryptographic.
 std::string content_hash(const std::string& bytes);

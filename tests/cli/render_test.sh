@@ -68,6 +68,10 @@ expect_error "compare with a missing file" 1 "missing.exr" "$aliquot" compare "$
 expect_error "compare with bucket size 0" 2 "--bucket-size" "$aliquot" compare "$tmp/a1.exr" "$tmp/b.exr" --bucket-size 0
 expect_error "coordinator with lease 0 s" 2 "--lease-seconds" "$aliquot" coordinator --lease-seconds 0 --data "$tmp/d"
 expect_error "coordinator with a bad memory limit" 2 "--memory-limit" "$aliquot" coordinator --memory-limit 3X --data "$tmp/d"
+expect_error "a render name with a newline" 2 "--name" "$aliquot" render --name $'a\nb' --out "$tmp/x.exr"
+expect_error "a render name of 201 bytes" 2 "at most 200 bytes" "$aliquot" render --name "$(printf 'n%.0s' $(seq 201))" --out "$tmp/x.exr"
+expect_error "a submit name with an escape" 2 "control characters" "$aliquot" submit --name $'\e[2J' --coordinator 127.0.0.1:1
+expect_error "coordinator with a bad log format" 2 "--log-format" "$aliquot" coordinator --log-format xml --data "$tmp/d"
 expect_error "negative connect timeout" 2 "--connect-timeout" "$aliquot" status --connect-timeout -1
 expect_error "unknown study scale" 2 "--scale" "$aliquot" study "$(dirname "$0")/../study/tiny.json" --scale huge --out "$tmp/s"
 # Nothing listens on port 1: the client waits its connect timeout, then says so.
@@ -259,6 +263,40 @@ mkdir -p "$tmp/elsewhere"
 expect_error "a client without a token next to a running coordinator says so at once" 1 \
     "no client token: the coordinator at $addr answers" \
     env -C "$tmp/elsewhere" -u ALIQUOT_TOKEN "$(realpath "$aliquot")" status --coordinator "$addr" --connect-timeout 60
+
+# Issue 32: a render's events, its name in status, and the queue while no worker runs.
+client=(--coordinator "$addr" --token-file "$tmp/farm/client.token")
+logs=$("$aliquot" logs "$id" "${client[@]}" 2>&1)
+[[ $logs == *" submitted render=$id "* && $logs == *" started render=$id"* &&
+    $logs == *" round_ended render=$id round=0 "* && $logs == *" finished render=$id "* ]] &&
+    pass "logs prints a render's events from submitted to finished" ||
+    fail "logs prints a render's events from submitted to finished ($logs)"
+grep -q "worker_registered worker=" "$tmp/coordinator.log" && grep -q " round_ended render=$id " "$tmp/coordinator.log" &&
+    pass "the coordinator logs worker and render events on stderr" ||
+    fail "the coordinator logs worker and render events on stderr ($(head -c 600 "$tmp/coordinator.log"))"
+expect_error "logs of an unknown render" 1 "no render r-999999" "$aliquot" logs r-999999 "${client[@]}"
+kill $worker_pid 2>/dev/null
+wait $worker_pid 2>/dev/null
+worker_pid=
+a=$("$aliquot" submit "${client[@]}" --resolution 8x8 --spp 1 --name "shot 1")
+b=$("$aliquot" submit "${client[@]}" --resolution 8x8 --spp 1)
+sa=$("$aliquot" status "$a" "${client[@]}")
+sb=$("$aliquot" status "$b" "${client[@]}")
+[[ $sa == *"queued (position 1)"*"name: shot 1"* && $sb == *"queued (position 2)"* ]] &&
+    pass "status shows queued renders with their place and name" ||
+    fail "status shows queued renders with their place and name ($sa / $sb)"
+"$aliquot" priority "$b" 5 "${client[@]}" >/dev/null
+sa=$("$aliquot" status "$a" "${client[@]}")
+sb=$("$aliquot" status "$b" "${client[@]}")
+[[ $sa == *"queued (position 2)"* && $sb == *"queued (position 1)"* ]] &&
+    pass "a priority change moves a queued render to the front" ||
+    fail "a priority change moves a queued render to the front ($sa / $sb)"
+json=$("$aliquot" status "$b" "${client[@]}" --json)
+python3 - "$json" <<'PY' && pass "status --json has state queued and queue_position" || fail "status --json has state queued and queue_position ($json)"
+import json, sys
+s = json.loads(sys.argv[1])
+assert s["state"] == "queued" and s["queue_position"] == 1 and s["name"] == "", s
+PY
 
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]

@@ -10,7 +10,7 @@ namespace aliquot {
 
 namespace {
 
-std::atomic<LogFormat> g_format{LogFormat::Text};
+std::atomic<LogFormat> g_format{LogFormat::None};
 
 // The length of the UTF-8 sequence starting at s[i], or 0 when it is not one.
 size_t utf8_length(std::string_view s, size_t i) {
@@ -175,6 +175,7 @@ void set_log_format(LogFormat format) { g_format = format; }
 LogFormat log_format() { return g_format; }
 
 void write_log_line(std::string_view event, const LogFields& fields) {
+    if (g_format == LogFormat::None) return;
     const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
                             std::chrono::system_clock::now().time_since_epoch())
                             .count();

@@ -12,7 +12,10 @@
 
 namespace aliquot {
 
-enum class LogFormat { Text, Json };
+// None: no lines at all, the default, so that a library or a command that renders in
+// this process (render, bench, study) prints only its own output; `aliquot coordinator`
+// and `aliquot worker` choose Text unless told json.
+enum class LogFormat { None, Text, Json };
 
 // "text" or "json".
 std::optional<LogFormat> parse_log_format(std::string_view text);
@@ -41,7 +44,7 @@ std::string format_log_line(LogFormat format, int64_t unix_ms, std::string_view 
 // give (a render's) may be, so that it prints as it is everywhere.
 bool printable_utf8(std::string_view text);
 
-// The process's format; Text until a command sets it.
+// The process's format; None until a command sets it.
 void set_log_format(LogFormat format);
 LogFormat log_format();
 // Writes one line (with its newline, in one write) to stderr, stamped now.
