@@ -13,6 +13,7 @@
 #include "grpc_link.h"
 #include "health_file.h"
 #include "log_format_option.h"
+#include "log_line.h"
 #include "whole_number_option.h"
 #include "worker_loop.h"
 
@@ -56,8 +57,8 @@ struct WorkerCommand {
             int sig = 0;
             sigwait(&stop, &sig);
             if (!refused)
-                std::fprintf(stderr, "worker %s: stopping (signal %d)\n", name.c_str(),
-                             sig);
+                write_log_line("worker_stopping", {log_text("worker", name),
+                                                   log_number("signal", int64_t(sig))});
             loop.stop();
         });
         try {
@@ -71,9 +72,10 @@ struct WorkerCommand {
             throw CommandError(e.what());
         }
         waiter.join();
-        std::fprintf(stderr, "worker %s: traced %llu samples in %llu jobs\n",
-                     name.c_str(), (unsigned long long)loop.samples_traced(),
-                     (unsigned long long)loop.jobs_done());
+        write_log_line("worker_stopped",
+                       {log_text("worker", name),
+                        log_number("samples_traced", int64_t(loop.samples_traced())),
+                        log_number("jobs", int64_t(loop.jobs_done()))});
     }
 };
 
