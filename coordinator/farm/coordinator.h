@@ -1,5 +1,6 @@
 // Coordinator: every render's session, the leases handed to workers, the workers it has
-// heard from, and (with a data directory) the SQLite record and per-round checkpoints.
+// heard from; what it writes to disk and reads back (the SQLite record, checkpoints,
+// images) is its RenderArchive's (render_archive.h), the farm's only includer of the store.
 // Transport-free: the gRPC services and the embedded render call the same methods.
 //
 // Locks. Two kinds, never nested. `mutex_` guards the coordinator's maps (renders by id,
