@@ -1,7 +1,7 @@
 // Coordinator: every render's session, the leases handed to workers, the workers it has
 // heard from; what it writes to disk and reads back (the SQLite record, checkpoints,
-// images) is its RenderArchive's (render_archive.h), the farm's only includer of the store.
-// Transport-free: the gRPC services and the embedded render call the same methods.
+// images) is its RenderArchive's (render_archive.h), the farm's only includer of the
+// store. Transport-free: the gRPC services and the embedded render call the same methods.
 //
 // Locks. Two kinds, never nested. `mutex_` guards the coordinator's maps (renders by id,
 // leases, worker sessions, workers, scenes) and is held for look-ups and bookkeeping
