@@ -6,7 +6,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -31,23 +30,14 @@ double thread_cpu_seconds() {
     return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 
-// The host a network peer called from, without its port ("ipv4:10.0.0.5:41234" ->
-// "ipv4:10.0.0.5", "ipv6:%5B::1%5D:41234" -> "ipv6:%5B::1%5D"): what failures count
-// against. The port is the caller's to choose with each connection; the host is not.
-std::string host_of_peer(const std::string& peer) {
-    if (peer.empty()) return "unknown peer";
-    const bool ip = peer.rfind("ipv4:", 0) == 0 || peer.rfind("ipv6:", 0) == 0;
-    const size_t colon = peer.rfind(':');
-    if (!ip || colon <= 5 || colon + 1 == peer.size()) return peer;
-    for (size_t i = colon + 1; i < peer.size(); ++i)
-        if (!std::isdigit(static_cast<unsigned char>(peer[i]))) return peer;
-    return peer.substr(0, colon);
-}
-
 }  // namespace
 
 Coordinator::Coordinator(CoordinatorOptions options)
-    : options_(std::move(options)), archive_(options_.data_dir) {
+    : options_(std::move(options)),
+      archive_(options_.data_dir),
+      registry_({options_.worker_lost_after, options_.forget_workers_after,
+                 options_.max_worker_sessions, options_.max_workers},
+                archive_, events_, [this] { return sessions_with_leases(); }) {
     if (archive_.keeps_records()) {
         events_.record_to(archive_.store(), &archive_.backlog());
         resume_unfinished();
@@ -133,8 +123,7 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session, bool queued) {
     slot->number = submissions_++;
     order_.push_back(s->id());
     sessions_[s->id()] = std::move(slot);
-    alive_workers();  // brings alive_cores_ up to date: the first round is cut for them
-    s->set_worker_cores(alive_cores_);
+    s->set_worker_cores(registry_.alive_cores());  // the first round is cut for them
     s->start();
     const bool waits = queued && s->state() == RenderState::Running;
     if (waits) queue_.add(s->id(), raw->priority, raw->number);  // running at its lease
@@ -401,127 +390,16 @@ uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds t
     return version_;
 }
 
-Coordinator::WorkerEntry& Coordinator::touch_worker(const std::string& name) {
-    const auto [it, is_new] = workers_.try_emplace(name);
-    WorkerEntry& w = it->second;
-    const int64_t now = unix_millis_now();
-    w.last_seen_ms = now;
-    // A worker first heard of here gets its row now, so that marking it lost later has
-    // a row to mark. (Since worker sessions, only register_worker meets a new name.)
-    if (is_new || w.lost) {
-        archive_.record_worker(name, w.threads, now);
-        w.stored_seen_ms = now;
-    }
-    w.lost = false;
-    set_alive(name, true);
-    return w;
-}
-
-void Coordinator::set_alive(const std::string& name, bool alive) {
-    const bool changed_set = alive ? alive_.insert(name).second : alive_.erase(name) > 0;
-    if (changed_set) alive_dirty_ = true;
-}
-
-std::shared_ptr<const std::set<std::string>> Coordinator::alive_workers() {
-    if (alive_dirty_) {
-        std::set<std::string> hosts;
-        for (const auto& [session, entry] : worker_sessions_)
-            if (alive_.count(entry.worker)) hosts.insert(entry.identity);
-        alive_snapshot_ = std::make_shared<const std::set<std::string>>(hosts);
-        alive_cores_ = 0;
-        for (const std::string& name : alive_) alive_cores_ += workers_.at(name).threads;
-        alive_dirty_ = false;
-    }
-    return alive_snapshot_;
-}
-
-FailurePolicy Coordinator::failure_policy_of(const SessionEntry& caller) const {
+FailurePolicy Coordinator::failure_policy_of(const WorkerRegistry::Link& caller) const {
     FailurePolicy policy = options_.failure_policy;
     if (caller.trusted) policy.fail_on_fewer_hosts = true;  // the embedded render's
     return policy;
-}
-
-Coordinator::SessionEntry Coordinator::worker_of_session(const std::string& session) {
-    const auto it = worker_sessions_.find(session);
-    if (it == worker_sessions_.end())
-        throw WorkerUnknown("unknown worker session: register again");
-    it->second.last_seen_ms = unix_millis_now();
-    touch_worker(it->second.worker);
-    return it->second;
 }
 
 std::set<std::string> Coordinator::sessions_with_leases() const {
     std::set<std::string> holding;
     for (const auto& [lease, owner] : lease_render_) holding.insert(owner.session);
     return holding;
-}
-
-void Coordinator::make_room_for_a_session() {
-    if (worker_sessions_.size() < options_.max_worker_sessions) return;
-    const std::set<std::string> holding = sessions_with_leases();
-    auto oldest = worker_sessions_.end();
-    for (auto it = worker_sessions_.begin(); it != worker_sessions_.end(); ++it)
-        if (!holding.count(it->first) &&
-            (oldest == worker_sessions_.end() ||
-             it->second.last_seen_ms < oldest->second.last_seen_ms))
-            oldest = it;
-    if (oldest == worker_sessions_.end())
-        throw TooManyWorkers("the coordinator has " +
-                             std::to_string(worker_sessions_.size()) +
-                             " worker sessions, each holding a lease; try again later");
-    // Its worker, if it is still there, is told to register again at its next call.
-    worker_sessions_.erase(oldest);
-    alive_dirty_ = true;
-}
-
-void Coordinator::forget_worker(const std::string& name) {
-    std::erase_if(worker_sessions_,
-                  [&name](const auto& kv) { return kv.second.worker == name; });
-    set_alive(name, false);
-    alive_dirty_ = true;
-    workers_.erase(name);
-    archive_.forget_worker(name);
-}
-
-void Coordinator::make_room_for_a_worker(const std::string& name) {
-    if (workers_.size() < options_.max_workers || workers_.count(name)) return;
-    std::set<std::string> holding;  // names holding a lease
-    for (const std::string& session : sessions_with_leases())
-        if (const auto it = worker_sessions_.find(session); it != worker_sessions_.end())
-            holding.insert(it->second.worker);
-    auto oldest = workers_.end();
-    for (auto it = workers_.begin(); it != workers_.end(); ++it)
-        if (!holding.count(it->first) &&
-            (oldest == workers_.end() ||
-             it->second.last_seen_ms < oldest->second.last_seen_ms))
-            oldest = it;
-    if (oldest == workers_.end())
-        throw TooManyWorkers("the coordinator knows " + std::to_string(workers_.size()) +
-                             " workers, each holding a lease; try again later");
-    // Its samples not yet recorded go with it; if it is still there, it is told to
-    // register again at its next call.
-    forget_worker(std::string(oldest->first));
-}
-
-void Coordinator::forget_silent_workers(int64_t now_ms) {
-    const int64_t after = options_.forget_workers_after.count();
-    const std::set<std::string> holding = sessions_with_leases();
-    std::set<std::string> named;
-    for (auto it = worker_sessions_.begin(); it != worker_sessions_.end();) {
-        if (now_ms - it->second.last_seen_ms > after && !holding.count(it->first)) {
-            it = worker_sessions_.erase(it);
-            alive_dirty_ = true;
-        } else {
-            named.insert(it->second.worker);
-            ++it;
-        }
-    }
-    std::vector<std::string> gone;
-    for (const auto& [name, w] : workers_)
-        if (w.lost && w.unrecorded == 0 && now_ms - w.last_seen_ms > after &&
-            !named.count(name))
-            gone.push_back(name);  // a lost worker is not in alive_
-    for (const std::string& name : gone) forget_worker(name);
 }
 
 uint64_t Coordinator::new_lease_id() const {
@@ -536,51 +414,27 @@ uint64_t Coordinator::new_lease_id() const {
 }
 
 Registration Coordinator::register_worker(const std::string& name, uint32_t threads) {
-    return register_session(name, threads, "process:" + name, true);
+    return register_link(name, threads, "process:" + name, true);
 }
 
 Registration Coordinator::register_worker(const std::string& name, uint32_t threads,
                                           const std::string& peer) {
-    return register_session(name, threads, host_of_peer(peer), false);
+    return register_link(name, threads, host_of_peer(peer), false);
 }
 
 void Coordinator::describe_worker(const std::string& name, std::string host,
                                   std::string version) {
     std::lock_guard lock(mutex_);
-    const auto it = workers_.find(name);
-    if (it == workers_.end()) return;
-    it->second.host = std::move(host);
-    it->second.version = std::move(version);
-    changed();
+    if (registry_.describe(name, std::move(host), std::move(version))) changed();
 }
 
-Registration Coordinator::register_session(const std::string& name, uint32_t threads,
-                                           std::string identity, bool trusted) {
+Registration Coordinator::register_link(const std::string& name, uint32_t threads,
+                                        std::string identity, bool trusted) {
     std::lock_guard lock(mutex_);
-    // First: a refused registration adds nothing (the silent session or worker one of
-    // these dropped before the other refused stays dropped).
-    make_room_for_a_session();
-    make_room_for_a_worker(name);
-    WorkerEntry& w = touch_worker(name);
-    w.threads = threads;
-    set_alive(name, true);
-    // A full disk must not keep workers out: the row is written again when it returns.
-    archive_.record_worker(name, threads, w.last_seen_ms);
-    w.stored_seen_ms = w.last_seen_ms;
-    // A new session each time; earlier ones of the same name stay valid (their leases are
-    // still theirs), so registering with a worker's name neither takes its leases nor
-    // locks it out.
-    events_.on_worker(
-        EventKind::WorkerRegistered, name,
-        {log_number("threads", int64_t(threads)), log_text("host", identity)});
-    std::string session;
-    do session = random_hex(16);
-    while (worker_sessions_.count(session));
-    worker_sessions_.emplace(
-        session, SessionEntry{name, std::move(identity), trusted, unix_millis_now()});
-    alive_dirty_ = true;
+    std::string link =
+        registry_.register_link(name, threads, std::move(identity), trusted);
     changed();
-    return {session, uint32_t(options_.lease_time.count())};
+    return {std::move(link), uint32_t(options_.lease_time.count())};
 }
 
 std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
@@ -589,13 +443,14 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
     // Jobs are the session's host's to take: RenderSession counts failures, keeps hosts
     // off jobs and checks lease ownership by this, and the Coordinator checks ownership
     // by session before it asks.
-    const std::string worker = worker_of_session(session).identity;
+    const std::string worker = registry_.link_of(session).identity;
     const auto deadline = std::chrono::steady_clock::now() + wait;
     while (!stopping_) {
         const uint64_t seen = version_;
         const std::vector<SlotPtr> slots = slots_by_priority();
-        const std::shared_ptr<const std::set<std::string>> alive = alive_workers();
-        const size_t cores = alive_cores_;
+        const std::shared_ptr<const std::set<std::string>> alive =
+            registry_.alive_identities();
+        const size_t cores = registry_.alive_cores();
         // Reserved now, so that no other lease takes the id while the lock is let go.
         const uint64_t lease_id = new_lease_id();
         lease_render_[lease_id] = {"", session};
@@ -659,14 +514,14 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
 
 CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
                                       const SampleJobResult& result) {
-    SessionEntry caller;
+    WorkerRegistry::Link caller;
     SlotPtr slot;
     std::shared_ptr<const std::set<std::string>> alive;
     FailurePolicy policy;
     size_t cores = 0;
     {
         std::lock_guard lock(mutex_);
-        caller = worker_of_session(session);
+        caller = registry_.link_of(session);
         const auto it = lease_render_.find(lease_id);
         if (it == lease_render_.end() || it->second.render.empty())
             return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
@@ -677,9 +532,9 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         slot = slot_of(it->second.render);
         lease_render_.erase(it);  // whatever the outcome, this lease has ended
         if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
-        alive = alive_workers();
+        alive = registry_.alive_identities();
         policy = failure_policy_of(caller);  // a rejected result counts as a failure
-        cores = alive_cores_;
+        cores = registry_.alive_cores();
     }
     // The merge, and when this is the round's last job the round's end, under the
     // render's lock alone.
@@ -720,22 +575,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     if (outcome.status == CompleteStatus::Merged) {
         samples_merged_ += result.total_samples();
-        // The worker may have been forgotten meanwhile (it was silent for long): its
-        // counts go with it.
-        if (const auto w_it = workers_.find(caller.worker); w_it != workers_.end()) {
-            WorkerEntry& w = w_it->second;
-            const uint64_t samples = result.total_samples();
-            w.samples += samples;
-            // A worker's own clock: a NaN or a near-zero time would poison the smoothed
-            // rate.
-            if (std::isfinite(result.wall_seconds) && result.wall_seconds >= 1e-3) {
-                // Per-thread rate of this job, times the worker's threads, smoothed.
-                const double rate =
-                    double(samples) / result.wall_seconds * std::max(w.threads, 1u);
-                w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
-            }
-            w.unrecorded += samples;  // written by tick(), not once per merged job
-        }
+        registry_.note_merged(caller.worker, result.total_samples(), result.wall_seconds);
     }
     changed();
     return outcome;
@@ -745,7 +585,7 @@ std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
                                                     const std::string& hash) {
     {
         std::lock_guard lock(mutex_);
-        worker_of_session(session);
+        registry_.link_of(session);
         if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;
     }
     return archive_.stored_scene(hash);
@@ -761,7 +601,7 @@ SlotPtr Coordinator::held_render(const std::string& session, uint64_t lease_id) 
 std::pair<std::string, SlotPtr> Coordinator::holder_and_render(const std::string& session,
                                                                uint64_t lease_id) {
     std::lock_guard lock(mutex_);
-    std::string worker = worker_of_session(session).identity;
+    std::string worker = registry_.link_of(session).identity;
     return {std::move(worker), held_render(session, lease_id)};
 }
 
@@ -794,11 +634,11 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     FailurePolicy policy;
     {
         std::lock_guard lock(mutex_);
-        const SessionEntry caller = worker_of_session(session);
+        const WorkerRegistry::Link caller = registry_.link_of(session);
         worker = caller.identity;
         worker_name = caller.worker;
         slot = held_render(session, lease_id);
-        alive = alive_workers();
+        alive = registry_.alive_identities();
         policy = failure_policy_of(caller);
     }
     if (!slot) return false;
@@ -816,8 +656,7 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     }
     std::lock_guard lock(mutex_);
     lease_render_.erase(lease_id);
-    if (const auto it = workers_.find(worker_name); it != workers_.end())
-        ++it->second.failures;
+    registry_.note_failure(worker_name);
     // The render's other leases ended with it.
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     changed();
@@ -826,8 +665,7 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
 
 bool Coordinator::knows_worker(const std::string& name) {
     std::lock_guard lock(mutex_);
-    const auto it = workers_.find(name);
-    return it != workers_.end();
+    return registry_.knows(name);
 }
 
 size_t Coordinator::leases_out() {
@@ -877,7 +715,7 @@ uint64_t Coordinator::rounds_ended() {
 
 size_t Coordinator::worker_sessions() {
     std::lock_guard lock(mutex_);
-    return worker_sessions_.size();
+    return registry_.links();
 }
 
 void Coordinator::forget_ended_leases(const std::vector<uint64_t>& ended,
@@ -913,30 +751,14 @@ std::vector<WorkerStatus> Coordinator::workers() {
     // which job, RenderSession does not say), never another host's or a count not theirs.
     std::map<std::string, std::vector<std::string>> leases;  // worker -> "render/job"
     for (const auto& [lease, owner] : lease_render_) {
-        const auto it = worker_sessions_.find(owner.session);
-        if (owner.render.empty() || it == worker_sessions_.end()) continue;
-        std::vector<std::string>& left = labels[{owner.render, it->second.identity}];
+        const WorkerRegistry::Link* link = registry_.find_link(owner.session);
+        if (owner.render.empty() || !link) continue;
+        std::vector<std::string>& left = labels[{owner.render, link->identity}];
         if (left.empty()) continue;
-        leases[it->second.worker].push_back(std::move(left.back()));
+        leases[link->worker].push_back(std::move(left.back()));
         left.pop_back();
     }
-    std::vector<WorkerStatus> out;
-    for (const auto& [name, w] : workers_) {
-        WorkerStatus st;
-        st.name = name;
-        st.threads = w.threads;
-        if (auto it = leases.find(name); it != leases.end())
-            st.leases = std::move(it->second);
-        st.state = w.lost ? "lost" : (st.leases.empty() ? "idle" : "busy");
-        st.samples_traced = w.samples;
-        st.samples_per_second = w.lost ? 0 : w.rate;
-        st.last_seen_ms = w.last_seen_ms;
-        st.host = w.host;
-        st.version = w.version;
-        st.failures = w.failures;
-        out.push_back(std::move(st));
-    }
-    return out;
+    return registry_.statuses(std::move(leases));
 }
 
 std::string Coordinator::storage_warning() {
@@ -973,38 +795,9 @@ void Coordinator::tick() {
         bool any = !expired.empty() || opened_ahead;
         forget_ended_leases(expired, finished);
         const int64_t wall = unix_millis_now();
-        // Not a structured binding: the lambdas below copy the name, and C++17 (clang's,
-        // for the fuzz build) cannot capture one.
-        for (auto& entry : workers_) {
-            const std::string& name = entry.first;
-            WorkerEntry& w = entry.second;
-            if (w.unrecorded > 0) {
-                archive_.record_worker_samples(name, w.unrecorded, w.last_seen_ms);
-                w.unrecorded = 0;
-                w.stored_seen_ms = w.last_seen_ms;
-            } else if (!w.lost && w.last_seen_ms - w.stored_seen_ms >
-                                      options_.forget_workers_after.count() / 4) {
-                // An idle worker's row is kept fresh, so that the sweep below takes only
-                // workers gone.
-                archive_.record_worker(name, w.threads, w.last_seen_ms);
-                w.stored_seen_ms = w.last_seen_ms;
-            }
-            if (!w.lost && wall - w.last_seen_ms > options_.worker_lost_after.count()) {
-                w.lost = true;
-                set_alive(name, false);
-                any = true;
-                events_.on_worker(EventKind::WorkerLost, name,
-                                  {log_number("last_seen_ms", w.last_seen_ms)});
-                archive_.record_worker_lost(name);
-            }
-        }
-        forget_silent_workers(wall);
-        // Rows of workers silent as long, those of an earlier run of the coordinator
-        // included (it remembers no worker across a restart): at the first tick, then
-        // about once a minute.
-        if (ticks_ % 300 == 0)
-            archive_.forget_workers_silent_since(wall -
-                                                 options_.forget_workers_after.count());
+        // Rows of workers long silent are swept at the first tick, then about once a
+        // minute.
+        if (registry_.tick(wall, ticks_ % 300 == 0)) any = true;
         if (any) changed();
         ++ticks_;
         wal_due = ticks_ % 50 == 0;

@@ -1,10 +1,11 @@
-// Coordinator: every render's session, the leases handed to workers, the workers it has
-// heard from; what it writes to disk and reads back (the SQLite record, checkpoints,
-// images) is its RenderArchive's (render_archive.h), the farm's only includer of the
-// store. Transport-free: the gRPC services and the embedded render call the same methods.
+// Coordinator: every render's session, the leases handed to workers; the workers it has
+// heard from and their links are its WorkerRegistry's (worker_registry.h); what it writes
+// to disk and reads back (the SQLite record, checkpoints, images) is its RenderArchive's
+// (render_archive.h), the farm's only includer of the store. Transport-free: the gRPC
+// services and the embedded render call the same methods.
 //
 // Locks. Two kinds, never nested. `mutex_` guards the coordinator's maps (renders by id,
-// leases, worker sessions, workers, scenes) and is held for look-ups and bookkeeping
+// leases, scenes) and its WorkerRegistry, and is held for look-ups and bookkeeping
 // only. Each render has a lock of its own (RenderSlot::mutex) for everything its session
 // does: issuing a job, merging a result, and ending a round (error estimate, checkpoint
 // copy, planning and cutting the next one). A call finds its render under `mutex_`, lets
@@ -37,6 +38,7 @@
 #include "render_info.h"
 #include "render_queue.h"
 #include "render_session.h"
+#include "worker_registry.h"
 
 namespace aliquot {
 
@@ -74,12 +76,6 @@ struct CoordinatorOptions {
 
 // Thrown by set_priority for a render that has finished.
 class RenderFinished : public std::runtime_error {
-public:
-    using std::runtime_error::runtime_error;
-};
-
-// Thrown by register_worker when every one of max_worker_sessions sessions holds a lease.
-class TooManyWorkers : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
 };
@@ -199,20 +195,6 @@ public:
     void stop();
 
 private:
-    struct WorkerEntry {
-        uint32_t threads = 0;
-        int64_t last_seen_ms = 0;
-        uint64_t samples = 0;
-        uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
-        double rate = 0;          // samples/s, smoothed over recent jobs
-        bool lost = false;
-        std::string host, version;  // describe_worker: for the workers list only
-        uint32_t failures = 0;      // jobs it reported failed (fail())
-        // last_seen_ms as the store last has it: refreshed now and then (tick), so that
-        // a row silent for forget_workers_after is a worker gone, not an idle one.
-        int64_t stored_seen_ms = 0;
-    };
-
     void resume_unfinished();
     // Wires a new session's callbacks, starts it and makes it visible; under `mutex_`
     // (no one else can reach the session yet).
@@ -229,19 +211,9 @@ private:
     // The same, highest priority first, submission order within one: whom lease()
     // serves first.
     std::vector<SlotPtr> slots_by_priority() const;
-    WorkerEntry& touch_worker(const std::string& name);
-    struct SessionEntry {
-        std::string worker;    // its name
-        std::string identity;  // whom its failures count against (FailurePolicy)
-        bool trusted = false;  // in this process (register_worker without a peer)
-        int64_t last_seen_ms = 0;
-    };
-    Registration register_session(const std::string& name, uint32_t threads,
-                                  std::string identity, bool trusted);
-    // The session `session`, its worker touched (heard from now); throws WorkerUnknown
-    // for a session this coordinator did not issue. A copy: the entry may go as soon as
-    // the lock is let go.
-    SessionEntry worker_of_session(const std::string& session);
+    // A new link of worker `name` (WorkerRegistry::register_link) as a Registration.
+    Registration register_link(const std::string& name, uint32_t threads,
+                               std::string identity, bool trusted);
     // The render whose lease `lease_id` `session` holds; null when it holds none.
     SlotPtr held_render(const std::string& session, uint64_t lease_id);
     // The worker holding `session` (touched, or WorkerUnknown) and held_render, under
@@ -250,35 +222,17 @@ private:
                                                       uint64_t lease_id);
     // A random lease id, not 0 and not one out now.
     uint64_t new_lease_id() const;
-    // The identities of the sessions of workers registered here and not lost: those a
-    // job may go to (RenderSession::issue). Rebuilt only when workers register, are lost,
-    // come back or are forgotten, rather than on every lease and result (at 256 workers
-    // building it was 256 string copies a job); an immutable snapshot, so a call can use
-    // it under its render's lock alone. Under `mutex_`.
-    std::shared_ptr<const std::set<std::string>> alive_workers();
     // The policy a failure of `caller` is counted with: the options', with the rule for
     // farms of fewer hosts always on for a trusted (in-process) worker.
-    FailurePolicy failure_policy_of(const SessionEntry& caller) const;
-    void set_alive(const std::string& name, bool alive);
-    // Drops `name` and its sessions from memory, and its row from the store.
-    void forget_worker(const std::string& name);
-    // Makes room for one more worker (a name not yet known) under max_workers, or throws
-    // TooManyWorkers.
-    void make_room_for_a_worker(const std::string& name);
+    FailurePolicy failure_policy_of(const WorkerRegistry::Link& caller) const;
     // Drops the submitted scene `hash` when no render in memory uses it; under `mutex_`.
     void drop_scene_if_unused(const std::string& hash);
     // Drops lease_render_ entries of leases that ended (`ended`) and of renders that are
     // finished or gone.
     void forget_ended_leases(const std::vector<uint64_t>& ended,
                              const std::set<std::string>& finished);
-    // Sessions holding a lease now.
+    // Worker links holding a lease now.
     std::set<std::string> sessions_with_leases() const;
-    // Drops sessions silent for forget_workers_after that hold no lease, and workers lost
-    // that long with no session left (tick).
-    void forget_silent_workers(int64_t now_ms);
-    // Makes room for one more session under max_worker_sessions, or throws
-    // TooManyWorkers.
-    void make_room_for_a_session();
     void changed();
     uint64_t memory_in_use_locked() const;
     // Drops a finished render whose end is recorded, and what is kept per render.
@@ -299,18 +253,10 @@ private:
         std::string render;   // render id
         std::string session;  // the worker session that leased it: the only one heard
     };
-    std::unordered_map<uint64_t, LeaseOwner> lease_render_;          // lease -> owner
-    std::unordered_map<std::string, SessionEntry> worker_sessions_;  // by session
+    std::unordered_map<uint64_t, LeaseOwner> lease_render_;  // lease -> owner
     // Scenes of the renders in memory, for workers' fetch_scene: dropped with the last
     // render that uses it (a scene is 1 MB or more, and submissions never end).
     std::map<std::string, std::string> scenes_;  // hash -> json
-    std::map<std::string, WorkerEntry> workers_;
-    std::set<std::string> alive_;  // names in workers_ that registered and are not lost
-    // alive_workers(), rebuilt when alive_dirty_.
-    std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
-        std::make_shared<const std::set<std::string>>();
-    bool alive_dirty_ = false;
-    size_t alive_cores_ = 0;  // the alive workers' threads, rebuilt with them
     int ticks_ = 0;
     std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
     double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0,
@@ -318,7 +264,8 @@ private:
     uint64_t rounds_ended_ = 0;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
     RenderEvents events_;                      // its own lock, a leaf
-    RenderQueue queue_;  // under mutex_: renders no job of which was leased yet
+    WorkerRegistry registry_;  // under mutex_: the workers and their links
+    RenderQueue queue_;        // under mutex_: renders no job of which was leased yet
     bool stopping_ = false;
     std::thread ticker_;
 

@@ -1,0 +1,268 @@
+#include "worker_registry.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+
+#include "secret.h"
+#include "unix_millis.h"
+
+namespace aliquot {
+
+// The port is the caller's to choose with each connection; the host is not.
+std::string host_of_peer(const std::string& peer) {
+    if (peer.empty()) return "unknown peer";
+    const bool ip = peer.rfind("ipv4:", 0) == 0 || peer.rfind("ipv6:", 0) == 0;
+    const size_t colon = peer.rfind(':');
+    if (!ip || colon <= 5 || colon + 1 == peer.size()) return peer;
+    for (size_t i = colon + 1; i < peer.size(); ++i)
+        if (!std::isdigit(static_cast<unsigned char>(peer[i]))) return peer;
+    return peer.substr(0, colon);
+}
+
+WorkerRegistry::WorkerRegistry(WorkerLimits limits, RenderArchive& archive,
+                               RenderEvents& events,
+                               std::function<std::set<std::string>()> holding_leases)
+    : limits_(limits),
+      archive_(archive),
+      events_(events),
+      holding_leases_(std::move(holding_leases)) {}
+
+WorkerRegistry::WorkerEntry& WorkerRegistry::touch_worker(const std::string& name) {
+    const auto [it, is_new] = workers_.try_emplace(name);
+    WorkerEntry& w = it->second;
+    const int64_t now = unix_millis_now();
+    w.last_seen_ms = now;
+    // A worker first heard of here gets its row now, so that marking it lost later has
+    // a row to mark. (Since worker links, only register_link meets a new name.)
+    if (is_new || w.lost) {
+        archive_.record_worker(name, w.threads, now);
+        w.stored_seen_ms = now;
+    }
+    w.lost = false;
+    set_alive(name, true);
+    return w;
+}
+
+void WorkerRegistry::set_alive(const std::string& name, bool alive) {
+    const bool changed_set = alive ? alive_.insert(name).second : alive_.erase(name) > 0;
+    if (changed_set) alive_dirty_ = true;
+}
+
+void WorkerRegistry::refresh_alive() {
+    if (!alive_dirty_) return;
+    std::set<std::string> hosts;
+    for (const auto& [link, entry] : links_)
+        if (alive_.count(entry.worker)) hosts.insert(entry.identity);
+    alive_snapshot_ = std::make_shared<const std::set<std::string>>(hosts);
+    alive_cores_ = 0;
+    for (const std::string& name : alive_) alive_cores_ += workers_.at(name).threads;
+    alive_dirty_ = false;
+}
+
+std::shared_ptr<const std::set<std::string>> WorkerRegistry::alive_identities() {
+    refresh_alive();
+    return alive_snapshot_;
+}
+
+size_t WorkerRegistry::alive_cores() {
+    refresh_alive();
+    return alive_cores_;
+}
+
+WorkerRegistry::Link WorkerRegistry::link_of(const std::string& link) {
+    const auto it = links_.find(link);
+    if (it == links_.end()) throw WorkerUnknown("unknown worker session: register again");
+    it->second.last_seen_ms = unix_millis_now();
+    touch_worker(it->second.worker);
+    return it->second;
+}
+
+const WorkerRegistry::Link* WorkerRegistry::find_link(const std::string& link) const {
+    const auto it = links_.find(link);
+    return it == links_.end() ? nullptr : &it->second;
+}
+
+bool WorkerRegistry::knows(const std::string& name) const {
+    return workers_.count(name) > 0;
+}
+
+void WorkerRegistry::make_room_for_a_link() {
+    if (links_.size() < limits_.max_links) return;
+    const std::set<std::string> holding = holding_leases_();
+    auto oldest = links_.end();
+    for (auto it = links_.begin(); it != links_.end(); ++it)
+        if (!holding.count(it->first) &&
+            (oldest == links_.end() ||
+             it->second.last_seen_ms < oldest->second.last_seen_ms))
+            oldest = it;
+    if (oldest == links_.end())
+        throw TooManyWorkers("the coordinator has " + std::to_string(links_.size()) +
+                             " worker sessions, each holding a lease; try again later");
+    // Its worker, if it is still there, is told to register again at its next call.
+    links_.erase(oldest);
+    alive_dirty_ = true;
+}
+
+void WorkerRegistry::forget_worker(const std::string& name) {
+    std::erase_if(links_, [&name](const auto& kv) { return kv.second.worker == name; });
+    set_alive(name, false);
+    alive_dirty_ = true;
+    workers_.erase(name);
+    archive_.forget_worker(name);
+}
+
+void WorkerRegistry::make_room_for_a_worker(const std::string& name) {
+    if (workers_.size() < limits_.max_workers || workers_.count(name)) return;
+    std::set<std::string> holding;  // names holding a lease
+    for (const std::string& link : holding_leases_())
+        if (const auto it = links_.find(link); it != links_.end())
+            holding.insert(it->second.worker);
+    auto oldest = workers_.end();
+    for (auto it = workers_.begin(); it != workers_.end(); ++it)
+        if (!holding.count(it->first) &&
+            (oldest == workers_.end() ||
+             it->second.last_seen_ms < oldest->second.last_seen_ms))
+            oldest = it;
+    if (oldest == workers_.end())
+        throw TooManyWorkers("the coordinator knows " + std::to_string(workers_.size()) +
+                             " workers, each holding a lease; try again later");
+    // Its samples not yet recorded go with it; if it is still there, it is told to
+    // register again at its next call.
+    forget_worker(std::string(oldest->first));
+}
+
+void WorkerRegistry::forget_silent_workers(int64_t now_ms) {
+    const int64_t after = limits_.forget_after.count();
+    const std::set<std::string> holding = holding_leases_();
+    std::set<std::string> named;
+    for (auto it = links_.begin(); it != links_.end();) {
+        if (now_ms - it->second.last_seen_ms > after && !holding.count(it->first)) {
+            it = links_.erase(it);
+            alive_dirty_ = true;
+        } else {
+            named.insert(it->second.worker);
+            ++it;
+        }
+    }
+    std::vector<std::string> gone;
+    for (const auto& [name, w] : workers_)
+        if (w.lost && w.unrecorded == 0 && now_ms - w.last_seen_ms > after &&
+            !named.count(name))
+            gone.push_back(name);  // a lost worker is not in alive_
+    for (const std::string& name : gone) forget_worker(name);
+}
+
+bool WorkerRegistry::describe(const std::string& name, std::string host,
+                              std::string version) {
+    const auto it = workers_.find(name);
+    if (it == workers_.end()) return false;
+    it->second.host = std::move(host);
+    it->second.version = std::move(version);
+    return true;
+}
+
+std::string WorkerRegistry::register_link(const std::string& name, uint32_t threads,
+                                          std::string identity, bool trusted) {
+    // First: a refused registration adds nothing (the silent link or worker one of
+    // these dropped before the other refused stays dropped).
+    make_room_for_a_link();
+    make_room_for_a_worker(name);
+    WorkerEntry& w = touch_worker(name);
+    w.threads = threads;
+    set_alive(name, true);
+    // A full disk must not keep workers out: the row is written again when it returns.
+    archive_.record_worker(name, threads, w.last_seen_ms);
+    w.stored_seen_ms = w.last_seen_ms;
+    // A new link each time; earlier ones of the same name stay valid (their leases are
+    // still theirs), so registering with a worker's name neither takes its leases nor
+    // locks it out.
+    events_.on_worker(
+        EventKind::WorkerRegistered, name,
+        {log_number("threads", int64_t(threads)), log_text("host", identity)});
+    std::string link;
+    do link = random_hex(16);
+    while (links_.count(link));
+    links_.emplace(link, Link{name, std::move(identity), trusted, unix_millis_now()});
+    alive_dirty_ = true;
+    return link;
+}
+
+void WorkerRegistry::note_merged(const std::string& name, uint64_t samples,
+                                 double wall_seconds) {
+    // The worker may have been forgotten meanwhile (it was silent for long): its counts
+    // go with it.
+    const auto it = workers_.find(name);
+    if (it == workers_.end()) return;
+    WorkerEntry& w = it->second;
+    w.samples += samples;
+    // A worker's own clock: a NaN or a near-zero time would poison the smoothed rate.
+    if (std::isfinite(wall_seconds) && wall_seconds >= 1e-3) {
+        // Per-thread rate of this job, times the worker's threads, smoothed.
+        const double rate = double(samples) / wall_seconds * std::max(w.threads, 1u);
+        w.rate = w.rate == 0 ? rate : 0.8 * w.rate + 0.2 * rate;
+    }
+    w.unrecorded += samples;  // written by tick(), not once per merged job
+}
+
+void WorkerRegistry::note_failure(const std::string& name) {
+    if (const auto it = workers_.find(name); it != workers_.end()) ++it->second.failures;
+}
+
+bool WorkerRegistry::tick(int64_t now_ms, bool sweep_rows) {
+    bool any_lost = false;
+    // Not a structured binding: the lambdas below copy the name, and C++17 (clang's,
+    // for the fuzz build) cannot capture one.
+    for (auto& entry : workers_) {
+        const std::string& name = entry.first;
+        WorkerEntry& w = entry.second;
+        if (w.unrecorded > 0) {
+            archive_.record_worker_samples(name, w.unrecorded, w.last_seen_ms);
+            w.unrecorded = 0;
+            w.stored_seen_ms = w.last_seen_ms;
+        } else if (!w.lost &&
+                   w.last_seen_ms - w.stored_seen_ms > limits_.forget_after.count() / 4) {
+            // An idle worker's row is kept fresh, so that the sweep below takes only
+            // workers gone.
+            archive_.record_worker(name, w.threads, w.last_seen_ms);
+            w.stored_seen_ms = w.last_seen_ms;
+        }
+        if (!w.lost && now_ms - w.last_seen_ms > limits_.lost_after.count()) {
+            w.lost = true;
+            set_alive(name, false);
+            any_lost = true;
+            events_.on_worker(EventKind::WorkerLost, name,
+                              {log_number("last_seen_ms", w.last_seen_ms)});
+            archive_.record_worker_lost(name);
+        }
+    }
+    forget_silent_workers(now_ms);
+    // Rows of workers silent as long, those of an earlier run of the coordinator included
+    // (it remembers no worker across a restart).
+    if (sweep_rows)
+        archive_.forget_workers_silent_since(now_ms - limits_.forget_after.count());
+    return any_lost;
+}
+
+std::vector<WorkerStatus> WorkerRegistry::statuses(
+    std::map<std::string, std::vector<std::string>> leases) const {
+    std::vector<WorkerStatus> out;
+    for (const auto& [name, w] : workers_) {
+        WorkerStatus st;
+        st.name = name;
+        st.threads = w.threads;
+        if (auto it = leases.find(name); it != leases.end())
+            st.leases = std::move(it->second);
+        st.state = w.lost ? "lost" : (st.leases.empty() ? "idle" : "busy");
+        st.samples_traced = w.samples;
+        st.samples_per_second = w.lost ? 0 : w.rate;
+        st.last_seen_ms = w.last_seen_ms;
+        st.host = w.host;
+        st.version = w.version;
+        st.failures = w.failures;
+        out.push_back(std::move(st));
+    }
+    return out;
+}
+
+}  // namespace aliquot

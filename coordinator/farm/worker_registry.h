@@ -1,0 +1,136 @@
+// WorkerRegistry: the workers a coordinator has heard from and their links. A worker
+// (a name) registers as often as it likes; each registration is a link, the token every
+// later call of that worker carries (WorkerLink's "session" parameter; in the farm
+// "session" is a render's). It keeps the workers' counts and rows, marks the silent ones
+// lost, forgets those silent for long, and bounds both maps (CoordinatorOptions).
+//
+// No lock of its own: the coordinator's (`mutex_`) guards it, as the links it answers
+// about and the leases the coordinator holds for them change together.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "render_archive.h"
+#include "render_events.h"
+#include "render_info.h"
+
+namespace aliquot {
+
+// Thrown by register_link when every one of max_links links, or of max_workers workers,
+// holds a lease.
+class TooManyWorkers : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+// The host a network peer called from, without its port ("ipv4:10.0.0.5:41234" ->
+// "ipv4:10.0.0.5"): whom failures count against.
+std::string host_of_peer(const std::string& peer);
+
+struct WorkerLimits {
+    std::chrono::milliseconds lost_after{10000};
+    std::chrono::milliseconds forget_after{std::chrono::hours(1)};
+    size_t max_links = 4096;
+    size_t max_workers = 4096;
+};
+
+class WorkerRegistry {
+public:
+    // One registration of a worker.
+    struct Link {
+        std::string worker;    // its name
+        std::string identity;  // whom its failures count against (FailurePolicy)
+        bool trusted = false;  // in this process (register_worker without a peer)
+        int64_t last_seen_ms = 0;
+    };
+
+    // `holding_leases`: the links holding a lease now, which are never dropped to make
+    // room or for silence.
+    WorkerRegistry(WorkerLimits limits, RenderArchive& archive, RenderEvents& events,
+                   std::function<std::set<std::string>()> holding_leases);
+
+    // A new link for `name`, its worker touched and its row written; throws
+    // TooManyWorkers when no room can be made.
+    std::string register_link(const std::string& name, uint32_t threads,
+                              std::string identity, bool trusted);
+    // The link `link`, its worker touched (heard from now); throws WorkerUnknown for a
+    // link this registry did not issue. A copy: the entry may go as soon as the lock is
+    // let go.
+    Link link_of(const std::string& link);
+    // The link, untouched, or null.
+    const Link* find_link(const std::string& link) const;
+    // What a worker says of itself; false for an unknown name.
+    bool describe(const std::string& name, std::string host, std::string version);
+    bool knows(const std::string& name) const;
+    size_t links() const { return links_.size(); }
+
+    void note_merged(const std::string& name, uint64_t samples, double wall_seconds);
+    void note_failure(const std::string& name);
+
+    // The identities of the links of workers registered and not lost: those a job may go
+    // to (RenderSession::issue). Rebuilt only when workers register, are lost, come back
+    // or are forgotten; an immutable snapshot, so a call can use it under its render's
+    // lock alone.
+    std::shared_ptr<const std::set<std::string>> alive_identities();
+    // The alive workers' threads, rebuilt with alive_identities.
+    size_t alive_cores();
+
+    // Writes the workers' counts, marks the silent lost, forgets those silent for long
+    // (and, when `sweep_rows`, the store's rows silent as long); whether any was lost.
+    bool tick(int64_t now_ms, bool sweep_rows);
+
+    // Every worker, each with `leases` ("render/job" by worker name).
+    std::vector<WorkerStatus> statuses(
+        std::map<std::string, std::vector<std::string>> leases) const;
+
+private:
+    struct WorkerEntry {
+        uint32_t threads = 0;
+        int64_t last_seen_ms = 0;
+        uint64_t samples = 0;
+        uint64_t unrecorded = 0;  // merged samples not yet added to the store (see tick)
+        double rate = 0;          // samples/s, smoothed over recent jobs
+        bool lost = false;
+        std::string host, version;  // describe: for the workers list only
+        uint32_t failures = 0;      // jobs it reported failed
+        // last_seen_ms as the store last has it: refreshed now and then (tick), so that
+        // a row silent for forget_after is a worker gone, not an idle one.
+        int64_t stored_seen_ms = 0;
+    };
+
+    WorkerEntry& touch_worker(const std::string& name);
+    void set_alive(const std::string& name, bool alive);
+    // Drops `name` and its links from memory, and its row from the store.
+    void forget_worker(const std::string& name);
+    // Make room for one more worker (a name not yet known) or link, or throw
+    // TooManyWorkers.
+    void make_room_for_a_worker(const std::string& name);
+    void make_room_for_a_link();
+    // Drops links silent for forget_after that hold no lease, and workers lost that long
+    // with no link left.
+    void forget_silent_workers(int64_t now_ms);
+    void refresh_alive();
+
+    WorkerLimits limits_;
+    RenderArchive& archive_;
+    RenderEvents& events_;
+    std::function<std::set<std::string>()> holding_leases_;
+    std::unordered_map<std::string, Link> links_;  // by link token
+    std::map<std::string, WorkerEntry> workers_;   // by name
+    std::set<std::string> alive_;  // names in workers_ that registered and are not lost
+    std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
+        std::make_shared<const std::set<std::string>>();
+    bool alive_dirty_ = false;
+    size_t alive_cores_ = 0;
+};
+
+}  // namespace aliquot
