@@ -249,7 +249,9 @@ TEST_F(HttpServerTest, MethodsListEachMethodsParametersWithDefaultsAndBounds) {
     EXPECT_EQ(method("oracle")["submittable"], false);  // refused on a farm
     EXPECT_EQ(method("optimal")["submittable"], true);
     std::map<std::string, json> optimal;
-    for (const json& p : method("optimal")["parameters"])
+    // A named copy: a temporary's member would dangle inside the loop.
+    const json optimal_method = method("optimal");
+    for (const json& p : optimal_method["parameters"])
         optimal[p["key"].get<std::string>()] = p;
     EXPECT_EQ(optimal.count("alpha"), 0u);  // adaptive's
     EXPECT_EQ(optimal["spp"]["default"], 64);
@@ -260,7 +262,9 @@ TEST_F(HttpServerTest, MethodsListEachMethodsParametersWithDefaultsAndBounds) {
     EXPECT_EQ(optimal["floor_fraction"]["max_exclusive"], true);
     EXPECT_FALSE(optimal["plan_ahead"]["help"].get<std::string>().empty());
     std::map<std::string, json> dammertz;
-    for (const json& p : method("dammertz")["parameters"])
+    // A named copy: a temporary's member would dangle inside the loop.
+    const json dammertz_method = method("dammertz");
+    for (const json& p : dammertz_method["parameters"])
         dammertz[p["key"].get<std::string>()] = p;
     EXPECT_EQ(dammertz["error_norm"]["values"], json({"seed", "paper"}));
     EXPECT_EQ(dammertz["spp"]["default"], 0);  // stops by its own measure
