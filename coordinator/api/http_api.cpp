@@ -182,7 +182,7 @@ RenderSpec parse_render_request(const std::string& body) {
             throw ApiError(400,
                            "unknown field '" + key +
                                "'; expected scene, resolution (or width and height), "
-                               "seed, strategy, priority");
+                               "seed, strategy, priority, name");
         }
     }
     require(!(have_resolution && (have_width || have_height)),

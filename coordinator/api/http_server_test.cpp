@@ -1458,7 +1458,8 @@ TEST_F(HttpServerTest, ARefusedRequestChangesNothing) {
     }
     const json list = get_json("/api/renders");
     ASSERT_EQ(list["renders"].size(), 1u);
-    EXPECT_EQ(list["renders"][0]["state"], "queued");  // as submitted: nothing cancelled it
+    EXPECT_EQ(list["renders"][0]["state"],
+              "queued");  // as submitted: nothing cancelled it
 }
 
 TEST(HttpServerTokens, RefusesToStartWithoutTwoDifferentTokens) {
