@@ -17,7 +17,6 @@
 #include "checkpoint.h"
 #include "farm_log.h"
 #include "scene_loader.h"
-#include "secret.h"
 #include "unix_millis.h"
 
 namespace aliquot {
@@ -37,7 +36,7 @@ Coordinator::Coordinator(CoordinatorOptions options)
       archive_(options_.data_dir),
       registry_({options_.worker_lost_after, options_.forget_workers_after,
                  options_.max_worker_sessions, options_.max_workers},
-                archive_, events_, [this] { return sessions_with_leases(); }) {
+                archive_, events_, [this] { return leases_.links_holding(); }) {
     if (archive_.keeps_records()) {
         events_.record_to(archive_.store(), &archive_.backlog());
         resume_unfinished();
@@ -396,23 +395,6 @@ FailurePolicy Coordinator::failure_policy_of(const WorkerRegistry::Link& caller)
     return policy;
 }
 
-std::set<std::string> Coordinator::sessions_with_leases() const {
-    std::set<std::string> holding;
-    for (const auto& [lease, owner] : lease_render_) holding.insert(owner.session);
-    return holding;
-}
-
-uint64_t Coordinator::new_lease_id() const {
-    // Random, so that neither a lease id seen in ListWorkers nor the order they are
-    // issued in tells another; a restarted coordinator's ids match a pre-restart lease
-    // only with probability (leases out) / 2^64.
-    while (true) {
-        uint64_t id = 0;
-        random_bytes(&id, sizeof id);
-        if (id != 0 && !lease_render_.count(id)) return id;
-    }
-}
-
 Registration Coordinator::register_worker(const std::string& name, uint32_t threads) {
     return register_link(name, threads, "process:" + name, true);
 }
@@ -452,14 +434,14 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
             registry_.alive_identities();
         const size_t cores = registry_.alive_cores();
         // Reserved now, so that no other lease takes the id while the lock is let go.
-        const uint64_t lease_id = new_lease_id();
-        lease_render_[lease_id] = {"", session};
+        const uint64_t lease_id = leases_.reserve(session);
         lock.unlock();
         // Renders by priority, in submission order within one; one whose lock is busy (a
         // merge, or a round's end) is passed over at first and waited for only when no
         // other render has a job, so one render's round end holds up no other render's
         // workers.
         std::optional<LeaseGrant> grant;
+        std::string label;  // the job's "render/job", for the workers list
         std::vector<RenderSlot*> busy;
         std::set<std::string> failed;  // renders a plan made ahead failed (issue)
         auto try_issue = [&](RenderSlot& slot) {
@@ -470,11 +452,12 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
                 lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
                 *alive, options_.failure_policy);
             if (s.state() == RenderState::Failed) failed.insert(s.id());
-            if (job)
-                grant = LeaseGrant{
-                    lease_id,        s.id(),
-                    s.scene_hash(),  {s.spec().width, s.spec().height, s.spec().seed},
-                    std::move(*job), uint32_t(options_.lease_time.count())};
+            if (!job) return;
+            label = s.lease_label(lease_id);
+            grant = LeaseGrant{
+                lease_id,        s.id(),
+                s.scene_hash(),  {s.spec().width, s.spec().height, s.spec().seed},
+                std::move(*job), uint32_t(options_.lease_time.count())};
         };
         for (const SlotPtr& slot : slots) {
             std::unique_lock render(slot->mutex, std::try_to_lock);
@@ -495,12 +478,12 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
             changed();
         }
         if (grant) {
-            lease_render_[lease_id] = {grant->render_id, session};
+            leases_.grant(lease_id, grant->render_id, std::move(label));
             if (queue_.leave(grant->render_id)) note_started(grant->render_id);
             changed();
             return grant;
         }
-        lease_render_.erase(lease_id);
+        leases_.end(lease_id);
         // Whatever could give this worker a job (a round planned, a lease given back or
         // expired, a worker lost) changes version_ under this lock: nothing is missed
         // between the scan above and this wait. A round planned ahead whose plan ends on
@@ -522,15 +505,14 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     {
         std::lock_guard lock(mutex_);
         caller = registry_.link_of(session);
-        const auto it = lease_render_.find(lease_id);
-        if (it == lease_render_.end() || it->second.render.empty())
+        const LeaseTable::Lease* lease = leases_.find(lease_id);
+        if (!lease || lease->render.empty())
             return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
         // Someone else's lease: refused before anything is looked at, and it stays with
         // its holder, whose own result still merges.
-        if (it->second.session != session)
-            return {CompleteStatus::Ignored, "not your lease"};
-        slot = slot_of(it->second.render);
-        lease_render_.erase(it);  // whatever the outcome, this lease has ended
+        if (lease->link != session) return {CompleteStatus::Ignored, "not your lease"};
+        slot = slot_of(lease->render);
+        leases_.end(lease_id);  // whatever the outcome, this lease has ended
         if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
         alive = registry_.alive_identities();
         policy = failure_policy_of(caller);  // a rejected result counts as a failure
@@ -593,9 +575,9 @@ std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
 
 SlotPtr Coordinator::held_render(const std::string& session, uint64_t lease_id) {
     // Only the holder's word counts: anyone else's leaves the lease with its holder.
-    const auto it = lease_render_.find(lease_id);
-    if (it == lease_render_.end() || it->second.session != session) return nullptr;
-    return slot_of(it->second.render);
+    const LeaseTable::Lease* lease = leases_.find(lease_id);
+    if (!lease || lease->link != session) return nullptr;
+    return slot_of(lease->render);
 }
 
 std::pair<std::string, SlotPtr> Coordinator::holder_and_render(const std::string& session,
@@ -621,7 +603,7 @@ bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
         if (!slot->session->abandon(lease_id, worker)) return false;
     }
     std::lock_guard lock(mutex_);
-    lease_render_.erase(lease_id);
+    leases_.end(lease_id);
     changed();
     return true;
 }
@@ -655,7 +637,7 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
         if (render_failed) log_farm_error(s.id() + " failed: " + s.error());
     }
     std::lock_guard lock(mutex_);
-    lease_render_.erase(lease_id);
+    leases_.end(lease_id);
     registry_.note_failure(worker_name);
     // The render's other leases ended with it.
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
@@ -670,7 +652,7 @@ bool Coordinator::knows_worker(const std::string& name) {
 
 size_t Coordinator::leases_out() {
     std::lock_guard lock(mutex_);
-    return lease_render_.size();
+    return leases_.size();
 }
 
 uint64_t Coordinator::samples_merged() const { return samples_merged_; }
@@ -720,43 +702,19 @@ size_t Coordinator::worker_sessions() {
 
 void Coordinator::forget_ended_leases(const std::vector<uint64_t>& ended,
                                       const std::set<std::string>& finished) {
-    for (const uint64_t lease : ended) lease_render_.erase(lease);
-    // An empty render is a lease being issued now (lease()): not ended.
-    std::erase_if(lease_render_, [&](const auto& kv) {
-        const std::string& render = kv.second.render;
-        return !render.empty() && (finished.count(render) || !sessions_.count(render));
+    leases_.forget_ended(ended, finished, [this](const std::string& id) {
+        return sessions_.count(id) > 0;
     });
 }
 
 std::vector<WorkerStatus> Coordinator::workers() {
-    // Each render's leases under its own lock, then the workers under the coordinator's.
-    std::vector<SlotPtr> slots;
-    {
-        std::lock_guard lock(mutex_);
-        slots = slots_in_order();
-    }
-    // A session knows its leases by host (the session's identity), "render/job" each:
-    // they are the host's workers', which lease_render_ names below.
-    using RenderHost = std::pair<std::string, std::string>;
-    std::map<RenderHost, std::vector<std::string>> labels;
-    for (const SlotPtr& slot : slots) {
-        std::lock_guard render(slot->mutex);
-        if (slot->session->finished()) continue;
-        for (auto& [host, label] : slot->session->leases())
-            labels[{slot->session->id(), host}].push_back(std::move(label));
-    }
+    // Each lease keeps its label, so no render's lock is taken.
     std::lock_guard lock(mutex_);
-    // Each of a host's leases on a render goes to one of its workers holding a lease
-    // there. Workers sharing a host may see each other's job numbers (which of them holds
-    // which job, RenderSession does not say), never another host's or a count not theirs.
     std::map<std::string, std::vector<std::string>> leases;  // worker -> "render/job"
-    for (const auto& [lease, owner] : lease_render_) {
-        const WorkerRegistry::Link* link = registry_.find_link(owner.session);
-        if (owner.render.empty() || !link) continue;
-        std::vector<std::string>& left = labels[{owner.render, link->identity}];
-        if (left.empty()) continue;
-        leases[link->worker].push_back(std::move(left.back()));
-        left.pop_back();
+    for (const auto& [id, lease] : leases_.all()) {
+        const WorkerRegistry::Link* link = registry_.find_link(lease.link);
+        if (lease.render.empty() || !link) continue;
+        leases[link->worker].push_back(lease.label);
     }
     return registry_.statuses(std::move(leases));
 }
@@ -915,8 +873,7 @@ void Coordinator::evict(const std::string& id) {
     events_.forget(id);  // its events are the store's to serve now
     // Leases of a cancelled render that workers still hold: their results are now
     // answered as unknown, which is what they were (ignored) before.
-    std::erase_if(lease_render_,
-                  [&id](const auto& kv) { return kv.second.render == id; });
+    leases_.forget_render(id);
     // glibc keeps freed pages of its arenas for reuse; a finished render's buffers are
     // tens of megabytes, and given back they let the coordinator's size follow its live
     // renders rather than its busiest moment.

@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "checkpoint.h"
+#include "lease_table.h"
 #include "memory_budget.h"
 #include "render_archive.h"
 #include "render_events.h"
@@ -143,9 +144,9 @@ public:
               const std::string& reason) override;
     // Whether `name` registered with this coordinator (a worker that did so with one
     // before a restart did not). Calls are refused by session, not by this: a name
-    // proves nothing (worker_of_session).
+    // proves nothing (WorkerRegistry::link_of).
     bool knows_worker(const std::string& name);
-    // Leases out now, across renders (what `lease_render_` holds): for tests.
+    // Leases out now, across renders (what `leases_` holds): for tests.
     size_t leases_out();
     // Worker sessions remembered now: for tests.
     size_t worker_sessions();
@@ -220,19 +221,14 @@ private:
     // `mutex_`, which it takes.
     std::pair<std::string, SlotPtr> holder_and_render(const std::string& session,
                                                       uint64_t lease_id);
-    // A random lease id, not 0 and not one out now.
-    uint64_t new_lease_id() const;
     // The policy a failure of `caller` is counted with: the options', with the rule for
     // farms of fewer hosts always on for a trusted (in-process) worker.
     FailurePolicy failure_policy_of(const WorkerRegistry::Link& caller) const;
     // Drops the submitted scene `hash` when no render in memory uses it; under `mutex_`.
     void drop_scene_if_unused(const std::string& hash);
-    // Drops lease_render_ entries of leases that ended (`ended`) and of renders that are
-    // finished or gone.
+    // Drops the leases that ended (`ended`) and those of renders finished or gone.
     void forget_ended_leases(const std::vector<uint64_t>& ended,
                              const std::set<std::string>& finished);
-    // Worker links holding a lease now.
-    std::set<std::string> sessions_with_leases() const;
     void changed();
     uint64_t memory_in_use_locked() const;
     // Drops a finished render whose end is recorded, and what is kept per render.
@@ -249,11 +245,7 @@ private:
     uint64_t reserved_memory_ = 0;
     std::map<std::string, SlotPtr> sessions_;  // by id
     std::vector<std::string> order_;           // submission order
-    struct LeaseOwner {
-        std::string render;   // render id
-        std::string session;  // the worker session that leased it: the only one heard
-    };
-    std::unordered_map<uint64_t, LeaseOwner> lease_render_;  // lease -> owner
+    LeaseTable leases_;  // under mutex_: every lease out, its holder and its label
     // Scenes of the renders in memory, for workers' fetch_scene: dropped with the last
     // render that uses it (a scene is 1 MB or more, and submissions never end).
     std::map<std::string, std::string> scenes_;  // hash -> json

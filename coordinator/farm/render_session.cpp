@@ -497,11 +497,9 @@ std::vector<uint64_t> RenderSession::expire(Clock::time_point now) {
     return expired;
 }
 
-std::vector<std::pair<std::string, std::string>> RenderSession::leases() const {
-    std::vector<std::pair<std::string, std::string>> out;
-    for (const auto& [lease, j] : lease_to_job_)
-        out.emplace_back(jobs_[j].worker, id_ + "/" + std::to_string(j));
-    return out;
+std::string RenderSession::lease_label(uint64_t lease_id) const {
+    const auto it = lease_to_job_.find(lease_id);
+    return it == lease_to_job_.end() ? "" : id_ + "/" + std::to_string(it->second);
 }
 
 void RenderSession::cancel() {

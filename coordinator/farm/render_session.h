@@ -124,8 +124,9 @@ public:
         return announced_ = true;
     }
     bool finished() const { return is_terminal(state_); }
-    // (worker, "render/job") for each lease out.
-    std::vector<std::pair<std::string, std::string>> leases() const;
+    // "render/job" of the lease `lease_id` out now, empty when it is not: what the
+    // workers list shows it as (kept with the lease, so that list takes no render lock).
+    std::string lease_label(uint64_t lease_id) const;
 
     const std::string& id() const { return id_; }
     const RenderSpec& spec() const { return spec_; }
