@@ -183,7 +183,7 @@ json.dump(bad, open(sys.argv[2] + "/noname.json", "w"))
 open(sys.argv[2] + "/broken.json", "w").write('{"name": "x", "renders": [')
 PY
 expect_error "unknown method names the field" "magik.json: /renders/2/method: unknown method \"magik\"" "$tmp/magik.json"
-expect_error "bad sweep value names its position" "negative.json: /renders/1/sweep/max_variance/1: max_variance must be greater than 0" "$tmp/negative.json"
+expect_error "bad sweep value names its position" "negative.json: /renders/1/sweep/max_variance/1: strategy parameter 'max_variance': expected a number greater than 0, got -1" "$tmp/negative.json"
 expect_error "unknown group in a chart" "group.json: /charts/2/groups/1: unknown render group \"nobody\"" "$tmp/group.json"
 expect_error "missing field" "noname.json: /renders/0: missing key \"name\"" "$tmp/noname.json"
 expect_error "broken JSON" "broken.json: invalid JSON at line 1" "$tmp/broken.json"
