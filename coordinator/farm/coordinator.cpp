@@ -662,15 +662,19 @@ uint64_t Coordinator::store_write_failures() const { return archive_.write_failu
 std::map<RenderState, uint64_t> Coordinator::render_counts() {
     // The store is read off the coordinator's lock, as list() reads it.
     if (archive_.keeps_records()) return archive_.counts_by_state();
-    std::vector<SlotPtr> slots;
+    // A session is Running from its submission; it counts as Queued while no job of it
+    // has been leased, as info() and list() show it.
+    std::vector<std::pair<SlotPtr, bool>> slots;  // with whether it waits in the queue
     {
         std::lock_guard lock(mutex_);
-        slots = slots_in_order();
+        for (SlotPtr& slot : slots_in_order())
+            slots.emplace_back(slot, queue_.position(slot->session->id()) > 0);
     }
     std::map<RenderState, uint64_t> counts;
-    for (const SlotPtr& slot : slots) {
+    for (const auto& [slot, queued] : slots) {
         std::lock_guard render(slot->mutex);
-        ++counts[slot->session->state()];
+        const RenderState state = slot->session->state();
+        ++counts[queued && state == RenderState::Running ? RenderState::Queued : state];
     }
     return counts;
 }

@@ -96,6 +96,11 @@ TEST_F(CoordinatorTest, CountsSamplesMergedAndRendersByState) {
         EXPECT_TRUE(c.render_counts().empty());
         const std::string first = c.submit(small_spec());
         c.submit(small_spec());
+        // No job leased yet: both wait in the queue, in memory as in the record.
+        const std::map<RenderState, uint64_t> queued = {{RenderState::Queued, 2}};
+        for (int i = 0; i < 300 && c.render_counts() != queued; ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        EXPECT_EQ(c.render_counts(), queued) << (with_store ? "store" : "memory");
         c.cancel(first);
         const std::string session = c.register_worker("w", 1).session;
         uint64_t traced = 0;
