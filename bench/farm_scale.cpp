@@ -35,9 +35,12 @@
 // then how many worker cores tracing RATE samples a second (2 M without one, about
 // today's worker core) one coordinator core keeps fed: 10^9 ÷ (that × RATE).
 //
-// Usage: farm_scale [WxH] [seconds] [workers,...] [method,...] [rate]
+// The budget is SPP samples a pixel on average (uniform: SPP a pixel); issue 33 asks for
+// 64 to 1024.
+//
+// Usage: farm_scale [WxH] [seconds] [workers,...] [method,...] [rate] [spp]
 //        (defaults: 1920x1080 10 1,16,64,256
-//        uniform,dammertz,adaptive,optimal,optimal-time 0)
+//        uniform,dammertz,adaptive,optimal,optimal-time 0 64)
 // A method written `optimal:K` (or `optimal-time:K`) runs with steer_rounds K, and
 // `optimal/P` with plan_ahead P (both: `optimal:K/P`).
 #include <sys/resource.h>
@@ -133,7 +136,7 @@ void parse_method(const std::string& text, StrategyParams& p) {
 }
 
 Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
-        double seconds, double rate) {
+        double seconds, double rate, uint32_t spp) {
     namespace fs = std::filesystem;
     const fs::path dir =
         fs::temp_directory_path() / ("aliquot-farm-scale-" + std::to_string(getpid()));
@@ -151,10 +154,13 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         spec.width = width;
         spec.height = height;
         parse_method(method, spec.strategy);
-        spec.strategy.budget = uint64_t(64) * width * height;  // 64 spp on average
+        spec.strategy.budget = uint64_t(spp) * width * height;  // spp on average
         spec.strategy.max_variance = 1e-4;  // dammertz: keep splitting past a few rounds
-        const double process_began = process_cpu(), poller_began = thread_cpu();
+        // The submission (the render's buffers) is the coordinator's CPU, not the
+        // poller's.
+        const double process_began = process_cpu();
         const std::string id = coordinator.submit(spec);
+        const double poller_began = thread_cpu();
 
         std::atomic<bool> stop{false};
         double synthetic_cpu = 0;  // the simulated workers' own work, under `mutex`
@@ -175,12 +181,13 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                     const auto granted = Clock::now();
                     const double making = thread_cpu();
                     const SampleJobResult result = bench::synthetic_result(*grant);
+                    const uint64_t samples = result.total_samples();  // the bench's own
                     made += thread_cpu() - making;
                     if (rate > 0)
                         std::this_thread::sleep_until(
-                            granted + std::chrono::duration_cast<Clock::duration>(
-                                          std::chrono::duration<double>(
-                                              double(result.total_samples()) / rate)));
+                            granted +
+                            std::chrono::duration_cast<Clock::duration>(
+                                std::chrono::duration<double>(double(samples) / rate)));
                     const auto sent = Clock::now();
                     coordinator.complete(session, grant->lease_id, result);
                     const auto done = Clock::now();
@@ -250,7 +257,14 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
 
 }  // namespace
 
+constexpr const char* kUsage =
+    "usage: farm_scale [WxH] [seconds] [workers,...] [method[:K][/P],...] [rate] [spp]\n";
+
 int main(int argc, char** argv) try {
+    if (argc > 1 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
+        std::fputs(kUsage, stdout);
+        return 0;
+    }
     const Resolution size = parse_resolution(argc > 1 ? argv[1] : "1920x1080");
     const double seconds = argc > 2 ? std::atof(argv[2]) : 10;
     std::vector<int> counts;
@@ -259,13 +273,17 @@ int main(int argc, char** argv) try {
     const std::vector<std::string> methods =
         split(argc > 4 ? argv[4] : "uniform,dammertz,adaptive,optimal,optimal-time");
     const double rate = argc > 5 ? std::atof(argv[5]) : 0;
+    const int spp = argc > 6 ? std::atoi(argv[6]) : 64;
+    if (spp < 1 || spp > 65536) throw std::invalid_argument("spp must be 1 to 65536");
     for (const std::string& method : methods)
         for (const int workers : counts) {
-            const Run r = run(size.width, size.height, method, workers, seconds, rate);
+            const Run r = run(size.width, size.height, method, workers, seconds, rate,
+                              uint32_t(spp));
             const double per_g =
                 r.samples ? r.coordinator_cpu_seconds / (double(r.samples) * 1e-9) : 0.0;
             std::printf(
-                "{\"image\": \"%ux%u\", \"method\": \"%s\", \"workers\": %d, "
+                "{\"image\": \"%ux%u\", \"spp\": %d, \"method\": \"%s\", \"workers\": "
+                "%d, "
                 "\"seconds\": %.2f, \"state\": \"%s\", \"rounds\": %u, "
                 "\"pixel_samples_per_second\": %.0f, \"leases_per_second\": %.0f, "
                 "\"lease_ms_p50\": %.3f, \"lease_ms_p99\": %.3f, "
@@ -276,7 +294,7 @@ int main(int argc, char** argv) try {
                 "\"largest_round_wait_share\": %.4f, \"farm_efficiency\": %.3f, "
                 "\"coordinator_cpu_s_per_g_samples\": %.2f, "
                 "\"worker_cores_per_coordinator_core\": %.0f}\n",
-                size.width, size.height, method.c_str(), workers, r.seconds,
+                size.width, size.height, spp, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
                 percentile(r.lease_ms, 0.99), percentile(r.complete_ms, 0.5),
@@ -291,9 +309,6 @@ int main(int argc, char** argv) try {
             std::fflush(stdout);
         }
 } catch (const std::exception& e) {
-    std::fprintf(stderr,
-                 "farm_scale: %s\nusage: farm_scale [WxH] [seconds] [workers,...] "
-                 "[method[:K][/P],...] [rate]\n",
-                 e.what());
+    std::fprintf(stderr, "farm_scale: %s\n%s", e.what(), kUsage);
     return 2;
 }
