@@ -33,4 +33,13 @@ void add_sample(PixelSums& sums, uint64_t index, const Vec3& radiance, uint32_t 
     sums.sum_sq_luminance += lum * lum;
 }
 
+void add_first_hit(FirstHitSums& sums, const Vec3& albedo, const Vec3& normal) {
+    sums.albedo[0] += albedo.x;
+    sums.albedo[1] += albedo.y;
+    sums.albedo[2] += albedo.z;
+    sums.normal[0] += normal.x;
+    sums.normal[1] += normal.y;
+    sums.normal[2] += normal.z;
+}
+
 }  // namespace aliquot

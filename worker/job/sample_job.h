@@ -29,6 +29,20 @@ struct SampleJob {
     std::vector<uint32_t> counts;  // per pixel of rect, row-major
     std::vector<uint64_t>
         first_sample;  // per pixel: index of its first sample in this job
+    // Also sum each sample's first hit (FirstHitSums): only renders that will be
+    // denoised ask, so no one else's samples or results grow.
+    bool aux = false;
+};
+
+// What a denoiser (OIDN) reads beside the colour, summed over a pixel's samples like the
+// colour so the mean is sum / samples: the first hit's albedo (reflectance of a diffuse
+// or mirror surface, 1 for a dielectric: OIDN's first-hit convention) and its normal in
+// world space, facing the ray. A sample whose camera ray leaves the scene adds 0 to both.
+struct FirstHitSums {
+    double albedo[3] = {0, 0, 0};
+    double normal[3] = {0, 0, 0};
+
+    bool operator==(const FirstHitSums&) const = default;
 };
 
 // What a job returns for one pixel. Sums over samples k = first .. first+count-1 in order
@@ -50,6 +64,8 @@ struct SampleJobResult {
     PixelRect rect;
     std::vector<PixelSums> pixels;  // per pixel of rect, row-major
     double wall_seconds = 0;        // statistics only: nothing may decide on it
+    // Per pixel of rect for a job with `aux`; empty for any other.
+    std::vector<FirstHitSums> first_hits;
 
     uint64_t total_samples() const;
     uint64_t total_rays() const;
@@ -63,5 +79,7 @@ struct RenderGeometry {
 
 // One sample's contribution before it is summed: exposed for tests of the NaN guard.
 void add_sample(PixelSums& sums, uint64_t index, const Vec3& radiance, uint32_t rays);
+// One sample's first hit, added in sample order as add_sample adds its radiance.
+void add_first_hit(FirstHitSums& sums, const Vec3& albedo, const Vec3& normal);
 
 }  // namespace aliquot

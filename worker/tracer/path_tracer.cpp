@@ -39,6 +39,17 @@ const Material& PathTracer::material_at(const Hit& hit) const {
     return scene_.materials[index];
 }
 
+FirstHit PathTracer::first_hit(const Vec3& dir, const Hit& hit) const {
+    // OIDN's documented first-hit features: a diffuse surface's reflectance, a mirror's
+    // (its reflectivity), 1 for a dielectric; the shading normal, here the geometric one
+    // (no normal interpolation), turned to face the ray as the shading does.
+    const Material& mat = material_at(hit);
+    FirstHit out;
+    out.albedo = mat.kind == Material::Kind::Dielectric ? Vec3(1.0f) : mat.reflectance;
+    out.normal = dot(dir, hit.ng) < 0 ? hit.ng : -hit.ng;
+    return out;
+}
+
 Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction,
                               SampleRng& rng) const {
     Radiance out;
@@ -141,7 +152,8 @@ bool PathTracer::scatter_specular(PathLanes& l, int i, const Hit& hit,
 }
 
 void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
-                                SampleRng* rngs, Radiance* out) const {
+                                SampleRng* rngs, Radiance* out,
+                                FirstHit* first_hits) const {
     static_assert(kBatch <= PathLanes::kMax);
     if (count < 0) throw std::invalid_argument("radiance_batch: a negative count");
     constexpr int kPacket = EmbreeScene::kPacket;
@@ -186,6 +198,11 @@ void PathTracer::radiance_batch(const Vec3& origin, const Vec3* dirs, int count,
                       free_lanes.begin());
             embree_.intersect_packet(origin, dirs + started, m, camera_hits.data(),
                                      camera_found.data());
+            if (first_hits)
+                for (int j = 0; j < m; ++j)
+                    first_hits[started + j] =
+                        camera_found[j] ? first_hit(dirs[started + j], camera_hits[j])
+                                        : FirstHit{};
             for (int j = 0; j < m; ++j) {
                 const int i = taking[j], p = started + j;
                 path_of[i] = p;

@@ -18,6 +18,12 @@ struct Radiance {
     uint32_t rays = 0;  // Embree queries (closest-hit and shadow), the deterministic cost
 };
 
+// A camera ray's first hit, what a denoiser reads beside the colour (FirstHitSums in
+// sample_job.h): zero for a ray that leaves the scene.
+struct FirstHit {
+    Vec3 albedo{0.0f}, normal{0.0f};
+};
+
 class PathTracer {
 public:
     static constexpr int kRussianRouletteDepth = 5;
@@ -39,12 +45,15 @@ public:
     // paths are left. out[i] is what radiance() would give rngs[i]'s path up to
     // Embree's rounding, which may differ between its packet and single-ray kernels and
     // with a packet's other rays: callers make batches from what the render fixes
-    // (trace_job.cpp).
+    // (trace_job.cpp). With `first_hits`, first_hits[i] is the first hit of path i, taken
+    // from its camera ray as its lane is filled: the bounces' loop does nothing more.
     void radiance_batch(const Vec3& origin, const Vec3* dirs, int count, SampleRng* rngs,
-                        Radiance* out) const;
+                        Radiance* out, FirstHit* first_hits = nullptr) const;
 
 private:
     const Material& material_at(const Hit& hit) const;
+    // The first hit of a camera ray along `dir` that found `hit`.
+    FirstHit first_hit(const Vec3& dir, const Hit& hit) const;
     // Path i arrives at vertex `hit`: adds the emission it finds there and returns the
     // surface's material, or nullptr if the path may not go on (its length is at most).
     const Material* arrive(PathLanes& paths, int i, const Hit& hit) const;

@@ -44,10 +44,14 @@ private:
             camera_rays(camera_, geometry_.seed, &b.x[j], &b.y[j], &b.k[j],
                         std::min(PathLanes::kMax, b.count - j), &dirs_[j], &rngs_[j]);
         tracer_.radiance_batch(camera_.origin(), dirs_.data(), b.count, rngs_.data(),
-                               radiance_.data());
+                               radiance_.data(), job_.aux ? first_hits_.data() : nullptr);
         for (int j = 0; j < b.count; ++j)
             add_sample(result_.pixels[b.pixel[j]], b.k[j], radiance_[j].value,
                        radiance_[j].rays);
+        if (job_.aux)
+            for (int j = 0; j < b.count; ++j)
+                add_first_hit(result_.first_hits[b.pixel[j]], first_hits_[j].albedo,
+                              first_hits_[j].normal);
     }
 
     const PathTracer& tracer_;
@@ -61,6 +65,7 @@ private:
     std::vector<SampleRng> rngs_ = std::vector<SampleRng>(
         SampleBatch::kMax, SampleRng::at(0, 1));  // camera_rays seeds them
     std::array<Radiance, SampleBatch::kMax> radiance_;
+    std::array<FirstHit, SampleBatch::kMax> first_hits_;  // with job_.aux only
 };
 
 }  // namespace
@@ -80,6 +85,7 @@ SampleJobResult trace_sample_job(const PathTracer& tracer, const RenderGeometry&
     SampleJobResult result;
     result.rect = r;
     result.pixels.resize(r.size());
+    if (job.aux) result.first_hits.resize(r.size());
     const CameraModel camera(tracer.scene().camera, geometry.width, geometry.height);
 
     // Threads take whole cells, so each batch is traced by one thread as one batch.
