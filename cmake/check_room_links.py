@@ -29,6 +29,7 @@ EXTERNAL = {
     "prometheus-cpp::core": "prometheus-cpp",
     "OpenSSL::SSL": "OpenSSL",
     "CLI11::CLI11": "CLI11",
+    "${CMAKE_DL_LIBS}": "libdl",
 }
 # Generated headers: they live in the build tree, their room is the target that makes them.
 GENERATED = {"aliquot.pb.h": "proto", "aliquot.grpc.pb.h": "proto"}

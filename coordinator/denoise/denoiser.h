@@ -36,12 +36,11 @@ public:
     // The colour's rgb denoised as HDR (linear, [0, +inf)): an image of its size with rgb
     // only (no extra channels, its attributes kept). albedo and normal are optional
     // auxiliary images of the same size, their rgb the mean first-hit albedo ([0, 1]) and
-    // normal
-    // ([-1, 1]): albedo alone, both, or neither (OIDN has no model for a normal alone);
-    // nullptr when the render has none. nullopt and *error on a size mismatch, a normal
-    // without an albedo, or an OIDN error. The same inputs give the same bytes on one
-    // machine (docs/DENOISE.md, "Determinism"). Thread-safe: calls on one Denoiser run
-    // one at a time (OIDN serialises a device's work).
+    // normal ([-1, 1]): albedo alone, both, or neither (OIDN has no model for a normal
+    // alone); nullptr when the render has none. nullopt and *error on a size mismatch, a
+    // normal without an albedo, or an OIDN error. The same inputs give the same bytes on
+    // one machine (docs/DENOISE.md, "Determinism"). Thread-safe: calls on one Denoiser
+    // run one at a time (OIDN serialises a device's work anyway).
     std::optional<Image> denoise(const Image& colour, const Image* albedo,
                                  const Image* normal, std::string* error) const;
 
