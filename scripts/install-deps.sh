@@ -74,6 +74,23 @@ if ((${#missing[@]})); then
         ${install_options[@]+"${install_options[@]}"} "${missing[@]}"
 fi
 
+# Intel Open Image Denoise for `aliquot render --denoise`, `compare` and the study's denoised
+# figures: Debian bookworm has no package of it, and the pyoidn wheel carries its library
+# (libOpenImageDenoise.so.2, its CPU device and the TBB it needs). Into the repository's
+# .venv, where coordinator/denoise looks for it at run time; only the library is used, so
+# not pyoidn's Python dependencies. Once per version.
+if [[ $mode == all ]]; then
+    pyoidn_version=2.5.1.0
+    venv=$(cd "$(dirname "$0")/.." && pwd)/.venv
+    [[ -x $venv/bin/python ]] || python3 -m venv "$venv"
+    if ! "$venv/bin/python" -c "import importlib.metadata as m, sys
+sys.exit(m.version('pyoidn') != '$pyoidn_version')" >/dev/null 2>&1; then
+        echo "installing pyoidn $pyoidn_version (Open Image Denoise) into .venv" >&2
+        "$venv/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
+            "pyoidn==$pyoidn_version"
+    fi
+fi
+
 # Toxiproxy (Shopify's TCP proxy with latency, jitter and cuts) for tests/net, built from the
 # Go module proxy with Debian's Go into build/tools, once per version: v2.8.0 is the newest
 # whose go.mod bookworm's Go 1.19 accepts (v2.9.0 asks for 1.22). Debian's go by its own path,
