@@ -34,6 +34,7 @@ void to_proto(const SampleJob& job, v1::SampleJob& out) {
     to_proto(job.rect, *out.mutable_rect());
     out.mutable_counts()->Assign(job.counts.begin(), job.counts.end());
     out.mutable_first_sample()->Assign(job.first_sample.begin(), job.first_sample.end());
+    out.set_aux(job.aux);
 }
 
 SampleJob from_proto(const v1::SampleJob& in) {
@@ -43,6 +44,7 @@ SampleJob from_proto(const v1::SampleJob& in) {
     expect_size("first_sample", size_t(in.first_sample_size()), job.rect.size());
     job.counts.assign(in.counts().begin(), in.counts().end());
     job.first_sample.assign(in.first_sample().begin(), in.first_sample().end());
+    job.aux = in.aux();
     return job;
 }
 
@@ -64,9 +66,26 @@ void to_proto(const SampleJobResult& result, v1::SampleJobResult& out) {
         out.add_nonfinite(p.nonfinite);
     }
     out.set_wall_seconds(result.wall_seconds);
+    out.set_version(kWireVersion);
+    if (!result.first_hits.empty()) {
+        auto* albedo = out.mutable_sum_albedo();
+        auto* normal = out.mutable_sum_normal();
+        albedo->Reserve(int(3 * n));
+        normal->Reserve(int(3 * n));
+        for (const FirstHitSums& f : result.first_hits)
+            for (int c = 0; c < 3; ++c) {
+                albedo->Add(f.albedo[c]);
+                normal->Add(f.normal[c]);
+            }
+    }
 }
 
 SampleJobResult from_proto(const v1::SampleJobResult& in) {
+    if (in.version() != kWireVersion)
+        throw WireError("result of wire protocol version " +
+                        std::to_string(in.version()) +
+                        ", this coordinator speaks version " +
+                        std::to_string(kWireVersion) + ": update the worker");
     SampleJobResult result;
     result.rect = from_proto(in.rect());
     const size_t n = result.rect.size();
@@ -89,6 +108,18 @@ SampleJobResult from_proto(const v1::SampleJobResult& in) {
         p.nonfinite = in.nonfinite(int(i));
     }
     result.wall_seconds = in.wall_seconds();
+    // Whether the job asked for them is the coordinator's to check (AuxSums): here both
+    // arrays are whole, or absent.
+    if (in.sum_albedo_size() != 0 || in.sum_normal_size() != 0) {
+        expect_size("sum_albedo", size_t(in.sum_albedo_size()), 3 * n);
+        expect_size("sum_normal", size_t(in.sum_normal_size()), 3 * n);
+        result.first_hits.resize(n);
+        for (size_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c) {
+                result.first_hits[i].albedo[c] = in.sum_albedo(int(3 * i + c));
+                result.first_hits[i].normal[c] = in.sum_normal(int(3 * i + c));
+            }
+    }
     return result;
 }
 

@@ -16,6 +16,12 @@ public:
     using std::invalid_argument::invalid_argument;
 };
 
+// The version of the job and result messages this build speaks, carried in every
+// result (SampleJobResult.version) and checked by from_proto: a result of another version
+// is a WireError, so it is refused whole. 1 added the first-hit sums (issue 34); a worker
+// from before sends none (0).
+inline constexpr uint32_t kWireVersion = 1;
+
 void to_proto(const SampleJob& job, v1::SampleJob& out);
 SampleJob from_proto(const v1::SampleJob& in);
 void to_proto(const SampleJobResult& result, v1::SampleJobResult& out);

@@ -88,6 +88,7 @@ public:
             spec.seed = req->seed();
             spec.priority = req->priority();
             spec.name = req->name();
+            spec.aux = req->albedo_normal();
             spec.strategy = nlohmann::json::parse(
                 req->strategy_json().empty() ? "{}" : req->strategy_json());
             // The render must fit the budget before its reference is decoded, and the

@@ -617,5 +617,21 @@ TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
     }
 }
 
+// Issue 34: a worker from before wire version 1 (the first-hit sums) sends no version.
+// Its result is refused with the reason, nothing of it merges, and the job goes out
+// again.
+TEST_F(WorkerServiceTest, AResultOfAnOlderWireVersionIsRefusedAndNothingMerges) {
+    const v1::Lease l = lease();
+    v1::SampleJobResult old = trace(l);
+    old.clear_version();
+    const v1::CompleteReply reply = complete_as(session_, l.lease_id(), old);
+    EXPECT_EQ(reply.status(), v1::COMPLETE_STATUS_REJECTED);
+    EXPECT_NE(reply.message().find("wire protocol version 0"), std::string::npos)
+        << reply.message();
+    EXPECT_EQ(samples_merged(), 0u);
+    const v1::Lease again = lease();
+    EXPECT_EQ(complete(again.lease_id(), trace(again)), v1::COMPLETE_STATUS_MERGED);
+}
+
 }  // namespace
 }  // namespace aliquot

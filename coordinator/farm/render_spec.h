@@ -24,6 +24,10 @@ struct RenderSpec {
     // For people (`submit --name`): at most kMaxRenderName bytes of UTF-8, no control
     // characters; may be empty.
     std::string name;
+    // Output, opt-in: workers also return each sample's first-hit albedo and normal, kept
+    // beside the colour (AuxSums) for a denoiser and written as EXR layers (issue 34).
+    // Off, a render's jobs, results and buffers are what they were.
+    bool aux = false;
 };
 
 constexpr size_t kMaxRenderName = 200;
