@@ -25,6 +25,8 @@ run "farm" python3 tests/farm/farm_test.py build/bin/aliquot
 # Debian's own Python: its python3-grpcio and python3-prometheus-client are installed for
 # it, whatever python3 comes first on PATH.
 run "ops" /usr/bin/python3 tests/ops/ops_test.py build/bin/aliquot
+# scripts/demo.sh names the step that failed and stops there (stand-in tools, no network).
+run "demo script" bash tests/ops/demo_script_test.sh
 # A CA made with openssl, the farm and the HTTP API over TLS: a few seconds.
 run "tls" bash tests/tls/run.sh build/bin/aliquot
 # Workers killed and stopped, the coordinator killed, while every method renders: about 1-2 min.
