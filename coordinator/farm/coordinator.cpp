@@ -1,19 +1,10 @@
 #include "coordinator.h"
 
-#include <fcntl.h>
 #include <malloc.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <cmath>
-#include <cstdio>
-#include <cstring>
-#include <ctime>
 #include <stdexcept>
 
-#include "bands.h"
 #include "checkpoint.h"
 #include "farm_log.h"
 #include "scene_loader.h"
@@ -23,10 +14,8 @@ namespace aliquot {
 
 namespace {
 
-double thread_cpu_seconds() {
-    timespec t{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+uint64_t memory_of(const RenderSpec& spec) {
+    return render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
 }
 
 }  // namespace
@@ -34,6 +23,8 @@ double thread_cpu_seconds() {
 Coordinator::Coordinator(CoordinatorOptions options)
     : options_(std::move(options)),
       archive_(options_.data_dir),
+      memory_(options_.memory_limit),
+      tick_schedule_(options_.keep_finished),
       registry_({options_.worker_lost_after, options_.forget_workers_after,
                  options_.max_worker_sessions, options_.max_workers},
                 archive_, events_, [this] { return leases_.links_holding(); }) {
@@ -82,9 +73,25 @@ void Coordinator::changed() {
     work_ready_.notify_all();
 }
 
+void Coordinator::notify_changed() {
+    std::lock_guard lock(mutex_);
+    changed();
+}
+
 SlotPtr Coordinator::slot_of(const std::string& id) const {
     const auto it = sessions_.find(id);
     return it == sessions_.end() ? nullptr : it->second;
+}
+
+SlotPtr Coordinator::find_slot(const std::string& id) {
+    std::lock_guard lock(mutex_);
+    return slot_of(id);
+}
+
+std::unique_lock<std::mutex> Coordinator::hold_render_for_test(const std::string& id) {
+    const SlotPtr slot = find_slot(id);
+    // The slot outlives the lock: a test holds it only while the render is in memory.
+    return slot ? std::unique_lock(slot->mutex) : std::unique_lock<std::mutex>();
 }
 
 std::vector<SlotPtr> Coordinator::slots_in_order() const {
@@ -96,8 +103,8 @@ std::vector<SlotPtr> Coordinator::slots_in_order() const {
 
 std::vector<SlotPtr> Coordinator::slots_by_priority() const {
     std::vector<SlotPtr> out = slots_in_order();
-    std::stable_sort(out.begin(), out.end(), [](const SlotPtr& a, const SlotPtr& b) {
-        return a->priority > b->priority;
+    std::sort(out.begin(), out.end(), [](const SlotPtr& a, const SlotPtr& b) {
+        return LeaseOrder{a->priority, a->number} < LeaseOrder{b->priority, b->number};
     });
     return out;
 }
@@ -144,42 +151,31 @@ std::string Coordinator::submit(RenderSpec spec) {
     parse_submitted_scene(spec.scene_json,
                           spec.scene_name.empty() ? "scene" : spec.scene_name);
     const std::string hash = scene_hash(spec.scene_json);
-    const uint64_t needed =
-        render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
+    const uint64_t needed = memory_of(spec);
+    // Before anything is claimed or written: a refused render leaves no trace. Counted
+    // from now, so that submissions meanwhile see it; given back when it leaves memory.
+    memory_.claim(needed);
     std::string id;
     bool recorded = false;  // its row is in the store
-    {
-        std::lock_guard lock(mutex_);
-        // Before anything is claimed or written: a refused render leaves no trace.
-        const uint64_t in_use = memory_in_use_locked();
-        if (options_.memory_limit > 0 &&
-            (needed > options_.memory_limit || in_use > options_.memory_limit - needed))
-            throw MemoryBudgetError(needed, in_use, sessions_.size(),
-                                    options_.memory_limit);
-        id = archive_.claim_render_id();
-        // Counted until the session is attached, so that submissions meanwhile see it.
-        reserved_memory_ += needed;
-    }
+    bool scene_kept = false;
     // Building the session (its buffers) and writing its record and reference happen
     // off the lock: a 1920x1080 reference is 24 MB to write.
     try {
+        id = archive_.claim_render_id();
         const int64_t created = unix_millis_now();
         auto session = std::make_unique<RenderSession>(id, spec, created);
         archive_.record_submission(id, spec, hash, created, session->samples_planned());
         recorded = true;
-        std::lock_guard lock(mutex_);
-        reserved_memory_ -= needed;
-        scenes_[hash] = spec.scene_json;
+        scenes_.keep(hash, spec.scene_json);
+        scene_kept = true;
         events_.on_render(EventKind::Submitted, id, submitted_fields(spec));
+        std::lock_guard lock(mutex_);
         attach(std::move(session), true);
     } catch (...) {
-        {
-            std::lock_guard lock(mutex_);
-            reserved_memory_ -= needed;
-            drop_scene_if_unused(hash);
-        }
+        memory_.release(needed);
+        if (scene_kept) scenes_.drop(hash);
         // A render whose row was written keeps its directory, as the row points to it.
-        if (!recorded) archive_.unclaim(id);
+        if (!id.empty() && !recorded) archive_.unclaim(id);
         throw;
     }
     return id;
@@ -188,8 +184,10 @@ std::string Coordinator::submit(RenderSpec spec) {
 void Coordinator::resume_unfinished() {
     archive_.resume_unfinished([this](RenderArchive::Resumed r) {
         const std::string id = r.session->id();
+        const RenderSpec& spec = r.session->spec();
+        memory_.hold(memory_of(spec));
+        scenes_.keep(r.scene_hash, spec.scene_json);
         std::lock_guard lock(mutex_);  // the backlog's thread may evict meanwhile
-        scenes_[r.scene_hash] = r.session->spec().scene_json;
         events_.resume(id);
         events_.on_render(EventKind::Resumed, id);
         attach(std::move(r.session), r.queued);
@@ -197,11 +195,7 @@ void Coordinator::resume_unfinished() {
 }
 
 std::optional<double> Coordinator::plan_wait_seconds(const std::string& id) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     if (!slot) return std::nullopt;
     std::lock_guard lock(slot->mutex);
     return slot->session->plan_wait_seconds();
@@ -247,11 +241,7 @@ std::vector<RenderInfo> Coordinator::list(size_t limit) {
 }
 
 std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     if (slot) {
         {
             std::lock_guard lock(slot->mutex);
@@ -269,11 +259,7 @@ std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
 
 std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
                                                     int32_t priority) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     bool finished = true;
     if (slot) {
         std::lock_guard render(slot->mutex);
@@ -296,11 +282,7 @@ std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
 }
 
 Coordinator::Removal Coordinator::remove(const std::string& id) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     if (slot) {
         {
             std::lock_guard render(slot->mutex);
@@ -363,11 +345,7 @@ size_t Coordinator::remove_expired(int64_t now_ms) {
 }
 
 std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     if (slot) {
         std::lock_guard lock(slot->mutex);
         return slot->session->image(aovs);
@@ -406,36 +384,60 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
 
 void Coordinator::describe_worker(const std::string& name, std::string host,
                                   std::string version) {
-    std::lock_guard lock(mutex_);
-    if (registry_.describe(name, std::move(host), std::move(version))) changed();
+    if (registry_.describe(name, std::move(host), std::move(version))) notify_changed();
 }
 
 Registration Coordinator::register_link(const std::string& name, uint32_t threads,
                                         std::string identity, bool trusted) {
-    std::lock_guard lock(mutex_);
     std::string link =
         registry_.register_link(name, threads, std::move(identity), trusted);
-    changed();
+    notify_changed();
     return {std::move(link), uint32_t(options_.lease_time.count())};
 }
 
+namespace {
+
+// A lease poll in progress, from the registry's point of view: its worker is not lost
+// while it waits, and its end counts as heard from.
+class LeasePoll {
+public:
+    LeasePoll(WorkerRegistry& registry, const std::string& link)
+        : registry_(registry), link_(link) {
+        registry_.poll_began(link_);
+    }
+    ~LeasePoll() {
+        try {
+            registry_.poll_ended(link_);
+        } catch (const std::exception& e) {  // a full disk writing its row
+            log_farm_error(std::string("lease poll: ") + e.what());
+        }
+    }
+
+private:
+    WorkerRegistry& registry_;
+    const std::string& link_;
+};
+
+}  // namespace
+
 std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
                                              std::chrono::milliseconds wait) {
-    std::unique_lock lock(mutex_);
     // Jobs are the session's host's to take: RenderSession counts failures, keeps hosts
     // off jobs and checks lease ownership by this, and the Coordinator checks ownership
     // by session before it asks.
     const std::string worker = registry_.link_of(session).identity;
+    const LeasePoll poll(registry_, session);
     const auto deadline = std::chrono::steady_clock::now() + wait;
+    std::unique_lock lock(mutex_);
     while (!stopping_) {
         const uint64_t seen = version_;
         const std::vector<SlotPtr> slots = slots_by_priority();
+        lock.unlock();
         const std::shared_ptr<const std::set<std::string>> alive =
             registry_.alive_identities();
         const size_t cores = registry_.alive_cores();
-        // Reserved now, so that no other lease takes the id while the lock is let go.
+        // Reserved now, so that no other lease takes the id while it is being issued.
         const uint64_t lease_id = leases_.reserve(session);
-        lock.unlock();
         // Renders by priority, in submission order within one; one whose lock is busy (a
         // merge, or a round's end) is passed over at first and waited for only when no
         // other render has a job, so one render's round end holds up no other render's
@@ -472,18 +474,20 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
             std::lock_guard render(busy[i]->mutex);
             try_issue(*busy[i]);
         }
+        if (grant)
+            leases_.grant(lease_id, grant->render_id, std::move(label));
+        else
+            leases_.end(lease_id);
         lock.lock();
         if (!failed.empty()) {  // as complete does for a render its merge failed
             forget_ended_leases({}, failed);
             changed();
         }
         if (grant) {
-            leases_.grant(lease_id, grant->render_id, std::move(label));
             if (queue_.leave(grant->render_id)) note_started(grant->render_id);
             changed();
             return grant;
         }
-        leases_.end(lease_id);
         // Whatever could give this worker a job (a round planned, a lease given back or
         // expired, a worker lost) changes version_ under this lock: nothing is missed
         // between the scan above and this wait. A round planned ahead whose plan ends on
@@ -497,163 +501,116 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
 
 CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
                                       const SampleJobResult& result) {
-    WorkerRegistry::Link caller;
-    SlotPtr slot;
-    std::shared_ptr<const std::set<std::string>> alive;
-    FailurePolicy policy;
-    size_t cores = 0;
-    {
-        std::lock_guard lock(mutex_);
-        caller = registry_.link_of(session);
-        const LeaseTable::Lease* lease = leases_.find(lease_id);
-        if (!lease || lease->render.empty())
-            return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
-        // Someone else's lease: refused before anything is looked at, and it stays with
-        // its holder, whose own result still merges.
-        if (lease->link != session) return {CompleteStatus::Ignored, "not your lease"};
-        slot = slot_of(lease->render);
-        leases_.end(lease_id);  // whatever the outcome, this lease has ended
-        if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
-        alive = registry_.alive_identities();
-        policy = failure_policy_of(caller);  // a rejected result counts as a failure
-        cores = registry_.alive_cores();
-    }
+    const WorkerRegistry::Link caller = registry_.link_of(session);
+    // Whatever the outcome, a lease held has ended here. Someone else's lease is refused
+    // before anything is looked at, and it stays with its holder, whose own result still
+    // merges.
+    const LeaseTable::Held held = leases_.take(lease_id, session);
+    if (held.holding == LeaseTable::Holding::Unknown)
+        return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
+    if (held.holding == LeaseTable::Holding::NotYours)
+        return {CompleteStatus::Ignored, "not your lease"};
+    const SlotPtr slot = find_slot(held.render);
+    if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
+    const std::shared_ptr<const std::set<std::string>> alive =
+        registry_.alive_identities();
+    const size_t cores = registry_.alive_cores();
     // The merge, and when this is the round's last job the round's end, under the
     // render's lock alone.
     CompleteOutcome outcome;
-    double round_end = 0, round_end_cpu = 0;
-    uint32_t ended = 0;  // rounds this call ended
-    bool waited = false;
+    RoundEnd round_end;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
         RenderSession& s = *slot->session;
-        const uint32_t rounds_before = s.rounds_done();
-        const auto began = std::chrono::steady_clock::now();
-        // The band pool's threads work for the round end too (bands.h): their CPU time
-        // counts. Another render's round end running meanwhile would be counted here as
-        // well; farm_scale runs one render.
-        const double began_cpu = thread_cpu_seconds() + band_pool_cpu_seconds();
+        const RoundEndMeter meter(s);
         s.set_worker_cores(cores);  // the next round is cut for them
-        outcome = s.complete(lease_id, caller.identity, result, *alive, policy);
-        // This result ended a round, or two: the round after it, opened ahead, may have
-        // merged whole by then. The call's time counts as waited through when the round
-        // it left out was not opened ahead.
-        if (s.rounds_done() != rounds_before) {
-            ended = s.rounds_done() - rounds_before;
-            round_end =
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - began)
-                    .count();
-            round_end_cpu = thread_cpu_seconds() + band_pool_cpu_seconds() - began_cpu;
-            waited = !(s.state() == RenderState::Running && s.round_opened_ahead());
-        }
+        // A rejected result counts as a failure.
+        outcome = s.complete(lease_id, caller.identity, result, *alive,
+                             failure_policy_of(caller));
+        round_end = meter.finish(s);
         render_failed = s.state() == RenderState::Failed;
     }
-    std::lock_guard lock(mutex_);
-    round_end_seconds_ += round_end;
-    round_end_cpu_seconds_ += round_end_cpu;
-    if (waited) round_end_wait_seconds_ += round_end;
-    rounds_ended_ += ended;
-    if (render_failed) forget_ended_leases({}, {slot->session->id()});
+    round_ends_.add(round_end);
     if (outcome.status == CompleteStatus::Merged) {
         samples_merged_ += result.total_samples();
         registry_.note_merged(caller.worker, result.total_samples(), result.wall_seconds);
     }
+    std::lock_guard lock(mutex_);
+    if (render_failed) forget_ended_leases({}, {slot->session->id()});
     changed();
     return outcome;
 }
 
 std::optional<std::string> Coordinator::fetch_scene(const std::string& session,
                                                     const std::string& hash) {
-    {
-        std::lock_guard lock(mutex_);
-        registry_.link_of(session);
-        if (auto it = scenes_.find(hash); it != scenes_.end()) return it->second;
-    }
+    registry_.link_of(session);
+    if (std::optional<std::string> scene = scenes_.find(hash)) return scene;
     return archive_.stored_scene(hash);
 }
 
-SlotPtr Coordinator::held_render(const std::string& session, uint64_t lease_id) {
+std::pair<WorkerRegistry::Link, SlotPtr> Coordinator::holder_and_render(
+    const std::string& session, uint64_t lease_id) {
+    WorkerRegistry::Link caller = registry_.link_of(session);
     // Only the holder's word counts: anyone else's leaves the lease with its holder.
-    const LeaseTable::Lease* lease = leases_.find(lease_id);
-    if (!lease || lease->link != session) return nullptr;
-    return slot_of(lease->render);
-}
-
-std::pair<std::string, SlotPtr> Coordinator::holder_and_render(const std::string& session,
-                                                               uint64_t lease_id) {
-    std::lock_guard lock(mutex_);
-    std::string worker = registry_.link_of(session).identity;
-    return {std::move(worker), held_render(session, lease_id)};
+    const LeaseTable::Held held = leases_.held(lease_id, session);
+    if (held.holding != LeaseTable::Holding::Held) return {std::move(caller), nullptr};
+    return {std::move(caller), find_slot(held.render)};
 }
 
 bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
-    const auto [worker, slot] = holder_and_render(session, lease_id);
+    const auto [caller, slot] = holder_and_render(session, lease_id);
     if (!slot) return false;
     std::lock_guard render(slot->mutex);
-    return slot->session->renew(lease_id, worker,
+    return slot->session->renew(lease_id, caller.identity,
                                 RenderSession::Clock::now() + options_.lease_time);
 }
 
 bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
-    const auto [worker, slot] = holder_and_render(session, lease_id);
+    const auto [caller, slot] = holder_and_render(session, lease_id);
     if (!slot) return false;
     {
         std::lock_guard render(slot->mutex);
-        if (!slot->session->abandon(lease_id, worker)) return false;
+        if (!slot->session->abandon(lease_id, caller.identity)) return false;
     }
-    std::lock_guard lock(mutex_);
     leases_.end(lease_id);
-    changed();
+    notify_changed();
     return true;
 }
 
 bool Coordinator::fail(const std::string& session, uint64_t lease_id,
                        const std::string& reason) {
-    std::string worker, worker_name;
-    SlotPtr slot;
-    std::shared_ptr<const std::set<std::string>> alive;
-    FailurePolicy policy;
-    {
-        std::lock_guard lock(mutex_);
-        const WorkerRegistry::Link caller = registry_.link_of(session);
-        worker = caller.identity;
-        worker_name = caller.worker;
-        slot = held_render(session, lease_id);
-        alive = registry_.alive_identities();
-        policy = failure_policy_of(caller);
-    }
+    const auto [caller, slot] = holder_and_render(session, lease_id);
     if (!slot) return false;
+    const std::shared_ptr<const std::set<std::string>> alive =
+        registry_.alive_identities();
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
         RenderSession& s = *slot->session;
-        if (!s.fail_job(lease_id, worker, reason, *alive, policy)) return false;
-        if (s.failures_of(worker) == options_.failure_policy.blocklist_after)
-            events_.on_render(EventKind::WorkerBlocklisted, s.id(),
-                              {log_text("worker", worker_name), log_text("host", worker),
-                               log_text("reason", reason)});
+        if (!s.fail_job(lease_id, caller.identity, reason, *alive,
+                        failure_policy_of(caller)))
+            return false;
+        if (s.failures_of(caller.identity) == options_.failure_policy.blocklist_after)
+            events_.on_render(
+                EventKind::WorkerBlocklisted, s.id(),
+                {log_text("worker", caller.worker), log_text("host", caller.identity),
+                 log_text("reason", reason)});
         render_failed = s.state() == RenderState::Failed;
         if (render_failed) log_farm_error(s.id() + " failed: " + s.error());
     }
-    std::lock_guard lock(mutex_);
     leases_.end(lease_id);
-    registry_.note_failure(worker_name);
+    registry_.note_failure(caller.worker);
+    std::lock_guard lock(mutex_);
     // The render's other leases ended with it.
     if (render_failed) forget_ended_leases({}, {slot->session->id()});
     changed();
     return true;
 }
 
-bool Coordinator::knows_worker(const std::string& name) {
-    std::lock_guard lock(mutex_);
-    return registry_.knows(name);
-}
+bool Coordinator::knows_worker(const std::string& name) { return registry_.knows(name); }
 
-size_t Coordinator::leases_out() {
-    std::lock_guard lock(mutex_);
-    return leases_.size();
-}
+size_t Coordinator::leases_out() { return leases_.size(); }
 
 uint64_t Coordinator::samples_merged() const { return samples_merged_; }
 
@@ -679,30 +636,7 @@ std::map<RenderState, uint64_t> Coordinator::render_counts() {
     return counts;
 }
 
-double Coordinator::round_end_seconds() {
-    std::lock_guard lock(mutex_);
-    return round_end_seconds_;
-}
-
-double Coordinator::round_end_wait_seconds() {
-    std::lock_guard lock(mutex_);
-    return round_end_wait_seconds_;
-}
-
-double Coordinator::round_end_cpu_seconds() {
-    std::lock_guard lock(mutex_);
-    return round_end_cpu_seconds_;
-}
-
-uint64_t Coordinator::rounds_ended() {
-    std::lock_guard lock(mutex_);
-    return rounds_ended_;
-}
-
-size_t Coordinator::worker_sessions() {
-    std::lock_guard lock(mutex_);
-    return registry_.links();
-}
+size_t Coordinator::worker_sessions() { return registry_.links(); }
 
 void Coordinator::forget_ended_leases(const std::vector<uint64_t>& ended,
                                       const std::set<std::string>& finished) {
@@ -713,20 +647,10 @@ void Coordinator::forget_ended_leases(const std::vector<uint64_t>& ended,
 
 std::vector<WorkerStatus> Coordinator::workers() {
     // Each lease keeps its label, so no render's lock is taken.
-    std::lock_guard lock(mutex_);
-    std::map<std::string, std::vector<std::string>> leases;  // worker -> "render/job"
-    for (const auto& [id, lease] : leases_.all()) {
-        const WorkerRegistry::Link* link = registry_.find_link(lease.link);
-        if (lease.render.empty() || !link) continue;
-        leases[link->worker].push_back(lease.label);
-    }
-    return registry_.statuses(std::move(leases));
+    return registry_.statuses(leases_.labels_by_link());
 }
 
-std::string Coordinator::storage_warning() {
-    std::lock_guard lock(mutex_);
-    return archive_.warning();
-}
+std::string Coordinator::storage_warning() { return archive_.warning(); }
 
 void Coordinator::tick() {
     // Leases past their deadline go back to their renders' queues, under each render's
@@ -751,33 +675,16 @@ void Coordinator::tick() {
             opened_ahead = slot->session->announce_next_round() || opened_ahead;
         }
     }
-    bool retention_due = false, wal_due = false;
+    const TickChores due = tick_schedule_.next();
+    const bool lost = registry_.tick(unix_millis_now(), due.sweep_worker_rows);
     {
         std::lock_guard lock(mutex_);
-        bool any = !expired.empty() || opened_ahead;
         forget_ended_leases(expired, finished);
-        const int64_t wall = unix_millis_now();
-        // Rows of workers long silent are swept at the first tick, then about once a
-        // minute.
-        if (registry_.tick(wall, ticks_ % 300 == 0)) any = true;
-        if (any) changed();
-        ++ticks_;
-        wal_due = ticks_ % 50 == 0;
-        // At the first tick, then once a minute, or a quarter of keep_finished when that
-        // is shorter (at least a second), so that a render is kept about as long as
-        // asked.
-        const auto now_steady = std::chrono::steady_clock::now();
-        const auto every = std::clamp<std::chrono::milliseconds>(
-            options_.keep_finished / 4, std::chrono::seconds(1), std::chrono::minutes(1));
-        if (options_.keep_finished.count() > 0 &&
-            (ticks_ == 1 || now_steady - last_retention_ >= every)) {
-            retention_due = true;
-            last_retention_ = now_steady;
-        }
+        if (!expired.empty() || opened_ahead || lost) changed();
     }
-    archive_.tick(wal_due);  // every ~10 s, the WAL too
+    archive_.tick(due.wal_checkpoint);
     // Outside the lock: deleting a render's files can take a while.
-    if (retention_due) {
+    if (due.retention) {
         try {
             remove_expired(unix_millis_now());
         } catch (const std::exception& e) {
@@ -790,11 +697,7 @@ void Coordinator::tick() {
 // ---- Read-only views for the HTTP API and dashboard ----
 
 std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& id) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     if (slot) {
         std::lock_guard render(slot->mutex);
         archive_.complete_history(*slot);
@@ -809,11 +712,7 @@ std::optional<EventPage> Coordinator::events(const std::string& id, int64_t afte
 }
 
 std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
-    SlotPtr slot;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-    }
+    const SlotPtr slot = find_slot(id);
     if (slot) {
         std::lock_guard render(slot->mutex);
         return slot->session->strategy().buckets();
@@ -821,57 +720,23 @@ std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
     return archive_.stored_buckets(id);
 }
 
-// ---- Memory: the budget, and finished renders leaving it ----
-
-uint64_t Coordinator::memory_in_use_locked() const {
-    uint64_t total = reserved_memory_;
-    for (const auto& [id, slot] : sessions_) {
-        const RenderSpec& spec = slot->session->spec();  // never changes: no render lock
-        total +=
-            render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
-    }
-    return total;
-}
-
-uint64_t Coordinator::memory_in_use() {
-    std::lock_guard lock(mutex_);
-    return memory_in_use_locked();
-}
-
-uint64_t Coordinator::reference_allowance(uint32_t width, uint32_t height) {
-    if (options_.memory_limit == 0) return 0;
-    const uint64_t needed = render_memory_estimate(width, height, true);
-    std::lock_guard lock(mutex_);
-    const uint64_t in_use = memory_in_use_locked();
-    if (needed > options_.memory_limit || in_use > options_.memory_limit - needed)
-        throw MemoryBudgetError(needed, in_use, sessions_.size(), options_.memory_limit);
-    const uint64_t rgb = uint64_t(width) * height * 3 * sizeof(float);
-    return options_.memory_limit - in_use - needed + rgb;
-}
+// ---- Finished renders leaving memory ----
 
 size_t Coordinator::sessions_in_memory() {
     std::lock_guard lock(mutex_);
     return sessions_.size();
 }
 
-void Coordinator::drop_scene_if_unused(const std::string& hash) {
-    for (const auto& [id, slot] : sessions_)
-        if (slot->session->scene_hash() == hash) return;  // never changes: no render lock
-    scenes_.erase(hash);  // workers still tracing it fetch it from the store
-}
-
-size_t Coordinator::scenes_in_memory() {
-    std::lock_guard lock(mutex_);
-    return scenes_.size();
-}
+size_t Coordinator::scenes_in_memory() { return scenes_.size(); }
 
 void Coordinator::evict(const std::string& id) {
     const auto it = sessions_.find(id);
     // Finished sessions change no more, so this reads its state without its lock.
     if (it == sessions_.end() || !it->second->session->finished()) return;
-    const std::string hash = it->second->session->scene_hash();
+    const RenderSpec& spec = it->second->session->spec();
+    memory_.release(memory_of(spec));
+    scenes_.drop(it->second->session->scene_hash());
     sessions_.erase(it);  // a call that found the slot before keeps it until it is done
-    drop_scene_if_unused(hash);
     order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
     queue_.leave(id);
     events_.forget(id);  // its events are the store's to serve now

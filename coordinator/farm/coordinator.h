@@ -4,15 +4,17 @@
 // (render_archive.h), the farm's only includer of the store. Transport-free: the gRPC
 // services and the embedded render call the same methods.
 //
-// Locks. Two kinds, never nested. `mutex_` guards the coordinator's maps (renders by id,
-// leases, scenes) and its WorkerRegistry, and is held for look-ups and bookkeeping
-// only. Each render has a lock of its own (RenderSlot::mutex) for everything its session
-// does: issuing a job, merging a result, and ending a round (error estimate, checkpoint
-// copy, planning and cutting the next one). A call finds its render under `mutex_`, lets
-// it go, works under the render's lock, and takes `mutex_` again to note what changed; so
-// a round end at 1920x1080 (hundreds of milliseconds for optimal) holds up that render's
-// workers only, and renders merge in parallel. Neither lock is taken while the other is
-// held.
+// Locks (docs/FARM.md, "Locks", has the order). `mutex_` guards the render list only
+// (renders by id and in order, the queue, priorities, the change counter) and is held
+// for look-ups and bookkeeping. Each render has a lock of its own (RenderSlot::mutex)
+// for everything its session does: issuing a job, merging a result, and ending a round
+// (error estimate, checkpoint copy, planning and cutting the next one). A call finds its
+// render under `mutex_`, lets it go, works under the render's lock, and takes `mutex_`
+// again to note what changed; the two are never held together. The LeaseTable, the
+// WorkerRegistry, the memory budget, the scenes and the round-end counters have small
+// locks of their own, taken under either or none; so leases and merges of different
+// renders proceed in parallel, and a round end at 1920x1080 holds up that render's
+// workers only.
 #pragma once
 
 #include <atomic>
@@ -39,6 +41,9 @@
 #include "render_info.h"
 #include "render_queue.h"
 #include "render_session.h"
+#include "round_end_stats.h"
+#include "submitted_scenes.h"
+#include "tick_schedule.h"
 #include "worker_registry.h"
 
 namespace aliquot {
@@ -152,20 +157,14 @@ public:
     size_t worker_sessions();
     // Submitted scenes held in memory now (those of the renders in memory): for tests.
     size_t scenes_in_memory();
-    // Wall seconds, over all renders, of the Complete calls that ended a round (the last
-    // job's merge, the error estimate, the record, the checkpoint copy, planning and
-    // cutting the next round), under the render's lock and with none of the round's jobs
-    // out: what the coordinator costs per round (bench/farm_scale).
-    double round_end_seconds();
-    // The same calls' CPU time on their threads: what they cost whatever the load (on a
-    // busy machine the wall time also counts waiting for a core).
-    double round_end_cpu_seconds();
-    // The part of round_end_seconds the workers waited through: round ends after which
-    // the render's next round had not been opened ahead (render_session.h, "two rounds
-    // out"), so none of its jobs was out meanwhile.
-    double round_end_wait_seconds();
-    // Rounds ended, over all renders (each ended by one of those calls).
-    uint64_t rounds_ended();
+    // Wall seconds, over all renders, of the Complete calls that ended a round, under the
+    // render's lock: what the coordinator costs per round (round_end_stats.h); their CPU
+    // time on their threads (what they cost whatever the load); the part the workers
+    // waited through; the rounds ended.
+    double round_end_seconds() const { return round_ends_.seconds(); }
+    double round_end_cpu_seconds() const { return round_ends_.cpu_seconds(); }
+    double round_end_wait_seconds() const { return round_ends_.wait_seconds(); }
+    uint64_t rounds_ended() const { return round_ends_.rounds(); }
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();
@@ -181,19 +180,23 @@ public:
     // a data directory a finished render leaves memory once its end is recorded (image,
     // state); its info, image, rounds and buckets are then read from the store and disk.
     size_t sessions_in_memory();
-    uint64_t memory_in_use();
+    uint64_t memory_in_use() const { return memory_.in_use(); }
     // What a decoded reference for a width x height render may take (decode_exr's
-    // max_bytes): the budget left beside the render's own estimate, plus the estimate's
-    // share for the reference's RGB; 0 (no bound) without a budget. Throws
-    // MemoryBudgetError when the render itself does not fit now. Asked before a reference
-    // is decoded: its header alone can claim gigabytes.
-    uint64_t reference_allowance(uint32_t width, uint32_t height);
+    // max_bytes; MemoryBudget::reference_allowance). Asked before a reference is
+    // decoded: its header alone can claim gigabytes.
+    uint64_t reference_allowance(uint32_t width, uint32_t height) const {
+        return memory_.reference_allowance(width, height);
+    }
 
     // Expires leases, marks lost workers, checkpoints the WAL. A background thread calls
     // it.
     void tick();
     // Wakes every waiting call and refuses new leases: the first step of shutting down.
     void stop();
+
+    // For tests: holds render `id`'s lock, as a long merge or round end of it would,
+    // until the lock returned is let go (an empty one for an unknown render).
+    std::unique_lock<std::mutex> hold_render_for_test(const std::string& id);
 
 private:
     void resume_unfinished();
@@ -207,30 +210,30 @@ private:
     void note_started(const std::string& id);
     // The render `id` in memory, or null; under `mutex_`.
     SlotPtr slot_of(const std::string& id) const;
+    // The same, taking `mutex_`.
+    SlotPtr find_slot(const std::string& id);
     // Every render in memory, in submission order; under `mutex_`.
     std::vector<SlotPtr> slots_in_order() const;
-    // The same, highest priority first, submission order within one: whom lease()
-    // serves first.
+    // The same in LeaseOrder (render_queue.h): whom lease() serves first.
     std::vector<SlotPtr> slots_by_priority() const;
     // A new link of worker `name` (WorkerRegistry::register_link) as a Registration.
     Registration register_link(const std::string& name, uint32_t threads,
                                std::string identity, bool trusted);
-    // The render whose lease `lease_id` `session` holds; null when it holds none.
-    SlotPtr held_render(const std::string& session, uint64_t lease_id);
-    // The worker holding `session` (touched, or WorkerUnknown) and held_render, under
-    // `mutex_`, which it takes.
-    std::pair<std::string, SlotPtr> holder_and_render(const std::string& session,
-                                                      uint64_t lease_id);
+    // The worker holding `session` (touched, or WorkerUnknown) and the render whose
+    // lease `lease_id` it holds (null when it holds none).
+    std::pair<WorkerRegistry::Link, SlotPtr> holder_and_render(const std::string& session,
+                                                               uint64_t lease_id);
     // The policy a failure of `caller` is counted with: the options', with the rule for
     // farms of fewer hosts always on for a trusted (in-process) worker.
     FailurePolicy failure_policy_of(const WorkerRegistry::Link& caller) const;
-    // Drops the submitted scene `hash` when no render in memory uses it; under `mutex_`.
-    void drop_scene_if_unused(const std::string& hash);
-    // Drops the leases that ended (`ended`) and those of renders finished or gone.
+    // Drops the leases that ended (`ended`) and those of renders finished or gone; under
+    // `mutex_`.
     void forget_ended_leases(const std::vector<uint64_t>& ended,
                              const std::set<std::string>& finished);
+    // Something a waiting call may look for changed; under `mutex_` (notify_changed
+    // takes it).
     void changed();
-    uint64_t memory_in_use_locked() const;
+    void notify_changed();
     // Drops a finished render whose end is recorded, and what is kept per render.
     void evict(const std::string& id);
 
@@ -241,23 +244,19 @@ private:
     std::condition_variable progress_;
     uint64_t version_ = 0;
     uint64_t submissions_ = 0;  // renders attached so far: RenderSlot::number
-    // Memory of submissions being set up off the lock (submit), not yet attached.
-    uint64_t reserved_memory_ = 0;
     std::map<std::string, SlotPtr> sessions_;  // by id
     std::vector<std::string> order_;           // submission order
-    LeaseTable leases_;  // under mutex_: every lease out, its holder and its label
-    // Scenes of the renders in memory, for workers' fetch_scene: dropped with the last
-    // render that uses it (a scene is 1 MB or more, and submissions never end).
-    std::map<std::string, std::string> scenes_;  // hash -> json
-    int ticks_ = 0;
-    std::chrono::steady_clock::time_point last_retention_{};  // remove_expired by tick
-    double round_end_seconds_ = 0, round_end_cpu_seconds_ = 0,
-           round_end_wait_seconds_ = 0;
-    uint64_t rounds_ended_ = 0;
+    RenderQueue queue_;  // under mutex_: renders no job of which was leased yet
+    // Each of these has its own lock, a leaf (or, for the registry, taken before the
+    // lease table's only).
+    LeaseTable leases_;       // every lease out, its holder and its label
+    MemoryBudget memory_;     // the renders in memory and submissions being set up
+    SubmittedScenes scenes_;  // the scenes of the renders in memory
+    TickSchedule tick_schedule_;
+    RoundEndStats round_ends_;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
-    RenderEvents events_;                      // its own lock, a leaf
-    WorkerRegistry registry_;  // under mutex_: the workers and their links
-    RenderQueue queue_;        // under mutex_: renders no job of which was leased yet
+    RenderEvents events_;
+    WorkerRegistry registry_;  // the workers and their links
     bool stopping_ = false;
     std::thread ticker_;
 

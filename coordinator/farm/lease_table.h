@@ -4,10 +4,14 @@
 // ListWorkers nor the order they are issued in tells another, and a restarted
 // coordinator's ids match a pre-restart lease only with probability (leases out) / 2^64.
 //
-// No lock of its own: the coordinator's (`mutex_`) guards it.
+// Its own lock, a leaf of the farm's lock order (docs/FARM.md, "Locks"): nothing else is
+// taken while it is held, and every method takes it, so a lease is taken, checked and
+// ended in one step however many workers call at once.
 #pragma once
 
 #include <cstdint>
+#include <map>
+#include <mutex>
 #include <set>
 #include <string>
 #include <unordered_map>
@@ -17,24 +21,32 @@ namespace aliquot {
 
 class LeaseTable {
 public:
-    struct Lease {
-        std::string render;  // render id; empty while the lease is being issued
-        std::string link;    // the worker link that leased it
-        std::string label;   // "render/job"
-    };
-
     // A fresh id (not 0, not one out), reserved for `link` while a lease is being issued
     // off the lock, so that no other lease takes it meanwhile.
     uint64_t reserve(const std::string& link);
     // The reserved lease `id` was granted: a job of `render`.
     void grant(uint64_t id, std::string render, std::string label);
-    const Lease* find(uint64_t id) const;
-    void end(uint64_t id) { leases_.erase(id); }
+    void end(uint64_t id);
+
+    // What a worker's word on a lease finds: a lease of another link stays with its
+    // holder (`NotYours`), whose own result still counts.
+    enum class Holding { Unknown, NotYours, Held };
+    struct Held {
+        Holding holding = Holding::Unknown;
+        std::string render;  // when Held
+    };
+    // The render of the granted lease `id` if `link` holds it.
+    Held held(uint64_t id, const std::string& link) const;
+    // The same, and a lease held ends here: of two calls with one lease, one takes it.
+    Held take(uint64_t id, const std::string& link);
+
     // Drops the leases in `ended`, and those of renders in `finished` or not `in_memory`
-    // (a lease being issued, of no render yet, is not ended).
+    // (a lease being issued, of no render yet, is not ended). `in_memory` is called
+    // under this table's lock: it may read what its caller holds, and take no lock.
     template <class InMemory>
     void forget_ended(const std::vector<uint64_t>& ended,
                       const std::set<std::string>& finished, const InMemory& in_memory) {
+        std::lock_guard lock(mutex_);
         for (const uint64_t lease : ended) leases_.erase(lease);
         std::erase_if(leases_, [&](const auto& kv) {
             const std::string& render = kv.second.render;
@@ -46,10 +58,19 @@ public:
     void forget_render(const std::string& render);
     // The links holding a lease now.
     std::set<std::string> links_holding() const;
-    size_t size() const { return leases_.size(); }
-    const std::unordered_map<uint64_t, Lease>& all() const { return leases_; }
+    // The granted leases' labels by the link holding them (the workers list).
+    std::map<std::string, std::vector<std::string>> labels_by_link() const;
+    size_t size() const;
 
 private:
+    struct Lease {
+        std::string render;  // render id; empty while the lease is being issued
+        std::string link;    // the worker link that leased it
+        std::string label;   // "render/job"
+    };
+    Held held_locked(uint64_t id, const std::string& link) const;
+
+    mutable std::mutex mutex_;
     std::unordered_map<uint64_t, Lease> leases_;  // by lease id
 };
 

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -66,5 +67,43 @@ MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t 
       needed(needed_),
       in_use(in_use_),
       limit(limit_) {}
+
+void MemoryBudget::check_locked(uint64_t bytes) const {
+    if (limit_ > 0 && (bytes > limit_ || in_use_ > limit_ - bytes))
+        throw MemoryBudgetError(bytes, in_use_, renders_, limit_);
+}
+
+void MemoryBudget::claim(uint64_t bytes) {
+    std::lock_guard lock(mutex_);
+    check_locked(bytes);
+    in_use_ += bytes;
+    ++renders_;
+}
+
+void MemoryBudget::hold(uint64_t bytes) {
+    std::lock_guard lock(mutex_);
+    in_use_ += bytes;
+    ++renders_;
+}
+
+void MemoryBudget::release(uint64_t bytes) {
+    std::lock_guard lock(mutex_);
+    in_use_ -= std::min(bytes, in_use_);
+    if (renders_ > 0) --renders_;
+}
+
+uint64_t MemoryBudget::in_use() const {
+    std::lock_guard lock(mutex_);
+    return in_use_;
+}
+
+uint64_t MemoryBudget::reference_allowance(uint32_t width, uint32_t height) const {
+    if (limit_ == 0) return 0;
+    const uint64_t needed = render_memory_estimate(width, height, true);
+    std::lock_guard lock(mutex_);
+    check_locked(needed);
+    const uint64_t rgb = uint64_t(width) * height * 3 * sizeof(float);
+    return limit_ - in_use_ - needed + rgb;
+}
 
 }  // namespace aliquot

@@ -1,9 +1,11 @@
 // The memory budget of the renders a coordinator holds: what one render may take at its
-// peak, the default limit, and the error a submission past it gets.
+// peak, the default limit, the error a submission past it gets, and the account of what
+// the renders in memory hold against it.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <mutex>
 #include <stdexcept>
 
 namespace aliquot {
@@ -24,6 +26,35 @@ class MemoryBudgetError : public std::runtime_error {
 public:
     MemoryBudgetError(uint64_t needed, uint64_t in_use, size_t renders, uint64_t limit);
     uint64_t needed, in_use, limit;
+};
+
+// What the renders in memory, and the submissions being set up, hold against the limit
+// (0: none). Its own lock, a leaf (docs/FARM.md, "Locks"): a submission is checked and
+// counted in one step, without the render list's lock.
+class MemoryBudget {
+public:
+    explicit MemoryBudget(uint64_t limit) : limit_(limit) {}
+    // Counts `bytes` for one more render, or throws MemoryBudgetError and counts
+    // nothing.
+    void claim(uint64_t bytes);
+    // Counts `bytes` for a render whatever the limit (one resumed at start-up).
+    void hold(uint64_t bytes);
+    // A render counted so left memory, or its submission failed.
+    void release(uint64_t bytes);
+    uint64_t in_use() const;
+    // What a decoded reference for a width x height render may take: the budget left
+    // beside the render's own estimate, plus the estimate's share for the reference's
+    // RGB; 0 (no bound) without a limit. Throws MemoryBudgetError when the render itself
+    // does not fit now.
+    uint64_t reference_allowance(uint32_t width, uint32_t height) const;
+
+private:
+    void check_locked(uint64_t bytes) const;
+
+    const uint64_t limit_;
+    mutable std::mutex mutex_;
+    uint64_t in_use_ = 0;
+    size_t renders_ = 0;
 };
 
 }  // namespace aliquot

@@ -61,16 +61,19 @@ void WorkerRegistry::refresh_alive() {
 }
 
 std::shared_ptr<const std::set<std::string>> WorkerRegistry::alive_identities() {
+    std::lock_guard lock(mutex_);
     refresh_alive();
     return alive_snapshot_;
 }
 
 size_t WorkerRegistry::alive_cores() {
+    std::lock_guard lock(mutex_);
     refresh_alive();
     return alive_cores_;
 }
 
 WorkerRegistry::Link WorkerRegistry::link_of(const std::string& link) {
+    std::lock_guard lock(mutex_);
     const auto it = links_.find(link);
     if (it == links_.end()) throw WorkerUnknown("unknown worker session: register again");
     it->second.last_seen_ms = unix_millis_now();
@@ -78,24 +81,54 @@ WorkerRegistry::Link WorkerRegistry::link_of(const std::string& link) {
     return it->second;
 }
 
-const WorkerRegistry::Link* WorkerRegistry::find_link(const std::string& link) const {
+void WorkerRegistry::poll_began(const std::string& link) {
+    std::lock_guard lock(mutex_);
+    if (const auto it = links_.find(link); it != links_.end())
+        if (const auto w = workers_.find(it->second.worker); w != workers_.end())
+            ++w->second.polling;
+}
+
+void WorkerRegistry::poll_ended(const std::string& link) {
+    std::lock_guard lock(mutex_);
+    // The link or its worker may have been dropped meanwhile (to make room): then there
+    // is no one to touch, and its next call is told to register again.
     const auto it = links_.find(link);
-    return it == links_.end() ? nullptr : &it->second;
+    if (it == links_.end() || !workers_.count(it->second.worker)) return;
+    it->second.last_seen_ms = unix_millis_now();
+    WorkerEntry& w = touch_worker(it->second.worker);
+    if (w.polling > 0) --w.polling;
 }
 
 bool WorkerRegistry::knows(const std::string& name) const {
+    std::lock_guard lock(mutex_);
     return workers_.count(name) > 0;
 }
 
-void WorkerRegistry::make_room_for_a_link() {
-    if (links_.size() < limits_.max_links) return;
-    const std::set<std::string> holding = holding_leases_();
-    auto oldest = links_.end();
-    for (auto it = links_.begin(); it != links_.end(); ++it)
+size_t WorkerRegistry::links() const {
+    std::lock_guard lock(mutex_);
+    return links_.size();
+}
+
+namespace {
+
+// The entry of `entries` heard from longest ago whose key is not in `holding`, or end().
+template <class Entries>
+typename Entries::iterator longest_silent(Entries& entries,
+                                          const std::set<std::string>& holding) {
+    auto oldest = entries.end();
+    for (auto it = entries.begin(); it != entries.end(); ++it)
         if (!holding.count(it->first) &&
-            (oldest == links_.end() ||
+            (oldest == entries.end() ||
              it->second.last_seen_ms < oldest->second.last_seen_ms))
             oldest = it;
+    return oldest;
+}
+
+}  // namespace
+
+void WorkerRegistry::make_room_for_a_link() {
+    if (links_.size() < limits_.max_links) return;
+    const auto oldest = longest_silent(links_, holding_leases_());
     if (oldest == links_.end())
         throw TooManyWorkers("the coordinator has " + std::to_string(links_.size()) +
                              " worker sessions, each holding a lease; try again later");
@@ -118,12 +151,7 @@ void WorkerRegistry::make_room_for_a_worker(const std::string& name) {
     for (const std::string& link : holding_leases_())
         if (const auto it = links_.find(link); it != links_.end())
             holding.insert(it->second.worker);
-    auto oldest = workers_.end();
-    for (auto it = workers_.begin(); it != workers_.end(); ++it)
-        if (!holding.count(it->first) &&
-            (oldest == workers_.end() ||
-             it->second.last_seen_ms < oldest->second.last_seen_ms))
-            oldest = it;
+    const auto oldest = longest_silent(workers_, holding);
     if (oldest == workers_.end())
         throw TooManyWorkers("the coordinator knows " + std::to_string(workers_.size()) +
                              " workers, each holding a lease; try again later");
@@ -155,6 +183,7 @@ void WorkerRegistry::forget_silent_workers(int64_t now_ms) {
 
 bool WorkerRegistry::describe(const std::string& name, std::string host,
                               std::string version) {
+    std::lock_guard lock(mutex_);
     const auto it = workers_.find(name);
     if (it == workers_.end()) return false;
     it->second.host = std::move(host);
@@ -164,6 +193,7 @@ bool WorkerRegistry::describe(const std::string& name, std::string host,
 
 std::string WorkerRegistry::register_link(const std::string& name, uint32_t threads,
                                           std::string identity, bool trusted) {
+    std::lock_guard lock(mutex_);
     // First: a refused registration adds nothing (the silent link or worker one of
     // these dropped before the other refused stays dropped).
     make_room_for_a_link();
@@ -190,6 +220,7 @@ std::string WorkerRegistry::register_link(const std::string& name, uint32_t thre
 
 void WorkerRegistry::note_merged(const std::string& name, uint64_t samples,
                                  double wall_seconds) {
+    std::lock_guard lock(mutex_);
     // The worker may have been forgotten meanwhile (it was silent for long): its counts
     // go with it.
     const auto it = workers_.find(name);
@@ -206,10 +237,12 @@ void WorkerRegistry::note_merged(const std::string& name, uint64_t samples,
 }
 
 void WorkerRegistry::note_failure(const std::string& name) {
+    std::lock_guard lock(mutex_);
     if (const auto it = workers_.find(name); it != workers_.end()) ++it->second.failures;
 }
 
 bool WorkerRegistry::tick(int64_t now_ms, bool sweep_rows) {
+    std::lock_guard lock(mutex_);
     bool any_lost = false;
     // Not a structured binding: the lambdas below copy the name, and C++17 (clang's,
     // for the fuzz build) cannot capture one.
@@ -227,7 +260,8 @@ bool WorkerRegistry::tick(int64_t now_ms, bool sweep_rows) {
             archive_.record_worker(name, w.threads, w.last_seen_ms);
             w.stored_seen_ms = w.last_seen_ms;
         }
-        if (!w.lost && now_ms - w.last_seen_ms > limits_.lost_after.count()) {
+        if (!w.lost && w.polling == 0 &&
+            now_ms - w.last_seen_ms > limits_.lost_after.count()) {
             w.lost = true;
             set_alive(name, false);
             any_lost = true;
@@ -245,7 +279,13 @@ bool WorkerRegistry::tick(int64_t now_ms, bool sweep_rows) {
 }
 
 std::vector<WorkerStatus> WorkerRegistry::statuses(
-    std::map<std::string, std::vector<std::string>> leases) const {
+    const std::map<std::string, std::vector<std::string>>& labels_by_link) const {
+    std::lock_guard lock(mutex_);
+    std::map<std::string, std::vector<std::string>> leases;  // by worker name
+    for (const auto& [link, labels] : labels_by_link)
+        if (const auto it = links_.find(link); it != links_.end())
+            for (const std::string& label : labels)
+                leases[it->second.worker].push_back(label);
     std::vector<WorkerStatus> out;
     for (const auto& [name, w] : workers_) {
         WorkerStatus st;

@@ -4,8 +4,9 @@
 // "session" is a render's). It keeps the workers' counts and rows, marks the silent ones
 // lost, forgets those silent for long, and bounds both maps (CoordinatorOptions).
 //
-// No lock of its own: the coordinator's (`mutex_`) guards it, as the links it answers
-// about and the leases the coordinator holds for them change together.
+// Its own lock: every public method takes it. While it is held the registry may ask the
+// LeaseTable which links hold leases (`holding_leases`), write the archive's queue and
+// log events; never the other way round (docs/FARM.md, "Locks").
 #pragma once
 
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -66,12 +68,15 @@ public:
     // link this registry did not issue. A copy: the entry may go as soon as the lock is
     // let go.
     Link link_of(const std::string& link);
-    // The link, untouched, or null.
-    const Link* find_link(const std::string& link) const;
+    // A lease poll of `link` began or ended. A worker in a poll is talking to us however
+    // long the poll waits, so tick() marks no worker with a poll in progress lost, and
+    // the poll's end counts as heard from (docs/FARM.md, "Workers lost").
+    void poll_began(const std::string& link);
+    void poll_ended(const std::string& link);
     // What a worker says of itself; false for an unknown name.
     bool describe(const std::string& name, std::string host, std::string version);
     bool knows(const std::string& name) const;
-    size_t links() const { return links_.size(); }
+    size_t links() const;
 
     void note_merged(const std::string& name, uint64_t samples, double wall_seconds);
     void note_failure(const std::string& name);
@@ -88,9 +93,10 @@ public:
     // (and, when `sweep_rows`, the store's rows silent as long); whether any was lost.
     bool tick(int64_t now_ms, bool sweep_rows);
 
-    // Every worker, each with `leases` ("render/job" by worker name).
+    // Every worker, each with the labels ("render/job") of the leases its links hold
+    // (`labels_by_link`, LeaseTable::labels_by_link).
     std::vector<WorkerStatus> statuses(
-        std::map<std::string, std::vector<std::string>> leases) const;
+        const std::map<std::string, std::vector<std::string>>& labels_by_link) const;
 
 private:
     struct WorkerEntry {
@@ -102,6 +108,7 @@ private:
         bool lost = false;
         std::string host, version;  // describe: for the workers list only
         uint32_t failures = 0;      // jobs it reported failed
+        uint32_t polling = 0;       // lease polls in progress (poll_began)
         // last_seen_ms as the store last has it: refreshed now and then (tick), so that
         // a row silent for forget_after is a worker gone, not an idle one.
         int64_t stored_seen_ms = 0;
@@ -120,6 +127,7 @@ private:
     void forget_silent_workers(int64_t now_ms);
     void refresh_alive();
 
+    mutable std::mutex mutex_;
     WorkerLimits limits_;
     RenderArchive& archive_;
     RenderEvents& events_;

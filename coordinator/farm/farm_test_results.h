@@ -1,0 +1,44 @@
+// Results a test hands the coordinator for a leased job, made from the job alone, so
+// that a render's bytes depend on its spec only, whichever worker or thread returns them.
+#pragma once
+
+#include <cmath>
+#include <cstddef>
+
+#include "lease.h"
+
+namespace aliquot {
+
+// A valid result for `grant`: its sample counts, zero radiance.
+inline SampleJobResult zero_result(const LeaseGrant& grant) {
+    SampleJobResult result;
+    result.rect = grant.job.rect;
+    result.pixels.assign(grant.job.counts.size(), PixelSums{});
+    for (size_t i = 0; i < grant.job.counts.size(); ++i)
+        result.pixels[i].samples = grant.job.counts[i];
+    return result;
+}
+
+// A result that depends on its job alone (pixel, first sample, count), with noise that
+// varies over the image, so adaptive methods decide differently pixel by pixel.
+inline SampleJobResult made_up_result(const LeaseGrant& grant) {
+    SampleJobResult result = zero_result(grant);
+    for (uint32_t y = 0; y < result.rect.height; ++y)
+        for (uint32_t x = 0; x < result.rect.width; ++x) {
+            const size_t i = size_t(y) * result.rect.width + x;
+            const double px = result.rect.x + x, py = result.rect.y + y;
+            const double n = double(grant.job.counts[i]);
+            const double k = double(grant.job.first_sample[i]);
+            const double noise = 0.1 + 0.4 * std::fabs(std::sin(0.7 * px + 0.3 * py + k));
+            PixelSums& p = result.pixels[i];
+            for (int c = 0; c < 3; ++c) {
+                p.even[c] = 0.5 * n * (0.3 + noise);
+                p.odd[c] = 0.5 * n * (0.3 - noise);
+            }
+            p.sum_sq_luminance = n * (0.09 + noise * noise);
+            p.rays = 3 * grant.job.counts[i];
+        }
+    return result;
+}
+
+}  // namespace aliquot
