@@ -76,8 +76,6 @@ public:
 
 private:
     void check_finite_after(const SampleJobResult& result) const;
-    double compute_half_difference(size_t i) const;
-    double compute_luminance_variance(size_t i) const;
 
     uint32_t width_ = 0, height_ = 0;
     std::vector<PixelSums> pixels_;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -33,6 +34,52 @@ TEST(Accumulator, MeanIsTheSumOverAllSamples) {
     EXPECT_DOUBLE_EQ(rgb[0], 0.0);  // no samples: black, not NaN
     EXPECT_EQ(acc.total_samples(), 4u);
     EXPECT_EQ(acc.total_rays(), 12u);
+}
+
+// The merge derives each pixel's half difference and luminance variance two pixels at a
+// time: every pixel of a row of odd width (the last one alone), of 0, 1 and more samples,
+// holds exactly what the definitions give, bit for bit.
+TEST(Accumulator, DerivedValuesAreTheirDefinitionsForEveryPixelOfARow) {
+    Accumulator acc(9, 2);
+    SampleJobResult r;
+    r.rect = {1, 0, 7, 2};
+    r.pixels.resize(r.rect.size());
+    for (size_t i = 0; i < r.pixels.size(); ++i) {
+        PixelSums& p = r.pixels[i];
+        p.samples = i % 5;  // 0, 1, 2, 3, 4, 0, 1, ...
+        for (int c = 0; c < 3; ++c) {
+            p.even[c] = p.samples ? 0.1 * double(i + 1) * (c + 1) : 0.0;
+            p.odd[c] = p.samples > 1 ? 0.37 * double(i % 3) + 0.01 * c : 0.0;
+        }
+        p.sum_sq_luminance = p.samples ? 0.7 * double(i) + 0.3 : 0.0;
+        if (i == 4)  // halves of -0.0 and +0.0: the difference is +0.0, not -0.0
+            for (int c = 0; c < 3; ++c) p.even[c] = -0.0, p.odd[c] = 0.0;
+    }
+    acc.merge(r);
+    acc.merge(r);  // the second merge derives from the sums so far
+    for (size_t i = 0; i < acc.pixel_count(); ++i) {
+        const PixelSums& p = acc.at(i);
+        double even[3], odd[3];
+        acc.half_means(i, even, odd);
+        const double difference =
+            p.samples < 2 ? -1.0
+                          : (std::abs(even[0] - odd[0]) + std::abs(even[1] - odd[1]) +
+                             std::abs(even[2] - odd[2])) /
+                                3.0;
+        double variance = 0;
+        if (p.samples >= 2) {
+            const double n = double(p.samples);
+            const double sum = luminance(p.even[0] + p.odd[0], p.even[1] + p.odd[1],
+                                         p.even[2] + p.odd[2]);
+            variance = std::max(0.0, (p.sum_sq_luminance - sum * sum / n) / (n - 1.0));
+        }
+        const double got_difference = acc.half_difference(i);
+        const double got_variance = acc.luminance_variance(i);
+        EXPECT_EQ(std::memcmp(&got_difference, &difference, sizeof difference), 0) << i;
+        EXPECT_EQ(std::memcmp(&got_variance, &variance, sizeof variance), 0) << i;
+        EXPECT_EQ(acc.samples(i), p.samples);
+        EXPECT_EQ(acc.rays(i), p.rays);
+    }
 }
 
 TEST(Accumulator, HalvesCountEvenAndOddSamplesSeparately) {
