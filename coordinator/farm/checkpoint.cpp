@@ -9,11 +9,14 @@ namespace aliquot {
 
 namespace {
 
-// Version 2 adds the round planned ahead after the pixels; version 1's files (written
-// before, with none) still load.
-constexpr char kMagic[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '2'};
+// Version 2 adds the round planned ahead after the pixels, version 3 the first-hit sums
+// after it (a byte, 1 when they follow); the files of 1 and 2 (written before, with
+// neither) still load, as renders without them.
+constexpr char kMagic[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '3'};
+constexpr char kMagicV2[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '2'};
 constexpr char kMagicV1[8] = {'A', 'L', 'Q', 'C', 'K', 'P', 'T', '1'};
 static_assert(std::is_trivially_copyable_v<PixelSums>);
+static_assert(std::is_trivially_copyable_v<FirstHitSums>);
 
 template <typename T>
 void put(std::ofstream& out, const T& v) {
@@ -48,6 +51,12 @@ void write_checkpoint_file(const std::filesystem::path& tmp, const Checkpoint& c
     if (!cp.planned_round.empty())
         out.write(reinterpret_cast<const char*>(cp.planned_round.data()),
                   std::streamsize(cp.planned_round.size() * sizeof(uint32_t)));
+    const bool aux = cp.aux.kept() && cp.aux.width() == cp.merged.width() &&
+                     cp.aux.height() == cp.merged.height();
+    put(out, uint8_t(aux));
+    if (aux && cp.merged.pixel_count() > 0)
+        out.write(reinterpret_cast<const char*>(&cp.aux.at(0)),
+                  std::streamsize(cp.merged.pixel_count() * sizeof(FirstHitSums)));
     out.flush();
     if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
 }
@@ -80,7 +89,8 @@ std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path) {
     char magic[8];
     in.read(magic, sizeof magic);
     const bool v1 = in && std::memcmp(magic, kMagicV1, sizeof magic) == 0;
-    if (!in || (!v1 && std::memcmp(magic, kMagic, sizeof magic) != 0))
+    const bool v2 = in && std::memcmp(magic, kMagicV2, sizeof magic) == 0;
+    if (!in || (!v1 && !v2 && std::memcmp(magic, kMagic, sizeof magic) != 0))
         throw std::runtime_error("checkpoint " + path.string() + " is not a checkpoint");
     uint32_t width = 0, height = 0;
     Checkpoint cp;
@@ -120,8 +130,21 @@ std::optional<Checkpoint> load_checkpoint(const std::filesystem::path& path) {
     in.read(reinterpret_cast<char*>(cp.planned_round.data()),
             std::streamsize(planned * sizeof(uint32_t)));
     if (!in) throw std::runtime_error("checkpoint " + path.string() + " is truncated");
+    uint8_t aux = 0;
+    if (!v1 && !v2) get(in, aux);
+    if (!in || aux > 1)
+        throw std::runtime_error("checkpoint " + path.string() + " is damaged");
+    if (aux) {
+        all.first_hits.resize(all.pixels.size());
+        for (FirstHitSums& f : all.first_hits) get(in, f);
+        if (!in)
+            throw std::runtime_error("checkpoint " + path.string() + " is truncated");
+        cp.aux = AuxSums(width, height);
+    }
     cp.merged = Accumulator(width, height);
-    cp.merged.merge(all);
+    // Checked as a worker's result is: sums a damaged file made non-finite or larger
+    // than their samples allow are refused (MergeError), and the render does not resume.
+    merge_with_aux(cp.merged, cp.aux, all);
     return cp;
 }
 

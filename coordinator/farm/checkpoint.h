@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "accumulator.h"
+#include "aux_sums.h"
 
 namespace aliquot {
 
@@ -23,6 +24,8 @@ struct Checkpoint {
     // merged (Strategy::round_planned_ahead), or empty: restored with the state, so the
     // render goes on from a round end where a round was planned ahead as from any other.
     std::vector<uint32_t> planned_round;
+    // The first-hit sums of a render that keeps them (RenderSpec::aux), or none.
+    AuxSums aux;
 };
 
 // Written to a temporary file and renamed over `path`: a crash leaves the old checkpoint

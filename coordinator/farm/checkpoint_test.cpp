@@ -47,16 +47,17 @@ TEST(Checkpoint, ARoundPlannedAheadRoundTripsAndAnOldFileHasNone) {
     save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0, {1, 0, 7, 3, 0, 2}});
     EXPECT_EQ(load_checkpoint(path)->planned_round,
               (std::vector<uint32_t>{1, 0, 7, 3, 0, 2}));
-    // Version 1 (before the round planned ahead was kept): no count after the pixels.
+    // Version 1 (before the round planned ahead was kept): no count after the pixels,
+    // and no first-hit byte after it (version 3's).
     save_checkpoint(path, {merged, nlohmann::json::object(), 2, 1.0, {}});
     std::string bytes;
     {
         std::ifstream in(path, std::ios::binary);
         bytes.assign(std::istreambuf_iterator<char>(in), {});
     }
-    ASSERT_EQ(bytes[7], '2');
+    ASSERT_EQ(bytes[7], '3');
     bytes[7] = '1';
-    bytes.resize(bytes.size() - sizeof(uint64_t));
+    bytes.resize(bytes.size() - 1 - sizeof(uint64_t));
     std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
     const auto old = load_checkpoint(path);
     ASSERT_TRUE(old.has_value());
@@ -79,7 +80,7 @@ TEST(Checkpoint, ARoundPlannedAheadThatIsNotTheImagesOrIsCutShortIsAnError) {
         << bytes.substr(0, bytes.size() - 2);
     EXPECT_THROW(load_checkpoint(path), std::runtime_error);
     std::string wrong = bytes;
-    const size_t count_at = bytes.size() - 6 * sizeof(uint32_t) - sizeof(uint64_t);
+    const size_t count_at = bytes.size() - 1 - 6 * sizeof(uint32_t) - sizeof(uint64_t);
     const uint64_t seven = 7;
     wrong.replace(count_at, sizeof seven, reinterpret_cast<const char*>(&seven),
                   sizeof seven);

@@ -26,7 +26,8 @@ nlohmann::json spec_json(const RenderSpec& spec) {
             {"seed", spec.seed},
             {"strategy", spec.strategy},
             {"has_reference", spec.reference.has_value()},
-            {"name", spec.name}};
+            {"name", spec.name},
+            {"aux", spec.aux}};
 }
 
 // The outcome's key, in the store only, for what a render's end records besides it.
@@ -191,11 +192,12 @@ void RenderArchive::resume_unfinished(const std::function<void(Resumed)>& attach
                 spec.reference = read_exr(rec.reference_path);
             spec.priority = int32_t(rec.priority);
             spec.name = j.value("name", "");
+            spec.aux = j.value("aux", false);  // records before issue 34 have none
             auto session = std::make_unique<RenderSession>(rec.id, spec, rec.created_at);
             if (auto cp = load_checkpoint(render_dir(rec.id) / "checkpoint.bin"))
                 session->restore(std::move(cp->merged), cp->strategy_state,
                                  cp->rounds_done, cp->seconds,
-                                 std::move(cp->planned_round));
+                                 std::move(cp->planned_round), std::move(cp->aux));
             attach(
                 {std::move(session), rec.scene_hash, rec.state == RenderState::Queued});
         } catch (const std::exception& e) {
@@ -320,6 +322,7 @@ void RenderArchive::queue_checkpoint(RenderSlot& slot, const RoundSummary& round
             slot.checkpoint_copy = std::make_shared<CheckpointCopy>();
         const std::shared_ptr<CheckpointCopy> copy = slot.checkpoint_copy;
         copy->cp.merged.copy_from(r.merged());  // reuses the memory, copies in bands
+        copy->cp.aux = r.aux();                 // reuses the memory; empty unless kept
         copy->cp.strategy_state = r.strategy().save_state();
         if (planned)
             copy->cp.planned_round.assign(planned->begin(), planned->end());

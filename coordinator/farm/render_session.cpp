@@ -22,11 +22,12 @@ RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms
       scene_hash_(aliquot::scene_hash(spec_.scene_json)),
       created_ms_(created_ms),
       strategy_(std::move(strategy)),
-      merged_(spec_.width, spec_.height) {}
+      merged_(spec_.width, spec_.height),
+      aux_(spec_.aux ? AuxSums(spec_.width, spec_.height) : AuxSums()) {}
 
 void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_state,
                             uint32_t rounds_done, double seconds_before,
-                            std::vector<uint32_t> planned_round) {
+                            std::vector<uint32_t> planned_round, AuxSums aux) {
     // A checkpoint of another size (damaged, or another render's) would index the
     // buffers out of bounds in every round after it: refused, the render cannot resume.
     if (merged.width() != spec_.width || merged.height() != spec_.height)
@@ -34,7 +35,13 @@ void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_s
                                  std::to_string(merged.height()) + ", the render " +
                                  std::to_string(spec_.width) + "x" +
                                  std::to_string(spec_.height));
+    if (aux.kept() != spec_.aux ||
+        (aux.kept() && (aux.width() != spec_.width || aux.height() != spec_.height)))
+        throw std::runtime_error(spec_.aux ? "checkpoint has no first-hit sums"
+                                           : "checkpoint has first-hit sums the render "
+                                             "does not keep");
     merged_ = std::move(merged);
+    aux_ = std::move(aux);
     strategy_->restore_state(strategy_state);
     strategy_->restore_planned_round(std::move(planned_round));
     rounds_done_ = rounds_done;
@@ -54,6 +61,7 @@ void RenderSession::start() {
 
 Image RenderSession::image(bool aovs) const {
     Image image = merged_.image(aovs);
+    if (aovs) aux_.add_layers(merged_, image);
     image.attributes =
         render_attributes(spec_, scene_hash_, samples_planned(), merged_.total_samples());
     return image;
@@ -141,7 +149,7 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
         if (!slot.held) continue;
         std::string why;  // checked when it came; the merge may still refuse it
         try {
-            merged_.merge(*slot.held);
+            merge_with_aux(merged_, aux_, *slot.held);
         } catch (const MergeError& e) {
             why = e.what();
         }
@@ -278,6 +286,7 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
                        ? cut_job(slot.job.rect, round_, merged_, std::move(spare))
                        : cut_job_after(slot.job.rect, *next_spp_, merged_,
                                        unmerged_jobs(), std::move(spare));
+        slot.job.aux = spec_.aux;
         slot.cut = true;
     }
     slot.worker = worker;
@@ -333,7 +342,8 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     std::string why = check_result(slot, result);
     if (why.empty() && !ahead) {
         try {
-            merged_.merge(result);  // refuses, whole, sums that would stop being finite
+            // Refuses, whole, sums that would stop being finite.
+            merge_with_aux(merged_, aux_, result);
         } catch (const MergeError& e) {
             why = e.what();
         }

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "accumulator.h"
+#include "aux_sums.h"
 #include "lease.h"
 #include "render_spec.h"
 #include "render_state.h"
@@ -64,9 +65,11 @@ public:
     // Continues from a checkpoint taken at a round boundary: the merged buffers and the
     // strategy's state then, with the round it had planned ahead, if any
     // (Checkpoint::planned_round). Call before start().
+    // With spec().aux, `aux` holds the checkpoint's first-hit sums (a checkpoint
+    // without them, or with them for a render that keeps none, is refused).
     void restore(Accumulator merged, const nlohmann::json& strategy_state,
                  uint32_t rounds_done, double seconds_before,
-                 std::vector<uint32_t> planned_round = {});
+                 std::vector<uint32_t> planned_round = {}, AuxSums aux = {});
     // Plans the first (or next, after restore) round; the render is then Running or Done.
     void start();
 
@@ -134,6 +137,8 @@ public:
     RenderState state() const { return state_; }
     const std::string& error() const { return error_; }
     const Accumulator& merged() const { return merged_; }
+    // The first-hit sums of a render with spec().aux; kept() is false for any other.
+    const AuxSums& aux() const { return aux_; }
     // The merged image as written and fetched: with `aovs` its layers, and always the
     // spec's attributes (render_attributes.h).
     Image image(bool aovs) const;
@@ -207,6 +212,7 @@ private:
     int64_t created_ms_;
     std::unique_ptr<Strategy> strategy_;
     Accumulator merged_;
+    AuxSums aux_;  // merged with merged_, by merge_with_aux
     RenderState state_ = RenderState::Queued;
     std::string error_;
 
