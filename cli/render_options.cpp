@@ -55,6 +55,10 @@ void add_render_options(CLI::App& cmd, RenderOptions& o) {
         ->check(whole_number());
     cmd.add_option("--reference", o.reference,
                    "reference EXR: error measured every round");
+    cmd.add_flag("--albedo-normal", o.albedo_normal,
+                 "workers also return each pixel's first-hit albedo and normal (for a "
+                 "denoiser); with --aovs the EXR gets the layers albedo.R/G/B and "
+                 "normal.X/Y/Z");
     std::string methods;
     for (const std::string& m : strategy_methods())
         methods += "\n  " + m + ": " + method_summary(m);
@@ -152,6 +156,7 @@ RenderSpec make_render_spec(const RenderOptions& o) {
     spec.height = o.height;
     spec.seed = o.seed;
     spec.strategy = o.strategy;
+    spec.aux = o.albedo_normal;
     if (!o.reference.empty()) spec.reference = read_exr(o.reference);
     return spec;
 }

@@ -22,9 +22,10 @@ struct RenderOptions {
     uint32_t width = 256, height = 256;
     int64_t spp = -1;  // kSppNotGiven: then kDefaultSpp, unless --budget
     uint64_t seed = 0;
-    int threads = 0;        // 0: all hardware threads
-    std::string reference;  // optional reference EXR
-    std::string sigma;      // oracle: EXR of a separate render with spp and variance
+    int threads = 0;             // 0: all hardware threads
+    std::string reference;       // optional reference EXR
+    std::string sigma;           // oracle: EXR of a separate render with spp and variance
+    bool albedo_normal = false;  // RenderSpec::aux: first-hit albedo and normal too
     StrategyParams strategy;
     // Each strategy parameter's flag, so that check_render_options() knows which were
     // given (CLI11 keeps them for as long as the command lives).

@@ -48,6 +48,7 @@ struct SubmitCommand {
         req.set_seed(options.seed);
         req.set_priority(priority);
         req.set_name(name);
+        req.set_albedo_normal(options.albedo_normal);
         req.set_strategy_json(nlohmann::json(options.strategy).dump());
         if (!options.reference.empty()) {
             std::ifstream in(options.reference, std::ios::binary);
