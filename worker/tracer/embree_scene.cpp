@@ -8,6 +8,7 @@
 #include <xmmintrin.h>
 
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <limits>
 #include <stdexcept>
@@ -275,21 +276,40 @@ bool EmbreeScene::sphere_blocks(const Vec3& origin, const Vec3& dir, float tmax)
 
 namespace {
 
-// Lane i of an Embree packet from lane `from` of `rays`, looking as far as `tmax`.
-template <typename RayN>
-void fill_lane(RayN& ray, int i, const RayLanes& rays, int from, float tmax) {
-    ray.org_x[i] = rays.ox[from];
-    ray.org_y[i] = rays.oy[from];
-    ray.org_z[i] = rays.oz[from];
-    ray.dir_x[i] = rays.dx[from];
-    ray.dir_y[i] = rays.dy[from];
-    ray.dir_z[i] = rays.dz[from];
-    ray.tnear[i] = 0.0f;
-    ray.tfar[i] = tmax;
-    ray.time[i] = 0.0f;
-    ray.mask[i] = ~0u;
-    ray.id[i] = unsigned(i);
-    ray.flags[i] = 0;
+// Lanes [0, N) of an Embree packet from rays [0, count) of `rays`, each looking as far as
+// tfar[i] (nullptr: to infinity); lanes past the count repeat lane 0 (the caller masks
+// them off). Whole fields copied at once (a fixed size: a few vector moves), then the
+// lanes past the count, rather than a lane at a time with a select per field.
+template <int N, typename RayN>
+void fill_lanes(RayN& ray, const RayLanes& rays, int count, const float* tfar) {
+    static_assert(N <= RayLanes::kMax);
+    constexpr size_t kBytes = N * sizeof(float);
+    std::memcpy(ray.org_x, rays.ox, kBytes);
+    std::memcpy(ray.org_y, rays.oy, kBytes);
+    std::memcpy(ray.org_z, rays.oz, kBytes);
+    std::memcpy(ray.dir_x, rays.dx, kBytes);
+    std::memcpy(ray.dir_y, rays.dy, kBytes);
+    std::memcpy(ray.dir_z, rays.dz, kBytes);
+    if (tfar)
+        std::memcpy(ray.tfar, tfar, kBytes);
+    else
+        for (int i = 0; i < N; ++i) ray.tfar[i] = std::numeric_limits<float>::infinity();
+    for (int i = count; i < N; ++i) {
+        ray.org_x[i] = rays.ox[0];
+        ray.org_y[i] = rays.oy[0];
+        ray.org_z[i] = rays.oz[0];
+        ray.dir_x[i] = rays.dx[0];
+        ray.dir_y[i] = rays.dy[0];
+        ray.dir_z[i] = rays.dz[0];
+        ray.tfar[i] = ray.tfar[0];
+    }
+    for (int i = 0; i < N; ++i) {
+        ray.tnear[i] = 0.0f;
+        ray.time[i] = 0.0f;
+        ray.mask[i] = ~0u;
+        ray.id[i] = unsigned(i);
+        ray.flags[i] = 0;
+    }
 }
 
 static_assert(RayLanes::kMax == EmbreeScene::kPacket, "a packet's rays fit its lanes");
@@ -325,11 +345,8 @@ void occluded_width(RTCScene scene, const RayLanes& rays, int count, bool* occlu
     RTCIntersectContext context = incoherent_context();
     alignas(64) RayN ray;
     alignas(64) int valid[N];
-    for (int i = 0; i < N; ++i) {
-        const int from = i < count ? i : 0;
-        valid[i] = i < count ? -1 : 0;
-        fill_lane(ray, i, rays, from, rays.t[from]);
-    }
+    for (int i = 0; i < N; ++i) valid[i] = i < count ? -1 : 0;
+    fill_lanes<N>(ray, rays, count, rays.t);
     occluded_n(valid, scene, &context, &ray);
     // Embree marks an occluded ray by setting tfar to -inf.
     for (int i = 0; i < count; ++i) occluded[i] = ray.tfar[i] < 0.0f;
@@ -347,12 +364,11 @@ void intersect_width(RTCScene scene, const RayLanes& rays, int count, bool coher
     alignas(64) RayHitN rh;
     alignas(64) int valid[N];
     for (int i = 0; i < N; ++i) {
-        const int from = i < count ? i : 0;
         valid[i] = i < count ? -1 : 0;
-        fill_lane(rh.ray, i, rays, from, std::numeric_limits<float>::infinity());
         rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
     }
+    fill_lanes<N>(rh.ray, rays, count, nullptr);
     intersect_n(valid, scene, &context, &rh);
     for (int i = 0; i < count; ++i) {
         found[i] = rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
