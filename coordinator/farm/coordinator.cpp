@@ -353,6 +353,15 @@ std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
     return archive_.stored_image(id, aovs);
 }
 
+bool Coordinator::read_sums(const std::string& id,
+                            const std::function<void(const Accumulator&)>& read) {
+    const SlotPtr slot = find_slot(id);
+    if (!slot) return false;
+    std::lock_guard lock(slot->mutex);
+    read(slot->session->merged());
+    return true;
+}
+
 std::optional<std::filesystem::path> Coordinator::image_file(const std::string& id) {
     {
         std::lock_guard lock(mutex_);

@@ -114,6 +114,11 @@ public:
     // The stored EXR (every layer) of a finished render that has left memory; nullopt
     // while it is in memory, or when there is none: what FetchImage sends as it reads.
     std::optional<std::filesystem::path> image_file(const std::string& id);
+    // Runs `read` on the merged sums of a render in memory, under its lock (merges
+    // wait): a thumbnail is made from them without a full-size image. False, without
+    // calling it, when the render is not in memory.
+    bool read_sums(const std::string& id,
+                   const std::function<void(const Accumulator&)>& read);
     std::vector<WorkerStatus> workers();
     // The render's events numbered after `after_seq` (-1: from its first), at most
     // `limit` (render_events.h); nullopt for an unknown render.
