@@ -22,6 +22,7 @@
 #include "render_proto.h"
 #include "scene_loader.h"
 #include "stored_image.h"
+#include "shown_id.h"
 #include "wire.h"
 
 namespace aliquot {
@@ -127,7 +128,7 @@ public:
                      v1::RenderInfo* reply) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto info = c_.info(req->id());
-        if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        if (!info) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
         to_proto(*info, *reply);
         return Status::OK;
     }
@@ -152,7 +153,7 @@ public:
         uint64_t seen = 0;
         while (!ctx->IsCancelled()) {
             const auto info = c_.info(req->id());
-            if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+            if (!info) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
             v1::RenderInfo msg;
             to_proto(*info, msg);
             if (!writer->Write(msg)) return Status::OK;
@@ -168,7 +169,7 @@ public:
                   v1::RenderInfo* reply) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto info = c_.cancel(req->id());
-        if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        if (!info) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
         to_proto(*info, *reply);
         return Status::OK;
     }
@@ -178,7 +179,7 @@ public:
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         try {
             const auto info = c_.set_priority(req->id(), req->priority());
-            if (!info) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+            if (!info) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
             to_proto(*info, *reply);
             return Status::OK;
         } catch (const RenderFinished& e) {
@@ -193,12 +194,12 @@ public:
             case Coordinator::Removal::Removed:
                 return Status::OK;
             case Coordinator::Removal::Unknown:
-                return {StatusCode::NOT_FOUND, "no render " + req->id()};
+                return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
             case Coordinator::Removal::Unfinished:
                 break;
         }
         return {StatusCode::FAILED_PRECONDITION,
-                "render " + req->id() + " has not finished; cancel it first"};
+                "render " + shown_id(req->id()) + " has not finished; cancel it first"};
     }
 
     Status FetchImage(ServerContext* ctx, const v1::FetchImageRequest* req,
@@ -213,7 +214,8 @@ public:
                 std::ifstream in(stored_image(*file, req->aovs()), std::ios::binary);
                 // Open, it stays readable even if the render is deleted meanwhile.
                 if (!in)
-                    return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
+                    return {StatusCode::NOT_FOUND,
+                            "no image for render " + shown_id(req->id())};
                 std::string buffer(kChunk, '\0');
                 while (in.read(buffer.data(), std::streamsize(buffer.size())) ||
                        in.gcount() > 0) {
@@ -232,7 +234,8 @@ public:
             {
                 const auto image = c_.image(req->id(), req->aovs());
                 if (!image)
-                    return {StatusCode::NOT_FOUND, "no image for render " + req->id()};
+                    return {StatusCode::NOT_FOUND,
+                            "no image for render " + shown_id(req->id())};
                 bytes = encode_exr(*image);
             }
             for (size_t off = 0; off < bytes.size(); off += kChunk) {
@@ -257,7 +260,7 @@ public:
                      v1::GetRoundsReply* reply) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         const auto rounds = c_.rounds(req->id());
-        if (!rounds) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        if (!rounds) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
         for (const RoundSummary& r : *rounds) {
             v1::RoundInfo* out = reply->add_rounds();
             out->set_index(r.index);
@@ -278,7 +281,7 @@ public:
         // Numbers past int64's would wrap round to "from the first".
         const int64_t from = int64_t(std::min<uint64_t>(req->from(), INT64_MAX));
         const auto page = c_.events(req->id(), from - 1, limit);
-        if (!page) return {StatusCode::NOT_FOUND, "no render " + req->id()};
+        if (!page) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
         for (const RenderEvent& e : page->events) to_proto(e, *reply->add_events());
         reply->set_omitted(page->omitted);
         return Status::OK;
@@ -378,7 +381,7 @@ public:
         const Status status =
             known([&] { json = c_.fetch_scene(req->session(), req->hash()); });
         if (!status.ok()) return status;
-        if (!json) return {StatusCode::NOT_FOUND, "no scene " + req->hash()};
+        if (!json) return {StatusCode::NOT_FOUND, "no scene " + shown_id(req->hash())};
         reply->set_scene_json(*json);
         return Status::OK;
     }

@@ -617,6 +617,76 @@ TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
     }
 }
 
+// Review of issue 32: GetEvents sent a hostile id of 1 MB back whole in its error, as
+// every call did that names a render. Each error now shows 64 bytes of it at most, and
+// its length.
+TEST(GrpcIds, AnUnknownIdOfAMegabyteComesBackShortInEveryError) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
+    const std::string id = "r-" + std::string(1 << 20, 'x') + "\n";
+    const auto expect_short = [&](const char* call, const grpc::Status& status) {
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND) << call;
+        EXPECT_LT(status.error_message().size(), 120u) << call;
+        EXPECT_NE(status.error_message().find("(1048579 bytes)"), std::string::npos)
+            << call << ": " << status.error_message().substr(0, 200);
+    };
+    v1::GetRenderRequest render;
+    render.set_id(id);
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::GetEventsRequest req;
+        req.set_id(id);
+        v1::GetEventsReply reply;
+        expect_short("GetEvents", stub->GetEvents(&ctx, req, &reply));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::RenderInfo reply;
+        expect_short("GetRender", stub->GetRender(&ctx, render, &reply));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::RenderInfo reply;
+        expect_short("Cancel", stub->Cancel(&ctx, render, &reply));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::SetPriorityRequest req;
+        req.set_id(id);
+        v1::RenderInfo reply;
+        expect_short("SetPriority", stub->SetPriority(&ctx, req, &reply));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::DeleteReply reply;
+        expect_short("Delete", stub->Delete(&ctx, render, &reply));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::GetRoundsReply reply;
+        expect_short("GetRounds", stub->GetRounds(&ctx, render, &reply));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        auto reader = stub->Watch(&ctx, render);
+        v1::RenderInfo info;
+        while (reader->Read(&info)) {
+        }
+        expect_short("Watch", reader->Finish());
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::FetchImageRequest req;
+        req.set_id(id);
+        auto reader = stub->FetchImage(&ctx, req);
+        v1::FileChunk chunk;
+        while (reader->Read(&chunk)) {
+        }
+        expect_short("FetchImage", reader->Finish());
+    }
+}
+
 // Issue 34: a worker from before wire version 1 (the first-hit sums) sends no version.
 // Its result is refused with the reason, nothing of it merges, and the job goes out
 // again.

@@ -208,20 +208,52 @@ RenderSpec parse_render_request(const std::string& body) {
     return spec;
 }
 
-std::string preview_png(const Image& image, double exposure, uint32_t max_side) {
+namespace {
+
+// An 8-bit sRGB PNG of a width x height image whose pixel i `rgb(i, out)` gives, scaled
+// by 2^exposure and box-filtered so that its longer side is at most `max_side`, in one
+// pass that holds only the small image: what preview_png does to an Image and
+// thumbnail_png to a render's sums.
+template <typename Rgb>
+std::string shrunk_png(uint32_t width, uint32_t height, double exposure,
+                       uint32_t max_side, Rgb rgb) {
     const double scale = std::exp2(exposure);
-    const uint32_t f = shrink_factor(image.width, image.height, max_side);
-    std::vector<Plane> planes;
-    for (int c = 0; c < 3; ++c)
-        planes.push_back(downsample(image.width, image.height, f, [&](size_t i) {
-            return double(image.rgb[i * 3 + c]);
-        }));
-    const Plane& r = planes[0];
-    std::vector<uint8_t> bytes(r.values.size() * 3);
-    for (size_t i = 0; i < r.values.size(); ++i)
-        for (int c = 0; c < 3; ++c)
-            bytes[i * 3 + c] = srgb_byte(planes[c].values[i] * scale);
-    return encode_png(bytes, r.width, r.height, 3);
+    const uint32_t f = shrink_factor(width, height, max_side);
+    const uint32_t w = (width + f - 1) / f, h = (height + f - 1) / f;
+    std::vector<double> sums(size_t(w) * h * 3, 0.0);
+    std::vector<uint32_t> counts(size_t(w) * h, 0);
+    for (uint32_t y = 0; y < height; ++y)
+        for (uint32_t x = 0; x < width; ++x) {
+            float v[3];
+            rgb(size_t(y) * width + x, v);
+            const size_t o = size_t(y / f) * w + x / f;
+            for (int c = 0; c < 3; ++c) sums[o * 3 + c] += double(v[c]);
+            ++counts[o];
+        }
+    std::vector<uint8_t> bytes(sums.size());
+    for (size_t i = 0; i < sums.size(); ++i)
+        bytes[i] = srgb_byte(sums[i] / counts[i / 3] * scale);
+    return encode_png(bytes, w, h, 3);
+}
+
+}  // namespace
+
+std::string preview_png(const Image& image, double exposure, uint32_t max_side) {
+    return shrunk_png(image.width, image.height, exposure, max_side,
+                      [&](size_t i, float v[3]) {
+                          for (int c = 0; c < 3; ++c) v[c] = image.rgb[i * 3 + c];
+                      });
+}
+
+std::string thumbnail_png(const Accumulator& sums, uint32_t max_side) {
+    // Each pixel rounded to float as Accumulator::image does: the same bytes as
+    // preview_png(sums.image(), 0, max_side).
+    return shrunk_png(sums.width(), sums.height(), 0, max_side,
+                      [&](size_t i, float v[3]) {
+                          double mean[3];
+                          sums.mean(i, mean);
+                          for (int c = 0; c < 3; ++c) v[c] = float(mean[c]);
+                      });
 }
 
 json pixel_map(const Image& image, MapKind kind, uint32_t max_side) {

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "accumulator.h"
 #include "coordinator.h"
 #include "render_json.h"
 
@@ -46,6 +47,9 @@ RenderSpec parse_render_request(const std::string& body);
 // An 8-bit sRGB PNG of the image scaled by 2^exposure, box-filtered down so that its
 // longer side is at most `max_side`.
 std::string preview_png(const Image& image, double exposure, uint32_t max_side);
+// The same PNG at exposure 0 made straight from a render's sums, without a full-size
+// image: what a thumbnail of a render in memory is (it holds only the small image).
+std::string thumbnail_png(const Accumulator& sums, uint32_t max_side);
 
 enum class MapKind { Spp, Error };
 // A per-pixel map, box-filtered to at most `max_side` on the longer side and quantised to

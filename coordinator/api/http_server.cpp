@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "admission.h"
 #include "exr_io.h"
 #include "http_api.h"
 #include "http_front.h"
@@ -22,6 +23,7 @@
 #include "render_state.h"
 #include "scene_loader.h"
 #include "stored_image.h"
+#include "shown_id.h"
 #include "strategy_parameters.h"
 #include "thumbnail_cache.h"
 #include "unix_millis.h"
@@ -104,10 +106,42 @@ void send_json(httplib::Response& res, const json& body, int status = 200) {
 }
 
 void send_error(httplib::Response& res, int status, const std::string& message) {
+// A name of the request (a render id, a study's path) as an error message quotes it:
+// bounded, printable.
+std::string quoted_id(const std::string& id) { return "'" + shown_id(id) + "'"; }
+
     send_json(res, {{"error", message}}, status);
 }
 
 std::string content_type_of(const std::filesystem::path& p) {
+// Sends the file at `path` as it is read, 1 MiB at a time: the response holds one chunk,
+// never the file, and keeps `place` until it is sent or cut. The file is opened here (a
+// missing one is ApiError 404); one renamed or deleted meanwhile is still read whole.
+void send_file(httplib::Response& res, const std::filesystem::path& path,
+               const std::string& type, Admission::Place place) {
+    constexpr size_t kChunk = 1 << 20;
+    auto in = std::make_shared<std::ifstream>(path, std::ios::binary | std::ios::ate);
+    if (!*in) throw ApiError(404, "no file " + path.filename().string());
+    const auto size = size_t(in->tellg());
+    if (size == 0) return res.set_content("", type);
+    auto buffer = std::make_shared<std::vector<char>>(std::min(size, kChunk));
+    res.set_content_provider(
+        size, type,
+        [in, buffer, place](size_t offset, size_t length, httplib::DataSink& sink) {
+            // Nothing may throw out of a provider: it runs on a server thread, outside
+            // any handler's try. A read that falls short cuts the response.
+            try {
+                const size_t n = std::min(length, buffer->size());
+                in->seekg(std::streamoff(offset));
+                in->read(buffer->data(), std::streamsize(n));
+                if (size_t(in->gcount()) != n) return false;
+                return sink.write(buffer->data(), n);
+            } catch (...) {
+                return false;
+            }
+        });
+}
+
     static const std::map<std::string, std::string> types = {
         {".md", "text/markdown; charset=utf-8"},
         {".txt", "text/plain; charset=utf-8"},
@@ -276,10 +310,10 @@ struct HttpServer::Impl {
     }
 
     RenderInfo render_or_404(const std::string& id) {
-        if (id.size() > 64)
-            throw ApiError(404, "no render '" + id.substr(0, 64) + "...'");
+        // No id the coordinator issues is longer: a longer one is not looked up.
+        if (id.size() > 64) throw ApiError(404, "no render " + quoted_id(id));
         std::optional<RenderInfo> info = coordinator.info(id);
-        if (!info) throw ApiError(404, "no render '" + id + "'");
+        if (!info) throw ApiError(404, "no render " + quoted_id(id));
         return *info;
     }
 
@@ -400,43 +434,49 @@ struct HttpServer::Impl {
         }
     }
 
-    // One open event stream: holds a slot of `max_event_streams` while it lives.
-    class StreamSlot {
-    public:
-        explicit StreamSlot(Impl& impl) : impl_(impl) {}
-        ~StreamSlot() {
-            std::lock_guard lock(impl_.streams_mutex);
-            --impl_.streams;
-        }
-        StreamSlot(const StreamSlot&) = delete;
-        StreamSlot& operator=(const StreamSlot&) = delete;
+    // Event streams open at once (each holds a thread while it lives).
+    Admission streams{options.max_event_streams};
 
-    private:
-        Impl& impl_;
-    };
-    std::mutex streams_mutex;
-    size_t streams = 0;
-
-    // EXR downloads encode the whole float image in memory (an 8192x8192 one with its
-    // layers is over a gigabyte): a few at once, the others are told to come back.
-    static constexpr int kMaxExrDownloads = 2;
-    std::atomic<int> exr_downloads{0};
+    // Requests that make or send an image, at once: each may hold a copy of a render's
+    // image and its encoding (docs/SECURITY.md, "HTTP image routes").
+    Admission image_requests{options.max_image_requests};
 
     // The renders list's thumbnails: at most this many pixels on a side, and made again
     // only when a render changed (ThumbnailCache), for as many renders as a list shows.
     static constexpr uint32_t kThumbnailSide = 96;
     ThumbnailCache thumbnails{1000};
 
-    std::shared_ptr<StreamSlot> take_stream_slot() {
-        std::lock_guard lock(streams_mutex);
-        if (streams >= options.max_event_streams) return nullptr;
-        ++streams;
-        return std::make_shared<StreamSlot>(*this);
+    // A render in memory's thumbnail is made straight from its sums; a stored one's from
+    // its EXR, once (a finished render's version does not change).
+    std::string thumbnail_png(const std::string& id) {
+        std::string png;
+        if (coordinator.read_sums(id, [&](const Accumulator& sums) {
+                png = http_api::thumbnail_png(sums, kThumbnailSide);
+            }))
+            return png;
+        const std::optional<Image> image = coordinator.image(id, false);
+        if (!image) throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
+        return http_api::preview_png(*image, 0, kThumbnailSide);
+    }
+
+    // A place among image_requests, or ApiError 503 with Retry-After.
+    Admission::Place admit_image(httplib::Response& res) {
+        Admission::Place place = image_requests.take();
+        if (!place) {
+            res.set_header("Retry-After", "2");
+            throw ApiError(503,
+                           "too many image requests at once (previews, thumbnails, "
+                           "maps and EXR downloads together, at most " +
+                               std::to_string(image_requests.places()) +
+                               "); try again later");
+        }
+        if (options.image_admitted) options.image_admitted();
+        return place;
     }
 
     void events(const httplib::Request&, httplib::Response& res) {
         // A refused stream is told when to come back; the dashboard backs off further.
-        std::shared_ptr<StreamSlot> slot = take_stream_slot();
+        Admission::Place slot = streams.take();
         if (!slot) {
             res.set_header("Retry-After", "10");
             res.set_header("Connection", "close");
@@ -541,12 +581,12 @@ struct HttpServer::Impl {
             std::find_if(options.study_dirs.begin(), options.study_dirs.end(),
                          [&](const auto& d) { return d.first == label; });
         if (source == options.study_dirs.end())
-            throw ApiError(404, "no study source '" + label + "'");
+            throw ApiError(404, "no study source " + quoted_id(label));
         if (name.find("..") != std::string::npos || rel.find("..") != std::string::npos ||
             !fs::path(name).is_relative() || !fs::path(rel).is_relative())
             throw ApiError(400, "study paths must be relative and may not contain '..'");
         const auto missing = [&] {
-            return ApiError(404, "no study file '" + name + "/" + rel + "'");
+            return ApiError(404, "no study file " + quoted_id(name + "/" + rel));
         };
         std::error_code ec;
         const fs::path root = fs::weakly_canonical(source->second / name, ec);
@@ -751,8 +791,8 @@ struct HttpServer::Impl {
                         render_or_404(req.matches[1]);
                         const auto info = coordinator.cancel(req.matches[1]);
                         if (!info)
-                            throw ApiError(404,
-                                           "no render '" + req.matches[1].str() + "'");
+                            throw ApiError(
+                                404, "no render " + quoted_id(req.matches[1].str()));
                         send_json(res, render_detail(*info));
                     }));
         server.Patch(
@@ -766,7 +806,7 @@ struct HttpServer::Impl {
                     throw ApiError(409, e.what());
                 }
                 if (!info)
-                    throw ApiError(404, "no render '" + req.matches[1].str() + "'");
+                    throw ApiError(404, "no render " + quoted_id(req.matches[1].str()));
                 send_json(res, render_detail(*info, progress_of(*info)));
             }));
         server.Delete(R"(/api/renders/([^/]+))",
@@ -778,10 +818,10 @@ struct HttpServer::Impl {
                                   res.status = 204;
                                   return;
                               case Coordinator::Removal::Unknown:
-                                  throw ApiError(404, "no render '" + id + "'");
+                                  throw ApiError(404, "no render " + quoted_id(id));
                               case Coordinator::Removal::Unfinished:
-                                  throw ApiError(409, "render '" + id +
-                                                          "' has not finished; cancel "
+                                  throw ApiError(409, "render " + quoted_id(id) +
+                                                          " has not finished; cancel "
                                                           "it first");
                           }
                       }));
@@ -794,7 +834,7 @@ struct HttpServer::Impl {
                 const auto limit = size_t(http_api::number_param(
                     "limit", query(req, "limit", "1000"), 1, 1000));
                 const auto all = coordinator.rounds(id);
-                if (!all) throw ApiError(404, "no render '" + id + "'");
+                if (!all) throw ApiError(404, "no render " + quoted_id(id));
                 json rows = json::array();
                 const size_t end = std::min(all->size(), since + limit);
                 for (size_t i = since; i < end; ++i)
@@ -815,7 +855,7 @@ struct HttpServer::Impl {
                 const auto limit = size_t(
                     http_api::number_param("limit", query(req, "limit", "100"), 1, 1000));
                 const auto page = coordinator.events(id, from - 1, limit);
-                if (!page) throw ApiError(404, "no render '" + id + "'");
+                if (!page) throw ApiError(404, "no render " + quoted_id(id));
                 json events = json::array();
                 for (const RenderEvent& e : page->events) events.push_back(event_json(e));
                 send_json(res, {{"id", id},
@@ -860,107 +900,98 @@ struct HttpServer::Impl {
             });
     }
 
-    // What the dashboard draws of one render: preview, heat maps, buckets.
+    // What the dashboard draws of one render: preview, heat maps, buckets. Every route
+    // that makes or sends an image takes a place among image_requests first.
     void image_routes() {
-        server.Get(R"(/api/renders/([^/]+)/preview\.png)",
-                   guarded([this](const httplib::Request& req, auto& res) {
-                       const std::string id = req.matches[1];
-                       const double exposure = http_api::number_param(
-                           "exposure", query(req, "exposure", "0"), -20, 20);
-                       const auto size = uint32_t(http_api::number_param(
-                           "size", query(req, "size", "1024"), 16, 8192));
-                       render_or_404(id);
-                       const std::optional<Image> image = coordinator.image(id, false);
-                       if (!image)
-                           throw ApiError(404, "render '" + id + "' has no image yet");
-                       res.set_header("Cache-Control", "no-store");
-                       res.set_content(http_api::preview_png(*image, exposure, size),
-                                       "image/png");
-                   }));
         server.Get(
-            R"(/api/renders/([^/]+)/thumbnail\.png)",
+            R"(/api/renders/([^/]+)/preview\.png)",
             guarded([this](const httplib::Request& req, auto& res) {
                 const std::string id = req.matches[1];
-                const RenderInfo info = render_or_404(id);
-                // Whatever changes the image changes one of these.
-                const std::string version = std::to_string(info.created_ms) + "/" +
-                                            std::to_string(info.samples_done) + "/" +
-                                            std::to_string(info.rounds_done) + "/" +
-                                            std::to_string(int(info.state));
-                const std::string png = thumbnails.get(id, version, [&] {
-                    const std::optional<Image> image = coordinator.image(id, false);
-                    if (!image)
-                        throw ApiError(404, "render '" + id + "' has no image yet");
-                    return http_api::preview_png(*image, 0, kThumbnailSide);
-                });
+                const double exposure = http_api::number_param(
+                    "exposure", query(req, "exposure", "0"), -20, 20);
+                const auto size = uint32_t(
+                    http_api::number_param("size", query(req, "size", "1024"), 16, 8192));
+                render_or_404(id);
+                const Admission::Place place = admit_image(res);
+                const std::optional<Image> image = coordinator.image(id, false);
+                if (!image)
+                    throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
                 res.set_header("Cache-Control", "no-store");
-                res.set_content(png, "image/png");
+                res.set_content(http_api::preview_png(*image, exposure, size),
+                                "image/png");
             }));
         server.Get(
             R"(/api/renders/([^/]+)/image\.exr)",
+        server.Get(R"(/api/renders/([^/]+)/thumbnail\.png)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const RenderInfo info = render_or_404(id);
+                       // Whatever changes the image changes one of these.
+                       const std::string version = std::to_string(info.created_ms) + "/" +
+                                                   std::to_string(info.samples_done) +
+                                                   "/" +
+                                                   std::to_string(info.rounds_done) +
+                                                   "/" + std::to_string(int(info.state));
+                       // Only a thumbnail made anew takes a place: a kept one is a copy
+                       // of a few KB.
+                       const std::string png = thumbnails.get(id, version, [&] {
+                           const Admission::Place place = admit_image(res);
+                           return thumbnail_png(id);
+                       });
+                       res.set_header("Cache-Control", "no-store");
+                       res.set_content(png, "image/png");
+                   }));
             guarded([this](const httplib::Request& req, auto& res) {
                 const std::string id = req.matches[1];
                 const std::string aovs = query(req, "aovs", "0");
                 if (aovs != "0" && aovs != "1")
-                    throw ApiError(400, "'aovs' must be 0 or 1, got \"" + aovs + "\"");
+                    throw ApiError(
+                        400, "'aovs' must be 0 or 1, got \"" + aovs.substr(0, 8) + "\"");
                 render_or_404(id);
-                if (++exr_downloads > kMaxExrDownloads) {
-                    --exr_downloads;
-                    res.set_header("Retry-After", "5");
-                    throw ApiError(503, "too many EXR downloads at once (at most " +
-                                            std::to_string(kMaxExrDownloads) +
-                                            "); try again later");
-                }
-                struct Release {
-                    std::atomic<int>& n;
-                    ~Release() { --n; }
-                } release{exr_downloads};
-                std::string bytes;
-                if (const auto file = coordinator.image_file(id)) {
-                    // A finished render's stored file as it is, as FetchImage sends it:
-                    // decoding it to encode it again was a second ZIP of the image.
-                    std::ifstream in(stored_image(*file, aovs == "1"), std::ios::binary);
-                    if (!in) throw ApiError(404, "render '" + id + "' has no image");
-                    std::ostringstream read;
-                    read << in.rdbuf();
-                    bytes = std::move(read).str();
-                } else {
-                    const std::optional<Image> image = coordinator.image(id, aovs == "1");
-                    if (!image)
-                        throw ApiError(404, "render '" + id + "' has no image yet");
-                    bytes = encode_exr(*image);
-                }
+                Admission::Place place = admit_image(res);
                 res.set_header("Cache-Control", "no-store");
                 res.set_header("Content-Disposition",
                                "attachment; filename=\"" + id + ".exr\"");
                 // OpenEXR's own name for its type; not compressed again (ZIP inside).
-                res.set_content(bytes, "image/x-exr");
+                res.set_content(encode_exr(*image), "image/x-exr");
             }));
-        server.Get(R"(/api/renders/([^/]+)/maps)",
-                   guarded([this](const httplib::Request& req, auto& res) {
-                       const std::string id = req.matches[1];
-                       const std::string kind = query(req, "kind", "spp");
-                       if (kind != "spp" && kind != "error")
-                           throw ApiError(
-                               400, "'kind' must be spp or error, got \"" + kind + "\"");
-                       const auto size = uint32_t(http_api::number_param(
-                           "size", query(req, "size", "256"), 8, 256));
-                       render_or_404(id);
-                       const std::optional<Image> image = coordinator.image(id, true);
-                       if (!image)
-                           throw ApiError(404, "render '" + id + "' has no image yet");
-                       const auto map_kind = kind == "spp" ? http_api::MapKind::Spp
-                                                           : http_api::MapKind::Error;
-                       json map = http_api::pixel_map(*image, map_kind, size);
-                       map["id"] = id;
-                       send_json(res, map);
-                   }));
+        server.Get(
+            R"(/api/renders/([^/]+)/maps)",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const std::string id = req.matches[1];
+                const std::string kind = query(req, "kind", "spp");
+                if (kind != "spp" && kind != "error")
+                    throw ApiError(400,
+                                   "'kind' must be spp or error, got \"" + kind + "\"");
+                const auto size = uint32_t(
+                    http_api::number_param("size", query(req, "size", "256"), 8, 256));
+                render_or_404(id);
+                const Admission::Place place = admit_image(res);
+                const std::optional<Image> image = coordinator.image(id, true);
+                if (!image)
+                    throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
+                const auto map_kind =
+                    kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error;
+                json map = http_api::pixel_map(*image, map_kind, size);
+                map["id"] = id;
+                send_json(res, map);
+                if (const auto file = coordinator.image_file(id)) {
+                    // A finished render's stored file as it is, as FetchImage sends it,
+                    // read as it is sent: the response holds a chunk, not the file.
+                    send_file(res, stored_image(*file, aovs == "1"), "image/x-exr",
+                              std::move(place));
+                    return;
+                }
+                const std::optional<Image> image = coordinator.image(id, aovs == "1");
+                if (!image)
+                    throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
+            }));
         server.Get(R"(/api/renders/([^/]+)/buckets)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];
                        const RenderInfo info = render_or_404(id);
                        const auto buckets = coordinator.buckets(id);
-                       if (!buckets) throw ApiError(404, "no render '" + id + "'");
+                       if (!buckets) throw ApiError(404, "no render " + quoted_id(id));
                        const auto p = bucket_progress(*buckets, info.width, info.height);
                        send_json(res, {{"id", id},
                                        {"width", info.width},

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -37,6 +38,14 @@ struct HttpOptions {
     // Each open stream holds one of the server's threads (front.threads, 32), so 8 always
     // stay free for everything else (the API, /healthz, the dashboard's files).
     size_t max_event_streams = 16;
+    // Requests that make or send an image at once at most (preview.png, thumbnail.png
+    // when made anew, maps, image.exr, together); one more is refused with 503 and
+    // Retry-After. Each may hold a copy of a render's image and its encoding; a browser
+    // opens at most 6 connections to a host, so one dashboard is never refused.
+    size_t max_image_requests = 8;
+    // Tests only: called by an image route once it holds its place, before it makes
+    // anything; a test that blocks in it holds places without timing.
+    std::function<void()> image_admitted;
     // How often an idle event stream looks whether its client has left: a departed
     // client's thread is free again within about this long.
     std::chrono::milliseconds client_check_interval{250};

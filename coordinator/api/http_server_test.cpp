@@ -13,10 +13,14 @@
 
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <mutex>
+#include <random>
 #include <thread>
 
 #include <grpcpp/grpcpp.h>
@@ -822,6 +826,100 @@ TEST_F(HttpServerTest, AThumbnailIsASmallPngOfTheRender) {
     get_json("/api/renders/r-999999/thumbnail.png", 404);
 }
 
+// Review of issue 32: previews and thumbnails were made by any number of requests at
+// once, each from a copy of the whole image. Every route that makes or sends an image
+// now takes a place among one limit; with every place held (by requests the test hook
+// holds, no timing), one more of any of them is 503 with Retry-After.
+TEST(HttpServerImages, OneImageRequestPastTheSharedLimitIsRefusedWith503) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    std::mutex mutex;
+    std::condition_variable changed;
+    size_t held = 0;
+    bool release = false;
+    HttpOptions options = options_with_tokens();
+    options.max_image_requests = 3;
+    options.image_admitted = [&] {
+        std::unique_lock lock(mutex);
+        ++held;
+        changed.notify_all();
+        changed.wait(lock, [&] { return release; });
+    };
+    HttpServer server(coordinator, "127.0.0.1:0", options);
+    const auto client = [&] {
+        auto c = std::make_unique<httplib::Client>("127.0.0.1", server.port());
+        c->set_read_timeout(30, 0);
+        c->set_bearer_token_auth(testing::kTestTokens.client);
+        return c;
+    };
+    auto res =
+        client()->Post("/api/renders", R"({"resolution":"64x48","strategy":{"spp":2}})",
+                       "application/json");
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 201) << res->body;
+    const std::string renders =
+        "/api/renders/" + json::parse(res->body)["id"].get<std::string>();
+    fake_jobs(coordinator, "w1", 3);  // some samples, still running: in memory
+
+    const std::vector<std::string> holding = {
+        renders + "/preview.png", renders + "/thumbnail.png", renders + "/image.exr"};
+    std::vector<int> statuses(holding.size(), 0);
+    std::vector<std::thread> requests;
+    for (size_t i = 0; i < holding.size(); ++i)
+        requests.emplace_back([&, i] {
+            auto r = client()->Get(holding[i].c_str());
+            statuses[i] = r ? r->status : -1;
+        });
+    {
+        // A generous deadline against a hang, not a timing check.
+        std::unique_lock lock(mutex);
+        ASSERT_TRUE(changed.wait_for(lock, std::chrono::seconds(30),
+                                     [&] { return held == holding.size(); }));
+    }
+    auto refused = client()->Get((renders + "/maps?kind=spp").c_str());
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 503) << refused->body;
+    EXPECT_EQ(refused->get_header_value("Retry-After"), "2");
+    EXPECT_NE(refused->body.find("at most 3"), std::string::npos) << refused->body;
+    {
+        std::lock_guard lock(mutex);
+        release = true;
+        changed.notify_all();
+    }
+    for (std::thread& t : requests) t.join();
+    for (size_t i = 0; i < holding.size(); ++i) EXPECT_EQ(statuses[i], 200) << holding[i];
+    // The places are given back, the EXR's once its response was sent.
+    auto again = client()->Get((renders + "/maps?kind=spp").c_str());
+    ASSERT_TRUE(again);
+    EXPECT_EQ(again->status, 200) << again->body;
+    EXPECT_EQ(held, holding.size() + 1);
+}
+
+// Review of issue 32: an id of 8 KB (about the longest path httplib takes; past it, 414)
+// came back whole in the errors of several routes. Each shows 64 bytes of it at most, and
+// its length.
+TEST_F(HttpServerTest, ALongIdComesBackShortInEveryError) {
+    const std::string id(8000, 'x');
+    for (const std::string& path :
+         {"/api/renders/" + id, "/api/renders/" + id + "/rounds",
+          "/api/renders/" + id + "/events", "/api/renders/" + id + "/buckets",
+          "/api/renders/" + id + "/thumbnail.png", "/api/renders/" + id + "/image.exr"}) {
+        auto res = client_->Get(path.c_str());
+        ASSERT_TRUE(res) << path.substr(0, 80);
+        EXPECT_EQ(res->status, 404);
+        EXPECT_LT(res->body.size(), 200u) << path.substr(path.size() - 20);
+        EXPECT_NE(res->body.find("(8000 bytes)"), std::string::npos) << res->body;
+    }
+    auto deleted = client_->Delete(("/api/renders/" + id).c_str());
+    ASSERT_TRUE(deleted);
+    EXPECT_EQ(deleted->status, 404);
+    EXPECT_LT(deleted->body.size(), 200u);
+    auto patched = client_->Patch(("/api/renders/" + id).c_str(), R"({"priority":1})",
+                                  "application/json");
+    ASSERT_TRUE(patched);
+    EXPECT_EQ(patched->status, 404);
+    EXPECT_LT(patched->body.size(), 200u);
+}
+
 TEST_F(HttpServerTest, EventsAnnounceRendersRoundsAndWorkers) {
     std::mutex mutex;
     std::vector<json> events;
@@ -1112,6 +1210,74 @@ TEST(HttpServerStorage, AFinishedRendersExrIsTheStoredFile) {
         ASSERT_EQ(plain->status, 200) << plain->body;
         EXPECT_EQ(plain->body, bytes_of(file->parent_path() / "image-rgb.exr"));
         EXPECT_TRUE(decode_exr(plain->body, "download").extra.empty());
+    }
+    fs::remove_all(dir);
+}
+
+uint64_t status_kb(const std::string& field) {
+    std::ifstream in("/proc/self/status");
+    for (std::string line; std::getline(in, line);)
+        if (line.rfind(field + ":", 0) == 0)
+            return std::stoull(line.substr(field.size() + 1));
+    return 0;
+}
+
+// Review of issue 32: an EXR download read the whole stored file into memory, twice over
+// (a stream's buffer, then its string). It is now sent as it is read: 8 downloads at once
+// of a 32 MiB file (what a 2048x2048 render with its layers stores) grow the process by
+// less than one file, and every byte arrives as stored.
+TEST(HttpServerStorage, ConcurrentExrDownloadsHoldAChunkNotTheFile) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-http-exr-memory-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    {
+        RecordedCoordinator farm(dir);
+        const std::string id = farm.submit();
+        ASSERT_FALSE(id.empty());
+        fake_jobs(farm.coordinator, "w1");
+        for (int i = 0; i < 600 && !farm.coordinator.image_file(id); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const std::optional<fs::path> file = farm.coordinator.image_file(id);
+        ASSERT_TRUE(file);
+        // In its place 32 MiB that do not compress: the route sends the file as it is.
+        std::string stored(32u << 20, '\0');
+        std::mt19937_64 random(7);
+        for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
+            const uint64_t v = random();
+            std::memcpy(&stored[i], &v, 8);
+        }
+        std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+
+        std::ofstream("/proc/self/clear_refs") << "5";  // peak RSS from here on
+        const uint64_t before = status_kb("VmHWM");
+        std::vector<std::thread> downloads;
+        std::vector<int> statuses(8, 0);
+        std::vector<size_t> matched(8, 0);
+        for (size_t d = 0; d < statuses.size(); ++d)
+            downloads.emplace_back([&, d] {
+                httplib::Client c("127.0.0.1", farm.server.port());
+                c.set_read_timeout(30, 0);
+                c.set_bearer_token_auth(testing::kTestTokens.client);
+                size_t at = 0;
+                bool same = true;
+                auto res = c.Get(("/api/renders/" + id + "/image.exr?aovs=1").c_str(),
+                                 [&](const char* data, size_t n) {
+                                     same = same && at + n <= stored.size() &&
+                                            std::memcmp(data, &stored[at], n) == 0;
+                                     at += n;
+                                     return true;
+                                 });
+                statuses[d] = res ? res->status : -1;
+                matched[d] = same ? at : 0;
+            });
+        for (std::thread& t : downloads) t.join();
+        const uint64_t grown_kb = status_kb("VmHWM") - before;
+        for (size_t d = 0; d < statuses.size(); ++d) {
+            EXPECT_EQ(statuses[d], 200) << d;
+            EXPECT_EQ(matched[d], stored.size()) << d;
+        }
+        // Each held the file, its copy and the response's: 8 x 96 MiB, or a 503.
+        EXPECT_LT(grown_kb, 24u * 1024) << "kB";
     }
     fs::remove_all(dir);
 }
