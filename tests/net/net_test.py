@@ -132,13 +132,15 @@ def partition_and_heal(net, farm):
         time.sleep(0.1)
     dropped = net.dropped(PARTITIONED)
     net.heal(PARTITIONED)
-    log(f"{PARTITIONED} healed after {time.time() - cut:.1f} s (lease {LEASE_SECONDS:g} s), "
+    seconds = time.time() - cut
+    log(f"{PARTITIONED} healed after {seconds:.1f} s (lease {LEASE_SECONDS:g} s), "
         f"dropped {dropped}")
     before = farm.workers_now()[PARTITIONED]["last_seen_ms"]
     wait_for(f"{PARTITIONED} heard from after the heal",
              lambda: farm.workers_now()[PARTITIONED]["state"] != "lost" and
              farm.workers_now()[PARTITIONED]["last_seen_ms"] != before, farm, 90)
     log(f"{PARTITIONED} is back: {farm.workers_now()[PARTITIONED]['state']}")
+    return seconds, dropped
 
 
 def main():
@@ -174,7 +176,7 @@ def main():
         twins = Twins(aliquot, tmp, specs)
         renders = [farm.submit(*spec) for spec in specs]
         log(f"submitted {', '.join(renders)}")
-        partition_and_heal(net, farm)
+        partitioned_for, partition_dropped = partition_and_heal(net, farm)
         wait_for("every render done",
                  lambda: all(farm.status(r)["state"] in ("done", "failed", "cancelled")
                              for r in renders), farm, 150)
@@ -185,15 +187,17 @@ def main():
                 continue
             out = os.path.join(tmp, f"farm-{rid}.exr")
             farm.client("fetch", rid, "--out", out)
+            # The summary's lines, as tests/chaos prints them.
             if filecmp.cmp(out, twins.get(i), shallow=False):
-                log(f"{rid} ok: byte-identical to embedded ({' '.join(spec[4:])}), "
-                    f"{status['rounds']} rounds")
+                print(f"  {rid} ok: {status['rounds']} rounds, {status['samples_done']} "
+                      f"samples ({spec[1]} {' '.join(spec[6:])})", flush=True)
             else:
                 failures.append(f"{rid}: farm EXR differs from embedded ({' '.join(spec)})")
         workers = farm.workers_now()
-        log("samples traced: " + ", ".join(f"{w} {workers[w]['samples_traced']}"
-                                          for w in WORKERS) +
-            f"; {LOSSY} dropped {net.dropped(LOSSY)}")
+        print(f"faults: {ONE_WAY_MS}±{JITTER_MS} ms each way, {LOSSY} lost {LOSS:.0%} of "
+              f"its packets ({net.dropped(LOSSY)} dropped), {PARTITIONED} partitioned for "
+              f"{partitioned_for:.1f} s ({partition_dropped} dropped); samples traced: " +
+              ", ".join(f"{w} {workers[w]['samples_traced']}" for w in WORKERS), flush=True)
         farm.check_alive()
     except (Exception, SystemExit) as e:
         failures.append(f"{type(e).__name__}: {e}")
