@@ -7,6 +7,7 @@
 
 #include "checkpoint.h"
 #include "farm_log.h"
+#include "lease_scan.h"
 #include "scene_loader.h"
 #include "unix_millis.h"
 
@@ -32,27 +33,12 @@ Coordinator::Coordinator(CoordinatorOptions options)
         events_.record_to(archive_.store(), &archive_.backlog());
         resume_unfinished();
     }
-    ticker_ = std::thread([this] {
-        while (true) {
-            {
-                std::unique_lock lock(mutex_);
-                if (progress_.wait_for(lock, std::chrono::milliseconds(200),
-                                       [this] { return stopping_; }))
-                    return;
-            }
-            // Nothing the ticker meets may end the process: it logs and ticks again.
-            try {
-                tick();
-            } catch (const std::exception& e) {
-                log_farm_error(std::string("tick: ") + e.what());
-            }
-        }
-    });
+    ticker_ =
+        std::make_unique<Ticker>(std::chrono::milliseconds(200), [this] { tick(); });
 }
 
 Coordinator::~Coordinator() {
     stop();
-    if (ticker_.joinable()) ticker_.join();
     tick();  // the workers' last samples reach the store
     // What waits is written before the sessions its writes read go away.
     archive_.finish_writes();
@@ -65,6 +51,7 @@ void Coordinator::stop() {
     }
     progress_.notify_all();
     work_ready_.notify_all();
+    if (ticker_) ticker_->stop();
 }
 
 void Coordinator::changed() {
@@ -447,49 +434,17 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
         const size_t cores = registry_.alive_cores();
         // Reserved now, so that no other lease takes the id while it is being issued.
         const uint64_t lease_id = leases_.reserve(session);
-        // Renders by priority, in submission order within one; one whose lock is busy (a
-        // merge, or a round's end) is passed over at first and waited for only when no
-        // other render has a job, so one render's round end holds up no other render's
-        // workers.
-        std::optional<LeaseGrant> grant;
-        std::string label;  // the job's "render/job", for the workers list
-        std::vector<RenderSlot*> busy;
-        std::set<std::string> failed;  // renders a plan made ahead failed (issue)
-        auto try_issue = [&](RenderSlot& slot) {
-            RenderSession& s = *slot.session;
-            if (s.state() != RenderState::Running || !s.has_pending()) return;
-            s.set_worker_cores(cores);  // a round opened ahead here is cut for them
-            std::optional<SampleJob> job = s.issue(
-                lease_id, worker, RenderSession::Clock::now() + options_.lease_time,
-                *alive, options_.failure_policy);
-            if (s.state() == RenderState::Failed) failed.insert(s.id());
-            if (!job) return;
-            label = s.lease_label(lease_id);
-            grant = LeaseGrant{
-                lease_id,        s.id(),
-                s.scene_hash(),  {s.spec().width, s.spec().height, s.spec().seed},
-                std::move(*job), uint32_t(options_.lease_time.count())};
-        };
-        for (const SlotPtr& slot : slots) {
-            std::unique_lock render(slot->mutex, std::try_to_lock);
-            if (!render.owns_lock()) {
-                busy.push_back(slot.get());
-                continue;
-            }
-            try_issue(*slot);
-            if (grant) break;
-        }
-        for (size_t i = 0; !grant && i < busy.size(); ++i) {
-            std::lock_guard render(busy[i]->mutex);
-            try_issue(*busy[i]);
-        }
+        LeaseScan scan =
+            scan_for_a_job(slots, {lease_id, worker, options_.lease_time, alive.get(),
+                                   options_.failure_policy, cores});
+        std::optional<LeaseGrant>& grant = scan.grant;
         if (grant)
-            leases_.grant(lease_id, grant->render_id, std::move(label));
+            leases_.grant(lease_id, grant->render_id, std::move(scan.label));
         else
             leases_.end(lease_id);
         lock.lock();
-        if (!failed.empty()) {  // as complete does for a render its merge failed
-            forget_ended_leases({}, failed);
+        if (!scan.failed.empty()) {  // as complete does for a render its merge failed
+            forget_ended_leases({}, scan.failed);
             changed();
         }
         if (grant) {

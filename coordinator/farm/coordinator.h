@@ -44,6 +44,7 @@
 #include "round_end_stats.h"
 #include "submitted_scenes.h"
 #include "tick_schedule.h"
+#include "ticker.h"
 #include "worker_registry.h"
 
 namespace aliquot {
@@ -263,7 +264,7 @@ private:
     RenderEvents events_;
     WorkerRegistry registry_;  // the workers and their links
     bool stopping_ = false;
-    std::thread ticker_;
+    std::unique_ptr<Ticker> ticker_;  // started last, once the renders are resumed
 
     // ---- Read-only views for the HTTP API and dashboard (http_server.h) ----
 public:
