@@ -18,6 +18,7 @@
 #include "grpc_server.h"
 #include "http_server.h"
 #include "log_format_option.h"
+#include "log_line.h"
 #include "metrics.h"
 #include "token_file.h"
 #include "whole_number_option.h"
@@ -127,8 +128,8 @@ std::string role_token(const std::string& file, const fs::path& data_dir, Role r
         bool created = false;
         const fs::path path = data_dir / (name + ".token");
         std::string token = load_or_create_token_file(path, created);
-        std::fprintf(stderr, "coordinator: %s token %s %s\n", name.c_str(),
-                     created ? "written to" : "read from", path.string().c_str());
+        write_log_line(created ? "token_written" : "token_read",
+                       {log_text("role", name), log_text("path", path.string())});
         return token;
     } catch (const TokenError& e) {
         throw CommandError(e.what());
@@ -215,12 +216,12 @@ struct CoordinatorCommand {
         FarmMetrics metrics(coordinator);
         GrpcServer server(coordinator, grpc_address, security,
                           {.metrics = &metrics, .reflection = grpc_reflection});
-        std::fprintf(stderr,
-                     "coordinator: gRPC%s on %s (port %d), data in %s, memory limit %llu "
-                     "MiB\n",
-                     security.tls_cert_pem.empty() ? "" : " over TLS",
-                     grpc_address.c_str(), server.port(), data_dir.c_str(),
-                     (unsigned long long)(memory >> 20));
+        write_log_line("listening",
+                       {log_text("service", "grpc"), log_text("address", grpc_address),
+                        log_number("port", int64_t(server.port())),
+                        log_text("tls", security.tls_cert_pem.empty() ? "off" : "on"),
+                        log_text("data", data_dir),
+                        log_number("memory_limit_mib", int64_t(memory >> 20))});
         std::unique_ptr<HttpServer> http;
         if (!http_address.empty()) {
             HttpOptions http_options;
@@ -251,14 +252,16 @@ struct CoordinatorCommand {
                             fs::weakly_canonical(dir));
             }
             http = std::make_unique<HttpServer>(coordinator, http_address, http_options);
-            std::fprintf(stderr,
-                         "coordinator: HTTP%s on %s (port %d), dashboard from %s\n",
-                         tls_cert.empty() ? "" : "S", http_address.c_str(), http->port(),
-                         http_options.web_dir.string().c_str());
+            write_log_line("listening",
+                           {log_text("service", tls_cert.empty() ? "http" : "https"),
+                            log_text("address", http_address),
+                            log_number("port", int64_t(http->port())),
+                            log_text("tls", tls_cert.empty() ? "off" : "on"),
+                            log_text("dashboard", http_options.web_dir.string())});
         }
         int sig = 0;
         sigwait(&stop, &sig);
-        std::fprintf(stderr, "coordinator: stopping (signal %d)\n", sig);
+        write_log_line("coordinator_stopping", {log_number("signal", int64_t(sig))});
         // Probes see NOT_SERVING while the farm winds down, before the port closes.
         server.stop_serving();
         coordinator.stop();

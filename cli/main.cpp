@@ -5,7 +5,22 @@
 #include <string>
 
 #include "commands.h"
+#include "log_line.h"
 #include "usage_message.h"
+
+namespace {
+
+// A failure on one line: "aliquot: ..." for people, or a JSON line when a long-running
+// command (coordinator, worker) was told `--log-format json`, so that a log collector
+// parses its last words too.
+void report(const std::string& message) {
+    if (aliquot::log_format() == aliquot::LogFormat::Json)
+        aliquot::write_log_line("failed", {aliquot::log_text("message", message)});
+    else
+        std::fprintf(stderr, "aliquot: %s\n", message.c_str());
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
     CLI::App app{"Aliquot: a Monte Carlo render farm about where the samples go"};
@@ -27,7 +42,7 @@ int main(int argc, char** argv) {
     if (argc > 1 && argv[1][0] != '-') {
         const std::string unknown = aliquot::cli::unknown_command(app, argv[1]);
         if (!unknown.empty()) {
-            std::fprintf(stderr, "aliquot: %s\n", unknown.c_str());
+            report(unknown);
             return aliquot::cli::kExitUsage;
         }
     }
@@ -38,15 +53,14 @@ int main(int argc, char** argv) {
         // error is a usage error, whatever number CLI11 gives its kind, and reads like
         // the commands' own: one line, "aliquot: ".
         if (e.get_exit_code() == 0) return app.exit(e);
-        std::fprintf(stderr, "aliquot: %s\n",
-                     aliquot::cli::parse_error_message(app, e).c_str());
+        report(aliquot::cli::parse_error_message(app, e));
         return aliquot::cli::kExitUsage;
     } catch (const aliquot::cli::UsageError& e) {
-        std::fprintf(stderr, "aliquot: %s\n", e.what());
+        report(e.what());
         return aliquot::cli::kExitUsage;
     } catch (const std::exception& e) {
         // Every error the user can cause arrives here as one line; no stack traces.
-        std::fprintf(stderr, "aliquot: %s\n", e.what());
+        report(e.what());
         return aliquot::cli::kExitFailure;
     }
     return 0;

@@ -15,14 +15,15 @@
 #include "access.h"
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
+#include "farm_log.h"
 #include "health_service.h"
 #include "lease_polls.h"
 #include "listener_watchdog.h"
 #include "open_file_limit.h"
 #include "render_proto.h"
 #include "scene_loader.h"
-#include "stored_image.h"
 #include "shown_id.h"
+#include "stored_image.h"
 #include "wire.h"
 
 namespace aliquot {
@@ -540,10 +541,9 @@ GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
     // Asked first of a port just opened: where the probe cannot tell (no /proc/net), a
     // listener must not be started again for ever.
     if (!reachable()) {
-        std::fprintf(stderr,
-                     "coordinator: cannot check that gRPC's port %d accepts connections "
-                     "here; no listener watchdog\n",
-                     port_);
+        log_farm_error("cannot check that gRPC's port " + std::to_string(port_) +
+                           " accepts connections here; no listener watchdog",
+                       "listener_watchdog_off");
         return;
     }
     watchdog_ = std::make_unique<ListenerWatchdog>(
@@ -614,10 +614,11 @@ bool GrpcServer::reachable() {
 void GrpcServer::listen_again() {
     std::lock_guard lock(mutex_);
     if (stopped_) return;
-    std::fprintf(stderr,
-                 "coordinator: gRPC on port %d accepts no new connections (out of file "
-                 "descriptors?); listening again\n",
-                 port_);
+    log_farm_error(
+        "gRPC on port " + std::to_string(port_) +
+            " accepts no new connections (out of file descriptors?); listening "
+            "again",
+        "listener_deaf");
     // Calls in progress are cut off: their clients and workers retry on a new
     // connection.
     server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
@@ -628,11 +629,10 @@ void GrpcServer::listen_again() {
         ++restarts_;
     } catch (const std::exception& e) {
         // Up but deaf is worse than down: a supervisor restarts a process that exits.
-        std::fprintf(
-            stderr,
-            "coordinator: cannot listen on port %d again (%s); exiting so that a "
-            "supervisor restarts the coordinator\n",
-            port_, e.what());
+        log_farm_error("cannot listen on port " + std::to_string(port_) + " again (" +
+                           e.what() +
+                           "); exiting so that a supervisor restarts the coordinator",
+                       "listener_failed");
         std::fflush(stderr);
         std::_Exit(75);
     }

@@ -20,6 +20,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "farm_log.h"
+
 namespace aliquot {
 
 namespace {
@@ -498,7 +500,7 @@ void HttpFront::run_front() {
         try {
             serve_front_once(waiting, fds);
         } catch (const std::exception& e) {
-            std::fprintf(stderr, "http: front: %s\n", e.what());
+            log_farm_error(std::string("front: ") + e.what(), "http_error");
         }
     }
 }
@@ -517,7 +519,7 @@ void HttpFront::serve_front_once(std::vector<std::unique_ptr<FrontConnection>>& 
         std::chrono::duration_cast<std::chrono::milliseconds>(next - now).count() + 1;
     if (::poll(fds.data(), fds.size(), int(std::max<int64_t>(timeout, 0))) < 0 &&
         errno != EINTR)
-        std::fprintf(stderr, "http: front: poll: %s\n", std::strerror(errno));
+        log_farm_error(std::string("front: poll: ") + std::strerror(errno), "http_error");
     if (fds[0].revents) {
         uint64_t count;
         (void)!::read(wake_fd_, &count, sizeof count);
@@ -614,14 +616,15 @@ void HttpFront::run_worker() {
                 const bool ok = serve_(*c, last, closed);
                 keep = ok && !closed && !last && !c->close_after_ && !c->failed_;
             } catch (const std::exception& e) {
-                std::fprintf(stderr, "http: a request failed: %s\n", e.what());
+                log_farm_error(std::string("a request failed: ") + e.what(),
+                               "http_error");
             } catch (...) {
-                std::fprintf(stderr, "http: a request failed\n");
+                log_farm_error("a request failed", "http_error");
             }
             serving_now = nullptr;
             finished(std::move(c), keep);
         } catch (const std::exception& e) {
-            std::fprintf(stderr, "http: %s\n", e.what());
+            log_farm_error(e.what(), "http_error");
         }
     }
 }

@@ -17,6 +17,7 @@
 
 #include "admission.h"
 #include "exr_io.h"
+#include "farm_log.h"
 #include "http_api.h"
 #include "http_front.h"
 #include "http_session.h"
@@ -428,7 +429,8 @@ struct HttpServer::Impl {
                 version = now;
                 snapshot(true);
             } catch (const std::exception& e) {
-                std::fprintf(stderr, "http: live update failed: %s\n", e.what());
+                log_farm_error(std::string("live update failed: ") + e.what(),
+                               "http_error");
             }
             hub.pause(options.event_interval);
         }
@@ -624,8 +626,8 @@ struct HttpServer::Impl {
             } catch (const json::exception& e) {
                 send_error(res, 400, std::string("malformed request: ") + e.what());
             } catch (const std::exception& e) {
-                std::fprintf(stderr, "http: %s %s: %s\n", req.method.c_str(),
-                             req.path.c_str(), e.what());
+                log_farm_error(req.method + " " + req.path + ": " + e.what(),
+                               "http_error");
                 send_error(res, 500, std::string("internal error: ") + e.what());
             }
         };

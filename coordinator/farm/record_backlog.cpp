@@ -8,6 +8,7 @@
 #include <exception>
 
 #include "bands.h"
+#include "farm_log.h"
 
 namespace aliquot {
 
@@ -75,14 +76,14 @@ void RecordBacklog::note(const Pending& p, bool ok, const std::string& error,
         warning_ = "cannot " + p.what + ": " + error;
         // Logged when writes start failing and then at most every 30 s, not every retry.
         if (first || delay_ >= kLongestDelay)
-            std::fprintf(stderr, "coordinator: %s (kept, retrying)\n", warning_.c_str());
+            log_farm_error(warning_ + " (kept, retrying)", "record_write_failing");
         delay_ = first ? Clock::duration(kFirstDelay)
                        : std::min<Clock::duration>(2 * delay_, kLongestDelay);
         next_try_ = now + delay_;
         return;
     }
     if (!warning_.empty() && queue_.size() <= 1)
-        std::fprintf(stderr, "coordinator: the run record is written again\n");
+        log_farm_error("the run record is written again", "record_written_again");
     if (queue_.size() <= 1) {
         warning_.clear();
         delay_ = {};

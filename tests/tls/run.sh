@@ -103,7 +103,8 @@ coordinator_answers() {
 }
 check "the coordinator answers a client with the CA and the client token over TLS" \
     wait_for 30 coordinator_answers || exit 1
-grep -q "gRPC over TLS" "$TMP/coordinator.log" && grep -q "HTTPS on" "$TMP/coordinator.log"
+grep -q "listening service=grpc .* tls=on" "$TMP/coordinator.log" &&
+    grep -q "listening service=https .* tls=on" "$TMP/coordinator.log"
 check "the coordinator says it serves gRPC over TLS and HTTPS" test $? -eq 0
 
 "$ALIQUOT" worker --coordinator "$ADDR" --tls-ca "$TMP/ca.pem" \
@@ -189,4 +190,49 @@ check "the gRPC watchdog runs over TLS and never found the port deaf" \
     eval '! grep -q "listening again\|no listener watchdog" "$TMP/coordinator.log"'
 check "the worker traced over TLS and is still running" \
     eval 'kill -0 "${PIDS[1]}" && [[ $(https "$URL/api/workers") == *tls-worker* ]]'
+
+# ---------------------------------------------------------------- JSON logs
+
+# With --log-format json every line a coordinator or worker writes on stderr is one JSON
+# object, gRPC core's own too: here a plaintext client and a worker trusting another CA
+# fail their handshakes, which gRPC reports on both sides; then both are stopped.
+JSON_ADDR=127.0.0.1:$(free_port)
+"$ALIQUOT" coordinator --log-format json --grpc "$JSON_ADDR" --data "$TMP/json-data" \
+    --tls-cert "$TMP/server.pem" --tls-key "$TMP/server.key" 2>"$TMP/json-coordinator.log" &
+JSON_COORDINATOR=$!
+PIDS+=("$JSON_COORDINATOR")
+check "a coordinator with --log-format json starts" \
+    wait_for 30 grep -q '"event":"listening"' "$TMP/json-coordinator.log"
+"$ALIQUOT" status --coordinator "$JSON_ADDR" --connect-timeout 1 \
+    --token-file "$TMP/json-data/client.token" >/dev/null 2>&1
+"$ALIQUOT" worker --log-format json --coordinator "$JSON_ADDR" --tls-ca "$TMP/other-ca.pem" \
+    --token-file "$TMP/json-data/worker.token" --threads 1 2>"$TMP/json-worker.log" &
+JSON_WORKER=$!
+PIDS+=("$JSON_WORKER")
+check "gRPC's own lines reach the coordinator's log: a failed handshake" \
+    wait_for 30 grep -q '"event":"grpc".*andshake' "$TMP/json-coordinator.log"
+check "gRPC's own lines reach the worker's log: a failed handshake" \
+    wait_for 30 grep -q '"event":"grpc".*andshake' "$TMP/json-worker.log"
+kill -TERM "$JSON_WORKER" "$JSON_COORDINATOR"
+wait "$JSON_WORKER" "$JSON_COORDINATOR" 2>/dev/null
+every_line_json() {  # every_line_json FILE: every line an object with a time and an event
+    python3 -c '
+import json, sys
+lines = open(sys.argv[1], encoding="utf-8").read().splitlines()
+for line in lines:
+    try:
+        record = json.loads(line)
+    except ValueError:
+        sys.exit("not JSON: " + line)
+    if not isinstance(record, dict) or "time" not in record or "event" not in record:
+        sys.exit("no time or event: " + line)
+if not lines:
+    sys.exit("no lines")
+' "$1"
+}
+check "every line of the JSON coordinator's stderr, start-up to stop, is JSON" \
+    eval 'every_line_json "$TMP/json-coordinator.log" &&
+        grep -q "\"event\":\"token_written\"" "$TMP/json-coordinator.log" &&
+        grep -q "\"event\":\"coordinator_stopping\"" "$TMP/json-coordinator.log"'
+check "every line of the JSON worker's stderr is JSON" every_line_json "$TMP/json-worker.log"
 exit 0

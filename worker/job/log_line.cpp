@@ -174,13 +174,27 @@ void set_log_format(LogFormat format) { g_format = format; }
 
 LogFormat log_format() { return g_format; }
 
-void write_log_line(std::string_view event, const LogFields& fields) {
-    if (g_format == LogFormat::None) return;
+namespace {
+
+// One line (with its newline, in one write) to stderr, stamped now.
+void write_line(LogFormat format, std::string_view event, const LogFields& fields) {
     const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
                             std::chrono::system_clock::now().time_since_epoch())
                             .count();
-    const std::string line = format_log_line(g_format, now, event, fields) + '\n';
+    const std::string line = format_log_line(format, now, event, fields) + '\n';
     std::fwrite(line.data(), 1, line.size(), stderr);
+}
+
+}  // namespace
+
+void write_log_line(std::string_view event, const LogFields& fields) {
+    if (g_format != LogFormat::None) write_line(g_format, event, fields);
+}
+
+void write_log_warning(std::string_view event, const LogFields& fields) {
+    // The process's format stays None: its other lines stay off (render's own output).
+    const LogFormat format = g_format;
+    write_line(format == LogFormat::None ? LogFormat::Text : format, event, fields);
 }
 
 }  // namespace aliquot

@@ -49,5 +49,9 @@ void set_log_format(LogFormat format);
 LogFormat log_format();
 // Writes one line (with its newline, in one write) to stderr, stamped now.
 void write_log_line(std::string_view event, const LogFields& fields);
+// A line that must be seen whatever the command (a failure or warning: a write that
+// failed, a listener that went deaf, Embree's errors): as write_log_line does, and as
+// text where no format was chosen, where it would otherwise be lost.
+void write_log_warning(std::string_view event, const LogFields& fields);
 
 }  // namespace aliquot

@@ -1,5 +1,6 @@
 #include "embree_scene.h"
 
+#include "log_line.h"
 #include "sphere_hit.h"
 #include "sphere_lanes.h"
 
@@ -21,8 +22,8 @@ namespace {
 // Installed before any other call, so that no Embree call needs its own error check:
 // configuration errors surface here, and construction fails below.
 void on_embree_error(void*, RTCError code, const char* message) {
-    std::fprintf(stderr, "aliquot: embree error %d: %s\n", int(code),
-                 message ? message : "");
+    write_log_warning("embree_error", {log_number("code", int64_t(code)),
+                                       log_text("message", message ? message : "")});
 }
 
 void throw_if_failed(RTCDevice device, const char* what) {
