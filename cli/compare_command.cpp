@@ -1,11 +1,14 @@
-// `aliquot compare A.exr B.exr`: the error of image A against the reference B.
+// `aliquot compare A.exr B.exr`: the error of image A against the reference B, and of A
+// denoised when A has a denoised layer or --denoise asks (issue 34).
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "denoised_render.h"
 #include "error_metric.h"
 #include "exr_io.h"
 #include "whole_number_option.h"
@@ -16,8 +19,37 @@ namespace {
 struct CompareOptions {
     std::string test, reference;
     bool json = false;
+    bool denoise = false;
     int bucket_size = 16;
 };
+
+// A's denoised colour: its denoised.R/G/B layer, or with --denoise A denoised here (with
+// its albedo and normal layers when it has them). nullopt when neither. `how` says which.
+std::optional<Image> denoised_test(const CompareOptions& o, const Image& test,
+                                   std::string* how) {
+    if (!o.denoise) {
+        std::optional<Image> layer = denoised_layer(test);
+        if (layer) *how = "layer denoised.R/G/B";
+        return layer;
+    }
+    std::string error;
+    const std::unique_ptr<Denoiser> denoiser = Denoiser::open(&error);
+    if (!denoiser) throw CommandError("--denoise: " + error);
+    bool used_aux = false;
+    std::optional<Image> denoised = denoise_render(*denoiser, test, &error, &used_aux);
+    if (!denoised) throw CommandError("--denoise: " + error + " (" + o.test + ")");
+    *how = used_aux ? "Open Image Denoise, first-hit albedo and normal"
+                    : "Open Image Denoise, colour only";
+    return denoised;
+}
+
+nlohmann::ordered_json metrics_json(const ErrorMetrics& m) {
+    return {{"mean_abs", m.mean_abs},
+            {"rmse", m.rmse},
+            {"relative_mse", m.relative_mse},
+            {"max_bucket", m.max_bucket},
+            {"p99_bucket", m.p99_bucket}};
+}
 
 void run_compare(const CompareOptions& o) {
     // Checked here rather than with a CLI11 validator so that every user error leaves
@@ -28,8 +60,12 @@ void run_compare(const CompareOptions& o) {
     const Image test = read_exr(o.test);
     const Image reference = read_exr(o.reference);
     ErrorMetrics m;
+    std::optional<ErrorMetrics> d;  // A denoised, against the same reference
+    std::string how;
     try {
         m = compare_images(test, reference, o.bucket_size);
+        if (const std::optional<Image> denoised = denoised_test(o, test, &how))
+            d = compare_images(*denoised, reference, o.bucket_size);
     } catch (const ImageMismatch& e) {
         throw CommandError(std::string(e.what()) + " (" + o.test + " vs " + o.reference +
                            ")");
@@ -37,12 +73,13 @@ void run_compare(const CompareOptions& o) {
 
     if (o.json) {
         // ordered_json keeps the keys in the order people read them, not alphabetical.
-        const nlohmann::ordered_json out = {
-            {"mean_abs", m.mean_abs},         {"rmse", m.rmse},
-            {"relative_mse", m.relative_mse}, {"max_bucket", m.max_bucket},
-            {"p99_bucket", m.p99_bucket},     {"width", test.width},
-            {"height", test.height},
-        };
+        nlohmann::ordered_json out = metrics_json(m);
+        out["width"] = test.width;
+        out["height"] = test.height;
+        if (d) {
+            out["denoised"] = metrics_json(*d);
+            out["denoised"]["source"] = how;
+        }
         std::printf("%s\n", out.dump().c_str());
         return;
     }
@@ -53,6 +90,15 @@ void run_compare(const CompareOptions& o) {
     std::printf("%-22s %.6g\n", "relMSE", m.relative_mse);
     std::printf("%-22s %.6g\n", ("max bucket E (" + bucket + ")").c_str(), m.max_bucket);
     std::printf("%-22s %.6g\n", ("p99 bucket E (" + bucket + ")").c_str(), m.p99_bucket);
+    if (!d) return;
+    // Beside the raw figures, in the same words: what allocation is judged by when the
+    // image will be denoised.
+    std::printf("denoised (%s):\n", how.c_str());
+    std::printf("%-22s %.6g\n", "E (mean abs)", d->mean_abs);
+    std::printf("%-22s %.6g\n", "RMSE", d->rmse);
+    std::printf("%-22s %.6g\n", "relMSE", d->relative_mse);
+    std::printf("%-22s %.6g\n", ("max bucket E (" + bucket + ")").c_str(), d->max_bucket);
+    std::printf("%-22s %.6g\n", ("p99 bucket E (" + bucket + ")").c_str(), d->p99_bucket);
 }
 
 }  // namespace
@@ -62,10 +108,16 @@ void register_compare(CLI::App& app) {
     // callback.
     auto options = std::make_shared<CompareOptions>();
     CLI::App* cmd = app.add_subcommand(
-        "compare", "Error of image A against the reference B (E, RMSE, relMSE, buckets)");
+        "compare",
+        "Error of image A against the reference B (E, RMSE, relMSE, buckets), and of A "
+        "denoised when it has a denoised layer or --denoise asks");
     cmd->add_option("A", options->test, "image to measure (OpenEXR)")->required();
     cmd->add_option("B", options->reference, "reference image (OpenEXR)")->required();
     cmd->add_flag("--json", options->json, "print one JSON object instead of text");
+    cmd->add_flag("--denoise", options->denoise,
+                  "denoise A with Intel Open Image Denoise (using its albedo and normal "
+                  "layers when it has them) and report that error too; without it, an A "
+                  "with a denoised.R/G/B layer has that layer measured");
     cmd->add_option("--bucket-size", options->bucket_size,
                     "side in pixels of the buckets for the max and p99 bucket error")
         ->check(whole_number())

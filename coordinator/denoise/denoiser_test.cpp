@@ -14,38 +14,14 @@
 
 #include <gtest/gtest.h>
 
+#include "test_denoiser.h"
+
 namespace aliquot {
 namespace {
 
-// scripts/test.sh sets this: there the library is installed, and a skip would hide a
-// break.
-constexpr const char* kRequireVariable = "ALIQUOT_REQUIRE_OIDN";
 // Set for the child process of SameInputsGiveSameBytesInAnotherProcess: where it writes
 // its denoised bytes.
 constexpr const char* kBytesOutVariable = "ALIQUOT_DENOISE_BYTES_OUT";
-
-// One Denoiser for the binary (a device starts a thread pool); nullptr when OIDN is
-// absent.
-const Denoiser* shared_denoiser(std::string* why) {
-    static std::string error;
-    static const std::unique_ptr<Denoiser> denoiser = Denoiser::open(&error);
-    *why = error;
-    return denoiser.get();
-}
-
-#define REQUIRE_DENOISER(name)                                                   \
-    std::string why_absent;                                                      \
-    const Denoiser* name = shared_denoiser(&why_absent);                         \
-    if (name == nullptr) {                                                       \
-        if (std::getenv(kRequireVariable) != nullptr)                            \
-            FAIL() << kRequireVariable << " is set but " << why_absent;          \
-        std::fprintf(                                                            \
-            stderr,                                                              \
-            "\n*** SKIPPING: Open Image Denoise is not installed, so this test " \
-            "proves nothing ***\n%s\n\n",                                        \
-            why_absent.c_str());                                                 \
-        GTEST_SKIP() << "Open Image Denoise not installed: " << why_absent;      \
-    }
 
 // A uniform in [0, 1) from a hash of (seed, i): the same on every machine and library.
 float hashed_uniform(uint64_t seed, uint64_t i) {

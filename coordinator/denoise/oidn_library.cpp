@@ -97,15 +97,16 @@ std::unique_ptr<OidnLibrary> load_oidn_library(std::string* error) {
         // RTLD_LOCAL: OIDN's symbols stay out of the process's namespace. Kept loaded.
         void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
         if (handle == nullptr) {
-            const char* why = dlerror();
-            tried += "\n  " + path + ": " + (why != nullptr ? why : "cannot be loaded");
+            const char* why = dlerror();  // names the path itself
+            tried += (tried.empty() ? "" : "; ") +
+                     (why != nullptr ? std::string(why) : path + ": cannot be loaded");
             continue;
         }
         auto library = std::make_unique<OidnLibrary>();
         std::string missing;
         if (!bind_api(handle, &library->api, &missing)) {
-            tried +=
-                "\n  " + path + ": has no " + missing + " (not Open Image Denoise 2.x)";
+            tried += (tried.empty() ? "" : "; ") + path + ": has no " + missing +
+                     " (not Open Image Denoise 2.x)";
             dlclose(handle);
             continue;
         }
@@ -114,9 +115,8 @@ std::unique_ptr<OidnLibrary> load_oidn_library(std::string* error) {
     }
     if (error != nullptr) {
         const char* chosen = std::getenv(kOidnLibraryVariable);
-        *error = std::string("Intel Open Image Denoise (") + kSoname +
-                 ") not found; tried:" + tried +
-                 "\ninstall it with scripts/install-deps.sh (pyoidn into the " +
+        *error = std::string("Intel Open Image Denoise (") + kSoname + ") not found (" +
+                 tried + "); install it with scripts/install-deps.sh (pyoidn into the " +
                  "repository's .venv)" +
                  (chosen != nullptr && *chosen != '\0'
                       ? std::string(", or point ") + kOidnLibraryVariable +
