@@ -23,7 +23,16 @@ RenderSession::RenderSession(std::string id, RenderSpec spec, int64_t created_ms
       created_ms_(created_ms),
       strategy_(std::move(strategy)),
       merged_(spec_.width, spec_.height),
-      aux_(spec_.aux ? AuxSums(spec_.width, spec_.height) : AuxSums()) {}
+      aux_(spec_.aux ? AuxSums(spec_.width, spec_.height) : AuxSums()) {
+    // A strategy that reads the first hits (`denoised`) has its render trace them,
+    // whatever the submitter asked; resumed, the render asks again, so its checkpoint's
+    // sums are expected.
+    if (strategy_->wants_first_hits() && !spec_.aux) {
+        spec_.aux = true;
+        aux_ = AuxSums(spec_.width, spec_.height);
+    }
+    strategy_->watch_first_hits(&aux_);
+}
 
 void RenderSession::restore(Accumulator merged, const nlohmann::json& strategy_state,
                             uint32_t rounds_done, double seconds_before,

@@ -15,6 +15,8 @@
 
 namespace aliquot {
 
+class AuxSums;
+
 // About how many samples a round holds when a method is free to choose (uniform's
 // doubling, adaptive's delivery of its remainder). The coordinator's work at a round's
 // end grows with the image's pixels (error estimate, checkpoint copy, cutting: about 25
@@ -87,6 +89,13 @@ public:
         if (!spp.empty())
             throw std::runtime_error(name() + " plans no round ahead to restore");
     }
+
+    // Whether the render must trace each sample's first hit (albedo, normal) into an
+    // AuxSums beside its buffers: `denoised` gives them to Open Image Denoise.
+    virtual bool wants_first_hits() const { return false; }
+    // Those sums, given once by whoever merges, before the first next_round, when
+    // wants_first_hits; they must outlive the strategy's last next_round.
+    virtual void watch_first_hits(const AuxSums* /*first_hits*/) {}
 
     // Current buckets; empty for methods that allocate per pixel.
     virtual std::vector<Bucket> buckets() const { return {}; }

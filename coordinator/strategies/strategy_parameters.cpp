@@ -20,6 +20,8 @@ constexpr double kMaxSamples = 9007199254740992.0;  // 2^53
 constexpr double kMaxUint32 = 4294967295.0;
 
 const std::vector<std::string> kOptimal = {"optimal", "optimal-time"};
+// optimal's pilot, floor and steered rounds, which `denoised` keeps.
+const std::vector<std::string> kSteered = {"optimal", "optimal-time", "denoised"};
 
 StrategyParameter whole(std::string key, StrategyParameter::Member member, double min,
                         double max, std::vector<std::string> methods, std::string help) {
@@ -86,7 +88,7 @@ std::vector<StrategyParameter> make_table() {
               "side of the square buckets samples are shared among"),
         // optimal, optimal-time and oracle
         whole("min_spp", &P::min_spp, 0, kMaxUint32,
-              {"optimal", "optimal-time", "oracle"},
+              {"optimal", "optimal-time", "oracle", "denoised"},
               "samples every pixel gets before the allocation trusts its sigma"),
         whole("sigma_radius", &P::sigma_radius, 0, 64, kOptimal,
               "pool each pixel's variance over the (2r+1)^2 pixels around it (0: its "
@@ -94,10 +96,10 @@ std::vector<StrategyParameter> make_table() {
         whole("sigma_prior", &P::sigma_prior, 0, 16777216, kOptimal,
               "shrink each pixel's variance towards its neighbourhood's, a prior worth "
               "this many samples (0: off)"),
-        number("floor_fraction", &P::floor_fraction, 0, false, 1, true, kOptimal,
+        number("floor_fraction", &P::floor_fraction, 0, false, 1, true, kSteered,
                "pilot and floor at this share of the budget's mean spp (0: min_spp "
                "alone)"),
-        whole("steer_rounds", &P::steer_rounds, 0, 64, kOptimal,
+        whole("steer_rounds", &P::steer_rounds, 0, 64, kSteered,
               "spend what the pilot leaves in this many rounds, each at most half of "
               "what is left (0: rounds that double)"),
         number("plan_ahead", &P::plan_ahead, 0, false, 1, false, kOptimal,
@@ -244,6 +246,10 @@ const std::string& method_summary(const std::string& method) {
         {"oracle",
          "optimal steered by the true sigma of a separate render (in-process only: "
          "aliquot render --sigma, or a study)"},
+        {"denoised",
+         "optimal's pilot and rounds, each pixel's samples in proportion to the noise "
+         "left after denoising (Open Image Denoise), measured from the two denoised "
+         "half images"},
         {"cycles",
          "Blender Cycles' adaptive sampling: pixels stop when their noise is below a "
          "threshold; no budget needed"},

@@ -9,6 +9,7 @@
 #include "allocation.h"
 #include "cycles_strategy.h"
 #include "dammertz_strategy.h"
+#include "denoised_strategy.h"
 #include "json_field.h"
 #include "optimal_strategy.h"
 #include "oracle_strategy.h"
@@ -55,7 +56,8 @@ void from_json(const json& j, StrategyParams& p) {
 
 const std::vector<std::string>& strategy_methods() {
     static const std::vector<std::string> methods = {
-        "uniform", "dammertz", "adaptive", "optimal", "optimal-time", "oracle", "cycles"};
+        "uniform",      "dammertz", "adaptive", "optimal",
+        "optimal-time", "oracle",   "cycles",   "denoised"};
     return methods;
 }
 
@@ -120,7 +122,9 @@ void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t heigh
     if (p.max_spp && p.method == "adaptive" && p.initial_spp > p.max_spp)
         fail("initial_spp (" + std::to_string(p.initial_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
-    if (p.max_spp && (p.method.starts_with("optimal") || p.method == "oracle") &&
+    if (p.max_spp &&
+        (p.method.starts_with("optimal") || p.method == "oracle" ||
+         p.method == "denoised") &&
         p.min_spp > p.max_spp)
         fail("min_spp (" + std::to_string(p.min_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
@@ -162,6 +166,9 @@ std::unique_ptr<Strategy> make_strategy(const StrategyParams& p, uint32_t width,
         return std::make_unique<AdaptiveStrategy>(p, width, height);
     if (p.method == "oracle") return std::make_unique<OracleStrategy>(p, width, height);
     if (p.method == "cycles") return std::make_unique<CyclesStrategy>(p, width, height);
+    if (p.method == "denoised")
+        return std::make_unique<DenoisedStrategy>(p, width, height,
+                                                  oidn_denoise_function());
     return std::make_unique<OptimalStrategy>(p, width, height,
                                              p.method == "optimal-time");
 }

@@ -1,0 +1,239 @@
+#include "denoised_strategy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "allocation.h"
+#include "aux_sums.h"
+#include "bands.h"
+#include "optimal_strategy.h"
+
+// Why the difference of the two denoised halves. Rousselle, Manzi and Zwicker, "Adaptive
+// Rendering with Non-Local Means Filtering" (SIGGRAPH Asia 2012, Sec. 5), split the
+// samples into two buffers, filter each, and take the squared difference of the two
+// filtered buffers as the variance the filter left: the halves are independent, so for
+// a filter that treats them alike E[(Da - Db)^2] = Var[Da] + Var[Db] = 2 Var[D(half)],
+// and with each half holding half the samples, Var[D(full)] ~ Var[D(half)] / 2, so
+// Var[D(full)] ~ (Da - Db)^2 / 4. It is what Cycles' half-buffer error is for the raw
+// image, measured after the denoiser. One pixel's squared difference is a sample of a
+// variance with three degrees of freedom (RGB), too noisy to steer by alone; the
+// denoised error is spatially smooth anyway (the denoiser spreads every sample over its
+// footprint), so it is pooled over a (2r+1)^2 window, as Cycles smooths its raw error
+// (a 3x3 dilation) and as optimal's sigma_radius pools variance.
+//
+// Why n ∝ (n Var[D])^(1/3). Where the allocation is locally even over the denoiser's
+// footprint, the denoised variance at a pixel falls as 1/n there: Var[D_i] = s_i^2 / n_i
+// with s_i = sqrt(n_i Var[D_i]), one sample's standard deviation as seen through the
+// denoiser. Minimising the mean absolute error sum_i s_i / sqrt(n_i) under sum n_i = B
+// gives n_i ∝ s_i^(2/3), optimal's rule (optimal_strategy.cpp) with s in place of the raw
+// sigma: pixels whose noise the denoiser removes (flat, well-guided) weigh little, those
+// it cannot (caustics, fine texture with no guide) weigh much. The rounds re-estimate s
+// from everything merged, so an allocation that is not locally even is corrected by the
+// next round's measurement.
+
+namespace aliquot {
+
+namespace {
+
+// A pixel's weight is never taken below this share of the image's median denoised
+// variance: a pixel that the two denoised halves happen to agree on still gets a little
+// and is measured again, as optimal's kImageFactor.
+constexpr double kImageFactor = 1.0 / 256;
+
+// The window the denoised variance is pooled over: 5x5, 75 degrees of freedom a pixel
+// instead of 3, about OIDN's smallest footprint on a noisy image (its receptive field is
+// far wider, so the error it leaves varies slowly from pixel to pixel).
+constexpr uint32_t kPoolRadius = 2;
+
+// The half images: the means of each pixel's even-index and odd-index samples. A pixel
+// with fewer than two samples has one half only; both get its mean.
+void half_images(const Accumulator& merged, Image& even, Image& odd) {
+    const size_t n = merged.pixel_count();
+    even = Image(merged.width(), merged.height());
+    odd = Image(merged.width(), merged.height());
+    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            double e[3], o[3];
+            if (merged.samples(i) >= 2) {
+                merged.half_means(i, e, o);
+            } else {
+                merged.mean(i, e);
+                std::copy(e, e + 3, o);
+            }
+            for (int c = 0; c < 3; ++c) {
+                even.rgb[3 * i + c] = float(e[c]);
+                odd.rgb[3 * i + c] = float(o[c]);
+            }
+        }
+    });
+}
+
+// The mean of v over the (2r+1)^2 window around each pixel, clipped at the edges: two
+// passes of running sums, O(pixels) whatever r.
+std::vector<double> window_mean(const std::vector<double>& v, uint32_t w, uint32_t h,
+                                uint32_t r) {
+    if (r == 0) return v;
+    std::vector<double> rows(v.size()), out(v.size());
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x) {
+            const uint32_t x0 = x > r ? x - r : 0, x1 = std::min(w, x + r + 1);
+            double s = 0;
+            for (uint32_t k = x0; k < x1; ++k) s += v[size_t(y) * w + k];
+            rows[size_t(y) * w + x] = s / double(x1 - x0);
+        }
+    for (uint32_t y = 0; y < h; ++y) {
+        const uint32_t y0 = y > r ? y - r : 0, y1 = std::min(h, y + r + 1);
+        for (uint32_t x = 0; x < w; ++x) {
+            double s = 0;
+            for (uint32_t k = y0; k < y1; ++k) s += rows[size_t(k) * w + x];
+            out[size_t(y) * w + x] = s / double(y1 - y0);
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+DenoisedStrategy::DenoisedStrategy(const StrategyParams& p, uint32_t width,
+                                   uint32_t height, DenoiseFunction denoise)
+    : width_(width),
+      height_(height),
+      budget_(sample_budget(p, size_t(width) * height)),
+      cap_(spp_cap(p)),
+      steer_rounds_(std::max<uint32_t>(p.steer_rounds, 1)),
+      denoise_(std::move(denoise)) {
+    if (!denoise_) throw std::invalid_argument("method 'denoised' needs a denoiser");
+    const size_t pixels = std::max<size_t>(size_t(width) * height, 1);
+    // optimal's floor tied to the budget: a share of the mean spp, never below min_spp,
+    // so the denoised halves the first plan reads are not the denoiser's worst case.
+    const double floor = std::floor(p.floor_fraction * double(budget_) / double(pixels));
+    min_spp_ = std::min<uint32_t>(
+        std::max<uint32_t>(p.min_spp, uint32_t(std::min(double(UINT32_MAX), floor))),
+        cap_);
+    pilot_spp_ = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
+}
+
+std::vector<double> DenoisedStrategy::denoised_sigma(const Accumulator& merged,
+                                                     const AuxSums* first_hits,
+                                                     const DenoiseFunction& denoise,
+                                                     uint32_t radius) {
+    const uint32_t w = merged.width(), h = merged.height();
+    const size_t n = merged.pixel_count();
+    Image even, odd;
+    half_images(merged, even, odd);
+    // Both halves are denoised with the guides of all samples: the guides' own noise
+    // (edges, textures) is small, and the same guides keep the two halves' filters alike,
+    // which the difference assumes.
+    Image albedo, normal;
+    if (first_hits && first_hits->kept()) {
+        albedo = first_hits->albedo(merged);
+        normal = first_hits->normal(merged);
+    }
+    const Image* a = albedo.rgb.empty() ? nullptr : &albedo;
+    const Image* nm = normal.rgb.empty() ? nullptr : &normal;
+    const std::vector<float> de = denoise(even, a, nm).rgb;
+    const std::vector<float> dodd = denoise(odd, a, nm).rgb;
+    if (de.size() != 3 * n || dodd.size() != 3 * n)
+        throw std::runtime_error("the denoiser returned an image of another size");
+    // (Da - Db)^2 / 4 per channel, averaged over RGB: the denoised full image's variance.
+    std::vector<double> variance(n);
+    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            double v = 0;
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(de[3 * i + c]) - double(dodd[3 * i + c]);
+                v += d * d;
+            }
+            variance[i] = std::isfinite(v) ? v / 12 : 0.0;
+        }
+    });
+    variance = window_mean(variance, w, h, radius);
+    std::vector<double> sorted = variance;
+    std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+    const double least = n ? kImageFactor * sorted[n / 2] : 0.0;
+    std::vector<double> sigma(n);
+    for (size_t i = 0; i < n; ++i)
+        sigma[i] = std::sqrt(std::max(variance[i], least) * double(merged.samples(i)));
+    return sigma;
+}
+
+std::vector<uint32_t> DenoisedStrategy::steered_round(const Accumulator& merged) {
+    const size_t pixels = merged.pixel_count();
+    const double spent = double(merged.total_samples());
+    const double remaining = double(budget_) - spent;
+    if (!(remaining >= 1)) return {};
+    // optimal's steered rounds: each at most what was spent before it and at most half
+    // of what is left, the steer_rounds-th all of it, so the estimates behind a round
+    // rest on at least half of the render so far.
+    const uint32_t steered = rounds_ > 1 ? rounds_ - 1 : 0;  // the pilot is round 0
+    double share = std::min(remaining, std::max(spent, 1.0));
+    share = steered + 1 < steer_rounds_
+                ? std::min(share, std::max(1.0, std::floor(remaining / 2)))
+                : remaining;
+    const std::vector<double> sigma =
+        denoised_sigma(merged, first_hits_, denoise_, kPoolRadius);
+    std::vector<double> weight(pixels);
+    bool noise_seen = false;
+    for (size_t i = 0; i < pixels; ++i) {
+        weight[i] = std::cbrt(sigma[i] * sigma[i]);
+        noise_seen |= weight[i] > 0;
+    }
+    if (!noise_seen) std::fill(weight.begin(), weight.end(), 1.0);
+    // The target of every pixel after this round; the round closes the gaps to it.
+    std::vector<double> gap = OptimalStrategy::optimal_counts(
+        weight, {}, spent + share, double(min_spp_), double(cap_));
+    std::vector<uint32_t> room(pixels);
+    for (size_t i = 0; i < pixels; ++i) {
+        const uint64_t have = merged.samples(i);
+        gap[i] = std::max(0.0, gap[i] - double(have));
+        room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
+    }
+    return apportion(gap, share, room);
+}
+
+std::optional<Round> DenoisedStrategy::next_round(const Accumulator& merged) {
+    if (finished_) return std::nullopt;
+    const size_t pixels = size_t(width_) * height_;
+    Round round{rounds_, {}};
+    if (rounds_ == 0) {
+        if (pilot_spp_ > 0) {
+            round.spp.assign(pixels, uint32_t(pilot_spp_));
+        } else {
+            // Less than a sample per pixel: nothing can be estimated, so the budget is
+            // spread evenly in one round, as optimal does.
+            finished_ = true;
+            round.spp = apportion(std::vector<double>(pixels, 1.0), double(budget_),
+                                  std::vector<uint32_t>(pixels, cap_));
+        }
+    } else {
+        round.spp = steered_round(merged);
+    }
+    const uint64_t total = round.total();
+    if (total == 0) {
+        finished_ = true;
+        return std::nullopt;
+    }
+    issued_ += total;
+    ++rounds_;
+    return round;
+}
+
+nlohmann::json DenoisedStrategy::outcome() const {
+    return {{"budget", budget_},
+            {"samples", issued_},
+            {"rounds", rounds_},
+            {"unspent", budget_ > issued_ ? budget_ - issued_ : 0}};
+}
+
+nlohmann::json DenoisedStrategy::save_state() const {
+    return {{"rounds", rounds_}, {"issued", issued_}, {"finished", finished_}};
+}
+
+void DenoisedStrategy::restore_state(const nlohmann::json& state) {
+    rounds_ = state.at("rounds").get<uint32_t>();
+    issued_ = state.at("issued").get<uint64_t>();
+    finished_ = state.at("finished").get<bool>();
+}
+
+}  // namespace aliquot

@@ -1,0 +1,74 @@
+// DenoisedStrategy: `denoised`, samples aimed at the error left after denoising. With
+// optimal's pilot, floor and steered rounds, but each pixel's weight is the noise of the
+// *denoised* image there: before each steered round the even-sample and odd-sample half
+// images are denoised apart, and the difference of the two denoised halves is the noise
+// the denoiser did not remove (the half-buffer idea Cycles applies to raw error, after
+// reconstruction; the .cpp says why and from where).
+#pragma once
+
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "strategy.h"
+#include "strategy_params.h"
+
+namespace aliquot {
+
+// A denoiser: the colour's rgb (linear HDR) denoised, an image of its size; albedo and
+// normal are the render's mean first-hit guides, or null when it has none. Injected, so
+// that tests run the strategy with a deterministic smoother and a render with Open Image
+// Denoise (denoised_oidn.cpp). Must be deterministic: a render's bytes follow from its
+// rounds. Throws std::runtime_error when it cannot denoise.
+using DenoiseFunction =
+    std::function<Image(const Image& colour, const Image* albedo, const Image* normal)>;
+
+// Open Image Denoise through the denoise room, loaded once for the process; throws
+// std::invalid_argument, saying what was tried and how to install it, when it is not
+// there, so a render of method `denoised` is refused at once rather than failing later.
+DenoiseFunction oidn_denoise_function();
+
+class DenoisedStrategy : public Strategy {
+public:
+    // Uses budget (or spp), min_spp, floor_fraction, steer_rounds and max_spp.
+    DenoisedStrategy(const StrategyParams& params, uint32_t width, uint32_t height,
+                     DenoiseFunction denoise);
+
+    std::string name() const override { return "denoised"; }
+    std::optional<Round> next_round(const Accumulator& merged) override;
+    uint64_t planned_samples() const override { return budget_; }
+    nlohmann::json save_state() const override;
+    void restore_state(const nlohmann::json& state) override;
+    nlohmann::json outcome() const override;
+    // OIDN's results depend much on its guides (albedo, normal): the render must trace
+    // them.
+    bool wants_first_hits() const override { return true; }
+    void watch_first_hits(const AuxSums* first_hits) override {
+        first_hits_ = first_hits;
+    }
+
+    // Per pixel, the standard deviation of one sample as seen through the denoiser:
+    // sqrt(n_i * Var[denoised_i]), Var estimated from the two denoised halves and pooled
+    // over the (2 radius + 1)^2 window. What the weights n ∝ s^(2/3) are made of.
+    // The guides are used when `first_hits` keeps them.
+    static std::vector<double> denoised_sigma(const Accumulator& merged,
+                                              const AuxSums* first_hits,
+                                              const DenoiseFunction& denoise,
+                                              uint32_t radius);
+
+private:
+    std::vector<uint32_t> steered_round(const Accumulator& merged);
+
+    uint32_t width_, height_;
+    uint64_t budget_;
+    uint32_t min_spp_, cap_, steer_rounds_;
+    uint64_t pilot_spp_;
+    DenoiseFunction denoise_;
+    const AuxSums* first_hits_ = nullptr;  // the render's, while the strategy lives
+
+    uint32_t rounds_ = 0;
+    uint64_t issued_ = 0;
+    bool finished_ = false;
+};
+
+}  // namespace aliquot
