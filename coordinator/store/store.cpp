@@ -140,6 +140,14 @@ CREATE TABLE render_events (
     PRIMARY KEY (render_id, seq)
 ) STRICT;
 )sql",
+    // 6: a study's renders measured after denoising too (issue 34): E, RMSE and relative
+    // MSE of the render denoised by Open Image Denoise, against the same reference; NULL
+    // for a study that does not denoise.
+    R"sql(
+ALTER TABLE study_results ADD COLUMN denoised_mean_abs REAL;
+ALTER TABLE study_results ADD COLUMN denoised_rmse REAL;
+ALTER TABLE study_results ADD COLUMN denoised_relative_mse REAL;
+)sql",
 };
 
 constexpr int kLatestVersion = int(sizeof(kMigrations) / sizeof(kMigrations[0]));
@@ -897,8 +905,9 @@ void RunStore::put_study_result(const StudyResult& r) {
     Query q = query(
         "INSERT INTO study_results (study_id, render_key, spec_json, origin, remote_id,"
         " render_id, state, samples, rays, seconds, samples_per_second, mean_abs, rmse,"
-        " relative_mse, max_bucket, p99_bucket, outcome_json, updated_at)"
-        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"
+        " relative_mse, max_bucket, p99_bucket, outcome_json, updated_at,"
+        " denoised_mean_abs, denoised_rmse, denoised_relative_mse)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"
         " ON CONFLICT (study_id, render_key) DO UPDATE SET spec_json = "
         "excluded.spec_json,"
         " origin = excluded.origin, remote_id = excluded.remote_id,"
@@ -907,7 +916,10 @@ void RunStore::put_study_result(const StudyResult& r) {
         " samples_per_second = excluded.samples_per_second, mean_abs = excluded.mean_abs,"
         " rmse = excluded.rmse, relative_mse = excluded.relative_mse,"
         " max_bucket = excluded.max_bucket, p99_bucket = excluded.p99_bucket,"
-        " outcome_json = excluded.outcome_json, updated_at = excluded.updated_at",
+        " outcome_json = excluded.outcome_json, updated_at = excluded.updated_at,"
+        " denoised_mean_abs = excluded.denoised_mean_abs,"
+        " denoised_rmse = excluded.denoised_rmse,"
+        " denoised_relative_mse = excluded.denoised_relative_mse",
         "record render " + r.render_key + " of study " + r.study_id);
     if (r.state != "submitted" && r.state != "done")
         q.refuse("state must be submitted or done, not '" + r.state + "'");
@@ -932,6 +944,9 @@ void RunStore::put_study_result(const StudyResult& r) {
         .bind(finite(r.p99_bucket))
         .bind(or_null(r.outcome_json))
         .bind(r.updated_at)
+        .bind(finite(r.denoised_mean_abs))
+        .bind(finite(r.denoised_rmse))
+        .bind(finite(r.denoised_relative_mse))
         .run();
 }
 
@@ -941,7 +956,8 @@ std::vector<StudyResult> RunStore::study_results(const std::string& study_id) {
         "SELECT study_id, render_key, spec_json, origin, remote_id, render_id, state, "
         "samples,"
         " rays, seconds, samples_per_second, mean_abs, rmse, relative_mse, max_bucket,"
-        " p99_bucket, outcome_json, updated_at FROM study_results WHERE study_id = ?"
+        " p99_bucket, outcome_json, updated_at, denoised_mean_abs, denoised_rmse,"
+        " denoised_relative_mse FROM study_results WHERE study_id = ?"
         " ORDER BY rowid",
         "read the renders of study " + study_id);
     q.bind(study_id);
@@ -966,6 +982,9 @@ std::vector<StudyResult> RunStore::study_results(const std::string& study_id) {
         r.p99_bucket = q.maybe_real(15);
         r.outcome_json = q.text(16);
         r.updated_at = q.int64(17);
+        r.denoised_mean_abs = q.maybe_real(18);
+        r.denoised_rmse = q.maybe_real(19);
+        r.denoised_relative_mse = q.maybe_real(20);
         out.push_back(std::move(r));
     }
     return out;

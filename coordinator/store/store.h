@@ -111,6 +111,8 @@ struct StudyResult {
     int64_t samples = 0, rays = 0;
     double seconds = 0, samples_per_second = 0;
     std::optional<double> mean_abs, rmse, relative_mse, max_bucket, p99_bucket;
+    // The same after denoising (a study with "denoise"); empty for any other.
+    std::optional<double> denoised_mean_abs, denoised_rmse, denoised_relative_mse;
     std::string outcome_json;
     int64_t updated_at = 0;
 };

@@ -118,8 +118,8 @@ public:
 
     StudyDefinition parse() {
         root_.expect_object("a study must be a JSON object");
-        root_.allow_keys({"name", "description", "reference_spp", "defaults", "scales",
-                          "renders", "tables", "charts", "conclusions"});
+        root_.allow_keys({"name", "description", "reference_spp", "denoise", "defaults",
+                          "scales", "renders", "tables", "charts", "conclusions"});
         def_.source = root_.value();
         parse_head();
         if (auto d = root_.find("defaults")) parse_defaults(*d);
@@ -146,6 +146,10 @@ private:
                           in_quotes(def_.name));
         if (auto d = root_.find("description")) def_.description = name_at(*d);
         if (auto r = root_.find("reference_spp")) def_.reference_spp = r->whole(1);
+        if (auto d = root_.find("denoise")) {
+            if (!d->value().is_boolean()) d->fail("expected true or false");
+            def_.denoise = d->value().get<bool>();
+        }
     }
 
     void parse_defaults(const JsonField& d) {
@@ -251,14 +255,19 @@ private:
             return src;
         }
         if (!b.value().is_object())
-            b.fail("must be a group name or {group, match, rate_from}");
-        b.allow_keys({"group", "match", "rate_from"});
+            b.fail("must be a group name or {group, match, rate_from, factor}");
+        b.allow_keys({"group", "match", "rate_from", "factor"});
         src.group = name_at(b.require("group"));
         if (auto m = b.find("match")) src.match = name_at(*m);
         if (src.match != "samples" && src.match != "seconds")
             JsonField(b.value(), b.pointer() + "/match")
                 .fail("must be \"samples\" or \"seconds\", got " + in_quotes(src.match));
         if (src.match == "seconds") src.rate_from = name_at(b.require("rate_from"));
+        if (auto f = b.find("factor")) {
+            src.factor = f->number("expected a number");
+            if (!(src.factor > 0 && src.factor <= 1024))
+                f->fail("must be a number above 0 and at most 1024");
+        }
         return src;
     }
 

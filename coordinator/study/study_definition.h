@@ -35,11 +35,15 @@ struct StudyScale {
 
 // Where a dependent group's budgets come from: the render of group `group` with the same
 // sweep position and seed. match "samples": its samples; "seconds": its wall time times
-// the samples/s of the same position and seed in group `rate_from` (equal wall time).
+// the samples/s of the same position and seed in group `rate_from` (equal wall time);
+// either times `factor`.
 struct BudgetSource {
     std::string group;
     std::string match = "samples";
     std::string rate_from;
+    // The budget is this many times what matched: uniform at 1.5 times another method's
+    // samples asks whether that method saves a third of them (issue 34).
+    double factor = 1.0;
 };
 
 struct StudyGroup {
@@ -56,6 +60,9 @@ struct StudyGroup {
 struct StudyDefinition {
     std::string name, description;
     uint64_t reference_spp = 8192;
+    // "denoise": every render traces its first hits (albedo, normal) and is measured a
+    // second time after Open Image Denoise, against the same reference (issue 34).
+    bool denoise = false;
     std::map<std::string, StudyScale> scales;  // small, medium, full (defaults filled in)
     std::vector<StudyGroup> groups;
     nlohmann::json tables = nlohmann::json::array();

@@ -184,7 +184,9 @@ std::vector<StudyRender> expand_study(const StudyDefinition& def,
                                       const StudyScale& scale) {
     PlanBuilder plan(def, scale);
     for (const StudyGroup& g : def.groups) plan.add_group(g);
-    return plan.take();
+    std::vector<StudyRender> renders = plan.take();
+    for (StudyRender& r : renders) r.denoise = def.denoise;
+    return renders;
 }
 
 void resolve_budget(StudyRender& r, uint64_t source_samples, double source_seconds,
@@ -194,6 +196,7 @@ void resolve_budget(StudyRender& r, uint64_t source_samples, double source_secon
     double budget = double(source_samples);
     if (r.budget_from->match == "seconds")
         budget = source_seconds * rate_samples_per_second;
+    budget *= r.budget_from->factor;
     if (!std::isfinite(budget)) budget = double(pixels);
     r.strategy.spp = 0;
     r.strategy.budget = std::max<uint64_t>(pixels, uint64_t(std::llround(budget)));
@@ -202,12 +205,15 @@ void resolve_budget(StudyRender& r, uint64_t source_samples, double source_secon
 
 std::string render_spec_json(const StudyRender& r) {
     // nlohmann's json objects keep keys sorted: the dump is canonical.
-    return json{{"scene", r.scene},
-                {"width", r.width},
-                {"height", r.height},
-                {"seed", r.seed},
-                {"strategy", json(r.strategy)}}
-        .dump();
+    json spec = {{"scene", r.scene},
+                 {"width", r.width},
+                 {"height", r.height},
+                 {"seed", r.seed},
+                 {"strategy", json(r.strategy)}};
+    // Only when set, so the specs of studies that do not denoise stay what they were: a
+    // render traced without its first hits has nothing to denoise with.
+    if (r.denoise) spec["denoise"] = true;
+    return spec.dump();
 }
 
 }  // namespace aliquot

@@ -28,6 +28,7 @@ struct StudyRender {
     std::string source_key, rate_key;  // the renders it depends on
     bool save_maps = false;            // a maps chart shows it: keep per-pixel maps
     uint32_t metric_bucket = 16;  // side of the buckets of the bucket errors, scaled too
+    bool denoise = false;  // traced with its first hits, measured after denoising too
 };
 
 // Every render of the study at `scale`, in an order where each render comes after the

@@ -55,7 +55,8 @@ void StudyRecorder::record_submitted(const std::string& key, const std::string& 
 }
 
 void StudyRecorder::record_done(const std::string& key, const CollectedRender& c,
-                                const ErrorMetrics& m) {
+                                const ErrorMetrics& m,
+                                const std::optional<ErrorMetrics>& denoised) {
     StudyResult row = results_.at(key);
     row.render_id = c.local_id;
     row.state = "done";
@@ -69,6 +70,11 @@ void StudyRecorder::record_done(const std::string& key, const CollectedRender& c
     row.max_bucket = m.max_bucket;
     row.p99_bucket = m.p99_bucket;
     row.outcome_json = c.outcome_json;
+    if (denoised) {
+        row.denoised_mean_abs = denoised->mean_abs;
+        row.denoised_rmse = denoised->rmse;
+        row.denoised_relative_mse = denoised->relative_mse;
+    }
     store_.link_study_render(id_, c.local_id);
     record(row);
 }

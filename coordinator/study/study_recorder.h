@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "error_metric.h"
@@ -29,8 +30,10 @@ public:
     void record(StudyResult row);
     void record_submitted(const std::string& key, const std::string& spec_json,
                           const std::string& origin, const std::string& remote_id);
+    // `denoised`: the metrics after denoising, when the study denoises.
     void record_done(const std::string& key, const CollectedRender& render,
-                     const ErrorMetrics& metrics);
+                     const ErrorMetrics& metrics,
+                     const std::optional<ErrorMetrics>& denoised = std::nullopt);
     // Keys the file no longer has (edited since an earlier run) leave the study's
     // results; their renders stay in the database.
     void forget_unless(const std::map<std::string, size_t>& keys);

@@ -11,6 +11,7 @@
 
 #include "error_metric.h"
 #include "scene_loader.h"
+#include "study_denoise.h"
 #include "study_embedded.h"
 #include "study_maps.h"
 #include "study_plan.h"
@@ -139,6 +140,7 @@ private:
         spec.height = r.height;
         spec.seed = r.seed;
         spec.strategy = r.strategy;
+        spec.aux = r.denoise;
         if (r.strategy.method == "oracle")
             spec.strategy.true_sigma = references_.at(reference_key(r)).sigma;
         return spec;
@@ -189,18 +191,35 @@ private:
         const CollectedRender c = backend_.collect(remote, spec_of(r), recorder_.store());
         const StudyReference& ref = references_.at(reference_key(r));
         const ErrorMetrics m = compare_images(c.image, ref.image, int(r.metric_bucket));
+        std::optional<ErrorMetrics> denoised;
+        if (r.denoise)
+            denoised = compare_images(denoise_render(denoiser(), c.image, key), ref.image,
+                                      int(r.metric_bucket));
         if (r.save_maps)
             write_study_maps(
                 options_.out / "data" / "maps" / (safe_file_name(key) + ".npy"), c.image,
                 ref.image);
-        recorder_.record_done(key, c, m);
+        recorder_.record_done(key, c, m, denoised);
         if (!isatty(STDERR_FILENO))  // no bar to watch: one line per render instead
-            std::fprintf(stderr, "study: %zu/%zu %s %s: %llu samples, %.2f s, E %.6g\n",
-                         finished_.size() + 1, renders_.size(), key.c_str(),
-                         r.strategy.method.c_str(), (unsigned long long)c.samples,
-                         c.seconds, m.mean_abs);
+            std::fprintf(
+                stderr, "study: %zu/%zu %s %s: %llu samples, %.2f s, E %.6g%s\n",
+                finished_.size() + 1, renders_.size(), key.c_str(),
+                r.strategy.method.c_str(), (unsigned long long)c.samples, c.seconds,
+                m.mean_abs,
+                denoised ? (", denoised " + std::to_string(denoised->mean_abs)).c_str()
+                         : "");
         finished_.insert(key);
         ++summary_.rendered;
+    }
+
+    // Open Image Denoise, opened by the first render measured after denoising.
+    const Denoiser& denoiser() {
+        if (!denoiser_) {
+            std::string error;
+            denoiser_ = Denoiser::open(&error);
+            if (!denoiser_) throw StudyError("the study denoises: " + error);
+        }
+        return *denoiser_;
     }
 
     void draw(const std::string& note) {
@@ -222,6 +241,7 @@ private:
     std::map<std::string, std::string> in_flight_;  // key -> id where it runs
     std::set<std::string> finished_;                // keys done, in this run or before
     StudyRunSummary summary_;
+    std::unique_ptr<Denoiser> denoiser_;
 };
 
 }  // namespace

@@ -127,6 +127,27 @@ TEST(Study, BudgetFromTakesTheSourceSamplesOrItsTimeAtTheRateRendersSpeed) {
     EXPECT_EQ(tiny.strategy.budget, 360000u);
 }
 
+TEST(Study, ABudgetFactorScalesTheSourceAndADenoisingStudyTracesFirstHits) {
+    const std::string text = R"({"name": "d", "denoise": true,
+        "defaults": {"scene": "cornell-box", "resolution": "8x8", "seeds": [1]},
+        "renders": [
+            {"name": "u", "method": "uniform", "sweep": {"spp": [4]}},
+            {"name": "u15", "method": "uniform",
+             "budget_from": {"group": "u", "factor": 1.5}}]})";
+    const StudyDefinition def = parse_study(text, "d.json");
+    std::vector<StudyRender> r = expand_study(def, study_scale(def, "full"));
+    ASSERT_EQ(r.size(), 2u);
+    resolve_budget(r[1], 1000, 0, 0);
+    EXPECT_EQ(r[1].strategy.budget, 1500u);
+    EXPECT_TRUE(r[0].denoise);
+    // Its spec says so, so a render traced without its first hits is not reused.
+    EXPECT_NE(render_spec_json(r[0]).find("\"denoise\":true"), std::string::npos);
+    EXPECT_THROW(parse_study(R"({"name": "d", "denoise": 1, "renders": [
+        {"name": "u", "method": "uniform", "scene": "cornell-box", "spp": 4}]})",
+                             "d.json"),
+                 StudyError);
+}
+
 TEST(Study, MapsChartsMarkTheirRendersFirstSeedOnly) {
     const StudyDefinition def = parse_study(kStudy, "x.json");
     for (const StudyRender& r : expand_study(def, study_scale(def, "full"))) {

@@ -27,6 +27,8 @@ except ImportError as e:  # the study command turns status 3 into an install hin
     sys.exit(3)
 
 METRICS = ["mean_abs", "rmse", "relative_mse", "max_bucket", "p99_bucket"]
+# After Open Image Denoise, for a study with "denoise" (NaN for any other).
+DENOISED = ["denoised_mean_abs", "denoised_rmse", "denoised_relative_mse"]
 COLORS = {
     "uniform": "#4c72b0",
     "dammertz": "#dd8452",
@@ -61,6 +63,9 @@ class Render:
         self.seconds, self.sps = row["seconds"], row["samples_per_second"]
         for m in METRICS:
             v = row[m]
+            setattr(self, m, float("nan") if v is None else v)
+        for m in DENOISED:  # databases from before migration 6 have no such columns
+            v = row[m] if m in row.keys() else None
             setattr(self, m, float("nan") if v is None else v)
         self.outcome = json.loads(row["outcome_json"] or "{}")
         self.render_id = row["render_id"]
@@ -222,6 +227,8 @@ def compare_table(study, t):
             )
     dh = ["budget", "method", "E", "RMSE", "p99 bucket E", "max bucket E", "time (s)", "samples", "samples/s"]
     out = md_table(header, rows)
+    if n and all(not np.isnan(series[g][i].mean("denoised_mean_abs")) for g in groups for i in range(n)):
+        out += "\n\n" + denoised_tables(series, groups, labels, header, n)
     oracle = [g for g in groups if study.method(g) == "oracle"]
     if oracle and n:
         out += "\n\nE ÷ oracle E at the same budget and seed (mean over seeds; worst seed):\n\n"
@@ -234,6 +241,42 @@ def compare_table(study, t):
             )
         out += md_table(header, ratio_rows)
     return out + "\n\nAll metrics:\n\n" + md_table(dh, detail)
+
+
+def denoised_tables(series, groups, labels, header, n):
+    """A study that denoises: E after denoising as the raw table has it, each group's E
+    over the first group's (raw and denoised, mean over seeds of the per-seed ratio), and
+    every metric raw and denoised."""
+    base = groups[0]
+    rows, ratio_rows, detail = [], [], []
+    for i in range(n):
+        budget = fmt(int(round(np.mean([series[g][i].mean("samples") for g in groups]))))
+        rows.append([budget] + [fmt_err(series[g][i], "denoised_mean_abs") for g in groups])
+        cells = [budget]
+        for g in groups:
+            raw = same_seed_ratios(series[g][i], series[base][i], "mean_abs")
+            den = same_seed_ratios(series[g][i], series[base][i], "denoised_mean_abs")
+            cells.append(f"{np.mean(raw):.3f} / {np.mean(den):.3f}" if raw and den else "–")
+        ratio_rows.append(cells)
+        for g, lab in zip(groups, labels):
+            p = series[g][i]
+            detail.append(
+                [budget, lab]
+                + [fmt(p.mean(m)) for m in ["mean_abs", "rmse", "relative_mse"] + DENOISED]
+            )
+    out = "E after denoising (Open Image Denoise, colour + albedo + normal):\n\n" + md_table(header, rows)
+    out += (
+        f"\n\nE ÷ {labels[0]}'s E at the same budget and seed, raw / denoised (mean over seeds):\n\n"
+        + md_table(header, ratio_rows)
+    )
+    dh = ["budget", "method", "E", "RMSE", "relMSE", "E denoised", "RMSE denoised", "relMSE denoised"]
+    return out + "\n\nRaw and denoised:\n\n" + md_table(dh, detail)
+
+
+def same_seed_ratios(point, base, attr):
+    """attr of each seed's render over base's for the same seed."""
+    by_seed = {r.seed: getattr(r, attr) for r in base.renders}
+    return [getattr(r, attr) / by_seed[r.seed] for r in point.renders if by_seed.get(r.seed, 0) > 0]
 
 
 def oracle_ratios(point, bound):
@@ -675,15 +718,16 @@ def conclusions(study):
 
 
 def write_csv(study, path):
+    metrics = METRICS + (DENOISED if study.definition.get("denoise") else [])
     fields = ["study", "key", "group", "index", "seed", "scene", "width", "height", "method",
-              "strategy", "samples", "rays", "seconds", "samples_per_second"] + METRICS + ["outcome", "render_id"]
+              "strategy", "samples", "rays", "seconds", "samples_per_second"] + metrics + ["outcome", "render_id"]
     with open(path, "w", newline="") as f:
         w = csv.writer(f, lineterminator="\n")
         w.writerow(fields)
         for r in study.renders:
             w.writerow([study.id, r.key, r.group, r.index, r.seed, r.scene, r.width, r.height, r.method,
                         json.dumps(r.strategy, sort_keys=True), r.samples, r.rays, f"{r.seconds:.4f}",
-                        f"{r.sps:.1f}"] + [repr(getattr(r, m)) for m in METRICS]
+                        f"{r.sps:.1f}"] + [repr(getattr(r, m)) for m in metrics]
                        + [json.dumps(r.outcome, sort_keys=True), r.render_id])
 
 
