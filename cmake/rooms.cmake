@@ -26,7 +26,9 @@ function(aliquot_room name)
     list(FILTER sources EXCLUDE REGEX "_test\\.cpp$")
     add_library(${name} ${sources} ${ROOM_SOURCES})
     if(ALIQUOT_UNITY_ROOMS AND NOT name IN_LIST ALIQUOT_UNITY_SKIP)
-        set_target_properties(${name} PROPERTIES UNITY_BUILD ON)
+        # A batch parses nlohmann/json once anyway: making a room's precompiled header
+        # (scripts/demo.sh's build) would cost more than the one or two batches it serves.
+        set_target_properties(${name} PROPERTIES UNITY_BUILD ON DISABLE_PRECOMPILE_HEADERS ON)
         foreach(file IN LISTS ALIQUOT_UNITY_ALONE)
             set_source_files_properties(${PROJECT_SOURCE_DIR}/${file}
                 PROPERTIES SKIP_UNITY_BUILD_INCLUSION ON)
