@@ -57,7 +57,10 @@ Radiance PathTracer::radiance(const Vec3& origin, const Vec3& direction,
     return out;
 }
 
-const Material* PathTracer::arrive(PathLanes& l, int i, const Hit& hit) const {
+// Inlined into radiance_batch's loop over the active paths, once a vertex: a call there
+// cost 1.4 % of a sample's instructions (callgrind, cornell-box at 4 spp).
+[[gnu::always_inline]] inline const Material* PathTracer::arrive(PathLanes& l, int i,
+                                                                 const Hit& hit) const {
     l.shadow[i] = 0;
     l.diffuse[i] = 0;
     const float cos_ng = dot(l.d.get(i), hit.ng);
