@@ -84,6 +84,12 @@ private:
     std::vector<uint64_t> samples_, rays_;
     std::vector<double> half_difference_, luminance_variance_;
     uint64_t total_samples_ = 0, total_rays_ = 0, total_nonfinite_ = 0;
+    // Whether every sum merged so far came in a result within a quarter of the bound
+    // merge() keeps (so every buffer is within three quarters of it): then a result
+    // within a quarter is merged without reading the buffers to check it.
+    bool roomy_ = true;
+    // Pixels of a result checked between looks at whether one failed.
+    static constexpr size_t kRoomyBlock = 256;
 };
 
 }  // namespace aliquot

@@ -173,6 +173,37 @@ TEST(Accumulator, ARefusedResultMergesNoneOfItsPixels) {
     EXPECT_EQ(acc.at(0).even[0], 0.0);
 }
 
+// Results within a quarter of the bound merge after a look at their own sums alone
+// (accumulator.h, roomy_): a bad pixel anywhere in a long result, past the first blocks
+// looked at, still refuses all of it; and after sums at the bound, results are checked
+// against the buffers again and still merge when they fit.
+TEST(Accumulator, AResultIsRefusedWholeForABadPixelAnywhereAfterRoomyMerges) {
+    Accumulator acc(1000, 1);
+    SampleJobResult r;
+    r.rect = {0, 0, 1000, 1};
+    r.pixels.resize(1000);
+    for (PixelSums& p : r.pixels) p.samples = 2, p.even[0] = 0.5;
+    acc.merge(r);
+    for (const size_t bad : {size_t(999), size_t(300)}) {
+        SampleJobResult broken = r;
+        broken.pixels[bad].odd[2] = std::nan("");
+        EXPECT_THROW(acc.merge(broken), MergeError) << bad;
+        broken.pixels[bad].odd[2] = 1.7e308;
+        EXPECT_THROW(acc.merge(broken), MergeError) << bad;
+    }
+    EXPECT_EQ(acc.total_samples(), 2000u);
+    EXPECT_EQ(acc.at(999).odd[2], 0.0);
+    SampleJobResult at_bound = r;
+    at_bound.pixels[5].even[1] = 2e30;  // 1e30 a sample: no longer roomy, still merged
+    acc.merge(at_bound);
+    acc.merge(r);
+    EXPECT_EQ(acc.total_samples(), 6000u);
+    EXPECT_EQ(acc.at(5).even[1], 2e30);
+    SampleJobResult over = r;
+    over.pixels[5].even[1] = 7e30;  // 9e30 over 8 samples: past 1e30 a sample
+    EXPECT_THROW(acc.merge(over), MergeError);
+}
+
 TEST(Accumulator, CopyFromMakesAnEqualCopyOverAnyPreviousContents) {
     // Several bands of pixels, so the copy runs on the pool's threads.
     Accumulator source(400, 400), copy(3, 2);
