@@ -909,7 +909,8 @@ TEST_F(HttpServerTest, ALongIdComesBackShortInEveryError) {
         EXPECT_LT(res->body.size(), 200u) << path.substr(path.size() - 20);
         EXPECT_NE(res->body.find("(8000 bytes)"), std::string::npos) << res->body;
     }
-    auto deleted = client_->Delete(("/api/renders/" + id).c_str());
+    auto deleted =
+        client_->Delete(("/api/renders/" + id).c_str(), "{}", "application/json");
     ASSERT_TRUE(deleted);
     EXPECT_EQ(deleted->status, 404);
     EXPECT_LT(deleted->body.size(), 200u);
