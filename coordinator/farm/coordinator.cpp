@@ -391,38 +391,13 @@ Registration Coordinator::register_link(const std::string& name, uint32_t thread
     return {std::move(link), uint32_t(options_.lease_time.count())};
 }
 
-namespace {
-
-// A lease poll in progress, from the registry's point of view: its worker is not lost
-// while it waits, and its end counts as heard from.
-class LeasePoll {
-public:
-    LeasePoll(WorkerRegistry& registry, const std::string& link)
-        : registry_(registry), link_(link) {
-        registry_.poll_began(link_);
-    }
-    ~LeasePoll() {
-        try {
-            registry_.poll_ended(link_);
-        } catch (const std::exception& e) {  // a full disk writing its row
-            log_farm_error(std::string("lease poll: ") + e.what());
-        }
-    }
-
-private:
-    WorkerRegistry& registry_;
-    const std::string& link_;
-};
-
-}  // namespace
-
 std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
                                              std::chrono::milliseconds wait) {
     // Jobs are the session's host's to take: RenderSession counts failures, keeps hosts
     // off jobs and checks lease ownership by this, and the Coordinator checks ownership
     // by session before it asks.
     const std::string worker = registry_.link_of(session).identity;
-    const LeasePoll poll(registry_, session);
+    const WorkerRegistry::Poll poll(registry_, session);
     const auto deadline = std::chrono::steady_clock::now() + wait;
     std::unique_lock lock(mutex_);
     while (!stopping_) {
@@ -625,26 +600,13 @@ void Coordinator::tick() {
         std::lock_guard lock(mutex_);
         slots = slots_in_order();
     }
-    const auto now = RenderSession::Clock::now();
-    std::vector<uint64_t> expired;
-    std::set<std::string> finished;
-    bool opened_ahead = false;  // a round planned ahead can be leased now
-    for (const SlotPtr& slot : slots) {
-        std::lock_guard render(slot->mutex);
-        if (slot->session->finished()) {
-            finished.insert(slot->session->id());
-        } else {
-            for (const uint64_t lease : slot->session->expire(now))
-                expired.push_back(lease);
-            opened_ahead = slot->session->announce_next_round() || opened_ahead;
-        }
-    }
+    const LeaseSweep swept = sweep_leases(slots, RenderSession::Clock::now());
     const TickChores due = tick_schedule_.next();
     const bool lost = registry_.tick(unix_millis_now(), due.sweep_worker_rows);
     {
         std::lock_guard lock(mutex_);
-        forget_ended_leases(expired, finished);
-        if (!expired.empty() || opened_ahead || lost) changed();
+        forget_ended_leases(swept.expired, swept.finished);
+        if (!swept.expired.empty() || swept.opened_ahead || lost) changed();
     }
     archive_.tick(due.wal_checkpoint);
     // Outside the lock: deleting a render's files can take a while.

@@ -44,4 +44,20 @@ LeaseScan scan_for_a_job(const std::vector<SlotPtr>& slots, const LeaseAsk& ask)
     return out;
 }
 
+LeaseSweep sweep_leases(const std::vector<SlotPtr>& slots,
+                        RenderSession::Clock::time_point now) {
+    LeaseSweep out;
+    for (const SlotPtr& slot : slots) {
+        std::lock_guard render(slot->mutex);
+        RenderSession& s = *slot->session;
+        if (s.finished()) {
+            out.finished.insert(s.id());
+            continue;
+        }
+        for (const uint64_t lease : s.expire(now)) out.expired.push_back(lease);
+        out.opened_ahead = s.announce_next_round() || out.opened_ahead;
+    }
+    return out;
+}
+
 }  // namespace aliquot

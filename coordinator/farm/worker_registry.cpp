@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 
+#include "farm_log.h"
 #include "secret.h"
 #include "unix_millis.h"
 
@@ -97,6 +98,19 @@ void WorkerRegistry::poll_ended(const std::string& link) {
     it->second.last_seen_ms = unix_millis_now();
     WorkerEntry& w = touch_worker(it->second.worker);
     if (w.polling > 0) --w.polling;
+}
+
+WorkerRegistry::Poll::Poll(WorkerRegistry& registry, const std::string& link)
+    : registry_(registry), link_(link) {
+    registry_.poll_began(link_);
+}
+
+WorkerRegistry::Poll::~Poll() {
+    try {
+        registry_.poll_ended(link_);
+    } catch (const std::exception& e) {  // a full disk writing its row
+        log_farm_error(std::string("lease poll: ") + e.what());
+    }
 }
 
 bool WorkerRegistry::knows(const std::string& name) const {

@@ -73,6 +73,18 @@ public:
     // the poll's end counts as heard from (docs/FARM.md, "Workers lost").
     void poll_began(const std::string& link);
     void poll_ended(const std::string& link);
+    // poll_began and poll_ended around a lease poll.
+    class Poll {
+    public:
+        Poll(WorkerRegistry& registry, const std::string& link);
+        ~Poll();
+        Poll(const Poll&) = delete;
+        Poll& operator=(const Poll&) = delete;
+
+    private:
+        WorkerRegistry& registry_;
+        const std::string& link_;
+    };
     // What a worker says of itself; false for an unknown name.
     bool describe(const std::string& name, std::string host, std::string version);
     bool knows(const std::string& name) const;
