@@ -16,10 +16,12 @@
 option(ALIQUOT_UNITY_ROOMS "Compile each room's library as a unity build (scripts/demo.sh)" OFF)
 set(ALIQUOT_UNITY_SKIP aliquot_tracer)
 # Files whose anonymous namespaces repeat a name of another file of their room (kRgb,
-# kDefaultMaxSpp, in_quotes, iequals): they compile alone in a unity build.
+# kDefaultMaxSpp, kImageFactor, in_quotes, iequals): they compile alone in a unity build.
+# Nothing but scripts/demo.sh builds this way, so a new repeat shows there first; demo.sh
+# then builds file by file.
 set(ALIQUOT_UNITY_ALONE coordinator/image/exr_rgb_copy.cpp
-    coordinator/strategies/dammertz_strategy.cpp coordinator/study/study_plan.cpp
-    coordinator/api/http_front.cpp)
+    coordinator/strategies/dammertz_strategy.cpp coordinator/strategies/denoised_strategy.cpp
+    coordinator/study/study_plan.cpp coordinator/api/http_front.cpp)
 function(aliquot_room name)
     cmake_parse_arguments(ROOM "" "" "LINKS;PUBLIC_LINKS;SOURCES;TEST_LINKS" ${ARGN})
     file(GLOB sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cpp)
