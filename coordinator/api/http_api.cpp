@@ -172,6 +172,9 @@ RenderSpec parse_render_request(const std::string& body) {
         } else if (key == "name") {
             require(v.is_string(), "'name' must be a string");
             spec.name = v.get<std::string>();
+        } else if (key == "albedo_normal") {
+            require(v.is_boolean(), "'albedo_normal' must be true or false");
+            spec.aux = v.get<bool>();
         } else if (key == "strategy") {
             try {
                 spec.strategy = v.get<StrategyParams>();
@@ -182,7 +185,7 @@ RenderSpec parse_render_request(const std::string& body) {
             throw ApiError(400,
                            "unknown field '" + key +
                                "'; expected scene, resolution (or width and height), "
-                               "seed, strategy, priority, name");
+                               "seed, strategy, priority, name, albedo_normal");
         }
     }
     require(!(have_resolution && (have_width || have_height)),
