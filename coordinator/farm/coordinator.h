@@ -167,10 +167,10 @@ public:
     // render's lock: what the coordinator costs per round (round_end_stats.h); their CPU
     // time on their threads (what they cost whatever the load); the part the workers
     // waited through; the rounds ended.
-    double round_end_seconds() const { return round_ends_.seconds(); }
-    double round_end_cpu_seconds() const { return round_ends_.cpu_seconds(); }
-    double round_end_wait_seconds() const { return round_ends_.wait_seconds(); }
-    uint64_t rounds_ended() const { return round_ends_.rounds(); }
+    double round_end_seconds() const { return round_ends_.totals().seconds; }
+    double round_end_cpu_seconds() const { return round_ends_.totals().cpu_seconds; }
+    double round_end_wait_seconds() const { return round_ends_.totals().wait_seconds; }
+    uint64_t rounds_ended() const { return round_ends_.totals().rounds; }
 
     // Why writes to the run record are failing (a full disk), empty when they are not.
     std::string storage_warning();

@@ -57,8 +57,7 @@ protected:
 // the render whose lock is held; it leases, merges and ends the other one meanwhile.
 TEST_F(CoordinatorLocks, ARendersHeldLockHoldsUpNoOtherRendersLeaseOrMerge) {
     Coordinator c(options);
-    RenderSpec one_job = spec_of("uniform", 1, 1);
-    one_job.width = one_job.height = 4;
+    const RenderSpec one_job = small_test_spec();
     const std::string held = c.submit(one_job);  // first in lease order
     const std::string other = c.submit(one_job);
     const std::string session = c.register_worker("w", 1).session;

@@ -35,15 +35,7 @@ protected:
     }
     ~CoordinatorTest() override { fs::remove_all(dir); }
 
-    static RenderSpec small_spec() {
-        RenderSpec spec;
-        spec.scene_name = "cornell-box";
-        spec.scene_json = self_contained_scene_json("cornell-box");
-        spec.width = spec.height = 4;
-        spec.strategy.method = "uniform";
-        spec.strategy.spp = 1;
-        return spec;
-    }
+    static RenderSpec small_spec() { return small_test_spec(); }
     static std::string read(const fs::path& p) {
         std::ostringstream s;
         s << std::ifstream(p, std::ios::binary).rdbuf();

@@ -1,13 +1,27 @@
-// Results a test hands the coordinator for a leased job, made from the job alone, so
-// that a render's bytes depend on its spec only, whichever worker or thread returns them.
+// What the farm's tests hand the coordinator: a small render, and results for a leased
+// job made from the job alone, so that a render's bytes depend on its spec only,
+// whichever worker or thread returns them.
 #pragma once
 
 #include <cmath>
 #include <cstddef>
 
 #include "lease.h"
+#include "render_spec.h"
+#include "scene_loader.h"
 
 namespace aliquot {
+
+// 4x4 pixels of the Cornell box, one sample each: one round of one job.
+inline RenderSpec small_test_spec() {
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = 4;
+    spec.strategy.method = "uniform";
+    spec.strategy.spp = 1;
+    return spec;
+}
 
 // A valid result for `grant`: its sample counts, zero radiance.
 inline SampleJobResult zero_result(const LeaseGrant& grant) {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "coordinator.h"
-#include "scene_loader.h"
+#include "farm_test_results.h"
 
 namespace aliquot {
 namespace {
@@ -58,12 +58,7 @@ TEST(RenderQueue, ResumedRendersKeepTheirPlaces) {
     options.data_dir = std::filesystem::temp_directory_path() /
                        ("aliquot_render_queue_test_" + std::to_string(getpid()));
     std::filesystem::remove_all(options.data_dir);
-    RenderSpec spec;
-    spec.scene_name = "cornell-box";
-    spec.scene_json = self_contained_scene_json("cornell-box");
-    spec.width = spec.height = 4;
-    spec.strategy.method = "uniform";
-    spec.strategy.spp = 1;
+    RenderSpec spec = small_test_spec();
     std::vector<std::string> ids;  // in the order they are to be leased
     {
         Coordinator c(options);

@@ -41,30 +41,15 @@ RoundEnd RoundEndMeter::finish(const RenderSession& session) const {
 void RoundEndStats::add(const RoundEnd& end) {
     if (end.rounds == 0) return;
     std::lock_guard lock(mutex_);
-    seconds_ += end.seconds;
-    cpu_seconds_ += end.cpu_seconds;
-    if (end.waited) wait_seconds_ += end.seconds;
-    rounds_ += end.rounds;
+    totals_.seconds += end.seconds;
+    totals_.cpu_seconds += end.cpu_seconds;
+    if (end.waited) totals_.wait_seconds += end.seconds;
+    totals_.rounds += end.rounds;
 }
 
-double RoundEndStats::seconds() const {
+RoundEndStats::Totals RoundEndStats::totals() const {
     std::lock_guard lock(mutex_);
-    return seconds_;
-}
-
-double RoundEndStats::cpu_seconds() const {
-    std::lock_guard lock(mutex_);
-    return cpu_seconds_;
-}
-
-double RoundEndStats::wait_seconds() const {
-    std::lock_guard lock(mutex_);
-    return wait_seconds_;
-}
-
-uint64_t RoundEndStats::rounds() const {
-    std::lock_guard lock(mutex_);
-    return rounds_;
+    return totals_;
 }
 
 }  // namespace aliquot

@@ -36,16 +36,17 @@ private:
 
 class RoundEndStats {
 public:
+    struct Totals {
+        double seconds = 0, cpu_seconds = 0;
+        double wait_seconds = 0;  // of the round ends the workers waited through
+        uint64_t rounds = 0;
+    };
     void add(const RoundEnd& end);
-    double seconds() const;
-    double cpu_seconds() const;
-    double wait_seconds() const;
-    uint64_t rounds() const;
+    Totals totals() const;
 
 private:
     mutable std::mutex mutex_;
-    double seconds_ = 0, cpu_seconds_ = 0, wait_seconds_ = 0;
-    uint64_t rounds_ = 0;
+    Totals totals_;
 };
 
 }  // namespace aliquot
