@@ -13,14 +13,12 @@
 namespace aliquot {
 
 // Where open() looks for libOpenImageDenoise.so.2, the first that loads wins:
-// 1. the file ALIQUOT_OIDN_LIBRARY names (and nothing else when it is set, so a test or a
-// user
-//    can say which library, or that there is none);
-// 2. the pyoidn package in the repository's .venv, which scripts/install-deps.sh
-// installs:
-//    the source tree's, baked in at configure time, then the one two folders above the
-//    executable (build/bin/aliquot);
-// 3. the loader's own search (LD_LIBRARY_PATH, a system install).
+//   1. the file ALIQUOT_OIDN_LIBRARY names, and nothing else when it is set (so a test
+//      or a user can say which library, or that there is none);
+//   2. pyoidn's copy in the repository's .venv (scripts/install-deps.sh installs it):
+//      the source tree's, baked in at configure time, then the one two folders above
+//      the executable (build/bin/aliquot);
+//   3. the loader's own search (LD_LIBRARY_PATH, a system install).
 inline constexpr const char* kOidnLibraryVariable = "ALIQUOT_OIDN_LIBRARY";
 
 class Denoiser {

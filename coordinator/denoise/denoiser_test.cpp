@@ -76,25 +76,6 @@ std::optional<Image> denoise_fixed_input(const Denoiser& denoiser, std::string* 
     return denoiser.denoise(colour, &albedo, &normal, error);
 }
 
-// Sets an environment variable for one test and puts back what was there.
-class ScopedEnv {
-public:
-    ScopedEnv(const char* name, const char* value) : name_(name) {
-        if (const char* old = std::getenv(name)) old_ = old;
-        setenv(name, value, 1);
-    }
-    ~ScopedEnv() {
-        if (old_)
-            setenv(name_, old_->c_str(), 1);
-        else
-            unsetenv(name_);
-    }
-
-private:
-    const char* name_;
-    std::optional<std::string> old_;
-};
-
 TEST(Denoiser, NoisyConstantDenoisesToNearTheConstant) {
     REQUIRE_DENOISER(denoiser);
     const Image noisy = noisy_constant(64, 0.5f, 1);
@@ -201,8 +182,8 @@ TEST(Denoiser, SameInputsGiveSameBytesInAnotherProcess) {
 }
 
 TEST(Denoiser, MissingLibraryNamesThePathAndTheInstallCommand) {
-    const ScopedEnv library(kOidnLibraryVariable,
-                            "/nonexistent/libOpenImageDenoise.so.2");
+    const testing_denoise::ScopedEnv library(kOidnLibraryVariable,
+                                             "/nonexistent/libOpenImageDenoise.so.2");
     std::string error;
     EXPECT_EQ(Denoiser::open(&error), nullptr);
     EXPECT_NE(error.find("/nonexistent/libOpenImageDenoise.so.2"), std::string::npos)
@@ -213,7 +194,7 @@ TEST(Denoiser, MissingLibraryNamesThePathAndTheInstallCommand) {
 
 TEST(Denoiser, ALibraryWithoutOidnsCallsIsRefused) {
     // libz is a real shared library every build of ours has (the image room links it).
-    const ScopedEnv library(kOidnLibraryVariable, "libz.so.1");
+    const testing_denoise::ScopedEnv library(kOidnLibraryVariable, "libz.so.1");
     std::string error;
     EXPECT_EQ(Denoiser::open(&error), nullptr);
     EXPECT_NE(error.find("has no oidnNewDevice"), std::string::npos) << error;
