@@ -19,6 +19,7 @@
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "grpc_server.h"
+#include "peak_memory.h"
 #include "scene_loader.h"
 #include "test_tokens.h"
 #include "trace_job.h"
@@ -31,14 +32,6 @@ using grpc::health::v1::HealthCheckRequest;
 using grpc::health::v1::HealthCheckResponse;
 
 // A line of /proc/self/status, in kB ("VmHWM", "VmRSS").
-uint64_t status_kb(const std::string& field) {
-    std::ifstream in("/proc/self/status");
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind(field + ":", 0) == 0)
-            return std::stoull(line.substr(field.size() + 1));
-    return 0;
-}
-
 size_t entries(const char* dir) {
     size_t n = 0;
     for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
@@ -412,15 +405,13 @@ TEST_F(GrpcFetchImage, ConcurrentFetchesOfALargeStoredImageHoldNoCopyOfIt) {
             big.extra.push_back({name, std::vector<float>(big.pixel_count(), 1.0f)});
         write_exr(*file, big);
     }
-    // Peak RSS from here on (writing 5 to clear_refs resets VmHWM).
-    std::ofstream("/proc/self/clear_refs") << "5";
-    const uint64_t before = status_kb("VmHWM");
+    const testing::PeakMemory peak;
     std::vector<std::thread> fetches;
     for (int i = 0; i < 8; ++i)
         fetches.emplace_back([&, i] { EXPECT_FALSE(fetch(id, i % 2 == 0).empty()); });
     for (std::thread& t : fetches) t.join();
     // Each used to hold the decoded image (80 MB) and its encoding.
-    EXPECT_LT(status_kb("VmHWM") - before, 64u * 1024) << "kB";
+    EXPECT_LT(peak.grown_kb(), 64u * 1024) << "kB";
 }
 
 }  // namespace

@@ -631,42 +631,24 @@ TEST(GrpcIds, AnUnknownIdOfAMegabyteComesBackShortInEveryError) {
         EXPECT_NE(status.error_message().find("(1048579 bytes)"), std::string::npos)
             << call << ": " << status.error_message().substr(0, 200);
     };
+    // A unary call of the client service with the hostile id, by its stub method.
+    const auto call = [&](const char* name, auto method, const auto& req, auto reply) {
+        testing::TokenContext ctx(Role::Client);
+        expect_short(name, ((*stub).*method)(&ctx, req, &reply));
+    };
+    using Stub = v1::ClientService::Stub;
     v1::GetRenderRequest render;
     render.set_id(id);
-    {
-        testing::TokenContext ctx(Role::Client);
-        v1::GetEventsRequest req;
-        req.set_id(id);
-        v1::GetEventsReply reply;
-        expect_short("GetEvents", stub->GetEvents(&ctx, req, &reply));
-    }
-    {
-        testing::TokenContext ctx(Role::Client);
-        v1::RenderInfo reply;
-        expect_short("GetRender", stub->GetRender(&ctx, render, &reply));
-    }
-    {
-        testing::TokenContext ctx(Role::Client);
-        v1::RenderInfo reply;
-        expect_short("Cancel", stub->Cancel(&ctx, render, &reply));
-    }
-    {
-        testing::TokenContext ctx(Role::Client);
-        v1::SetPriorityRequest req;
-        req.set_id(id);
-        v1::RenderInfo reply;
-        expect_short("SetPriority", stub->SetPriority(&ctx, req, &reply));
-    }
-    {
-        testing::TokenContext ctx(Role::Client);
-        v1::DeleteReply reply;
-        expect_short("Delete", stub->Delete(&ctx, render, &reply));
-    }
-    {
-        testing::TokenContext ctx(Role::Client);
-        v1::GetRoundsReply reply;
-        expect_short("GetRounds", stub->GetRounds(&ctx, render, &reply));
-    }
+    v1::GetEventsRequest events;
+    events.set_id(id);
+    v1::SetPriorityRequest priority;
+    priority.set_id(id);
+    call("GetEvents", &Stub::GetEvents, events, v1::GetEventsReply{});
+    call("GetRender", &Stub::GetRender, render, v1::RenderInfo{});
+    call("Cancel", &Stub::Cancel, render, v1::RenderInfo{});
+    call("SetPriority", &Stub::SetPriority, priority, v1::RenderInfo{});
+    call("Delete", &Stub::Delete, render, v1::DeleteReply{});
+    call("GetRounds", &Stub::GetRounds, render, v1::GetRoundsReply{});
     {
         testing::TokenContext ctx(Role::Client);
         auto reader = stub->Watch(&ctx, render);

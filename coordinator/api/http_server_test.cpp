@@ -31,6 +31,7 @@
 #include "grpc_server.h"
 #include "http_api.h"
 #include "http_session.h"
+#include "peak_memory.h"
 #include "png_encoder.h"
 #include "scene_loader.h"
 #include "test_tokens.h"
@@ -1215,14 +1216,6 @@ TEST(HttpServerStorage, AFinishedRendersExrIsTheStoredFile) {
     fs::remove_all(dir);
 }
 
-uint64_t status_kb(const std::string& field) {
-    std::ifstream in("/proc/self/status");
-    for (std::string line; std::getline(in, line);)
-        if (line.rfind(field + ":", 0) == 0)
-            return std::stoull(line.substr(field.size() + 1));
-    return 0;
-}
-
 // Review of issue 32: an EXR download read the whole stored file into memory, twice over
 // (a stream's buffer, then its string). It is now sent as it is read: 8 downloads at once
 // of a 32 MiB file (what a 2048x2048 render with its layers stores) grow the process by
@@ -1249,8 +1242,7 @@ TEST(HttpServerStorage, ConcurrentExrDownloadsHoldAChunkNotTheFile) {
         }
         std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
 
-        std::ofstream("/proc/self/clear_refs") << "5";  // peak RSS from here on
-        const uint64_t before = status_kb("VmHWM");
+        const testing::PeakMemory peak;
         std::vector<std::thread> downloads;
         std::vector<int> statuses(8, 0);
         std::vector<size_t> matched(8, 0);
@@ -1272,7 +1264,7 @@ TEST(HttpServerStorage, ConcurrentExrDownloadsHoldAChunkNotTheFile) {
                 matched[d] = same ? at : 0;
             });
         for (std::thread& t : downloads) t.join();
-        const uint64_t grown_kb = status_kb("VmHWM") - before;
+        const uint64_t grown_kb = peak.grown_kb();
         for (size_t d = 0; d < statuses.size(); ++d) {
             EXPECT_EQ(statuses[d], 200) << d;
             EXPECT_EQ(matched[d], stored.size()) << d;
