@@ -49,8 +49,8 @@ public:
 
     // Per pixel, the standard deviation of one sample as seen through the denoiser:
     // sqrt(n_i * Var[denoised_i]), Var estimated from the two denoised halves and pooled
-    // over the (2 radius + 1)^2 window. What the weights n ∝ s^(2/3) are made of.
-    // The guides are used when `first_hits` keeps them.
+    // over the (2 radius + 1)^2 window by its median. What the weights n ∝ s^(2/3) are
+    // made of. The guides are used when `first_hits` keeps them.
     static std::vector<double> denoised_sigma(const Accumulator& merged,
                                               const AuxSums* first_hits,
                                               const DenoiseFunction& denoise,
