@@ -27,8 +27,9 @@ struct Denoiser::Loaded {
 
 namespace {
 
-// OIDN reads HDR colour in [0, +inf): a NaN, an infinity or a negative value would spread
-// through the network's receptive field, so such pixels are given as black.
+// OIDN reads HDR colour in [0, +inf): it makes a NaN 0 but an infinity its largest float,
+// which spreads through the network's receptive field (denoiser_test.cpp), so such
+// pixels, and negative ones, are given as black.
 const std::vector<float>& finite_colour(const std::vector<float>& rgb,
                                         std::vector<float>* cleaned) {
     bool clean = true;
