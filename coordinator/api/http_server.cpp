@@ -23,8 +23,8 @@
 #include "http_session.h"
 #include "render_state.h"
 #include "scene_loader.h"
-#include "stored_image.h"
 #include "shown_id.h"
+#include "stored_image.h"
 #include "strategy_parameters.h"
 #include "thumbnail_cache.h"
 #include "unix_millis.h"
@@ -106,15 +106,14 @@ void send_json(httplib::Response& res, const json& body, int status = 200) {
     res.set_content(json_text(body), "application/json");
 }
 
-void send_error(httplib::Response& res, int status, const std::string& message) {
 // A name of the request (a render id, a study's path) as an error message quotes it:
 // bounded, printable.
 std::string quoted_id(const std::string& id) { return "'" + shown_id(id) + "'"; }
 
+void send_error(httplib::Response& res, int status, const std::string& message) {
     send_json(res, {{"error", message}}, status);
 }
 
-std::string content_type_of(const std::filesystem::path& p) {
 // Sends the file at `path` as it is read, 1 MiB at a time: the response holds one chunk,
 // never the file, and keeps `place` until it is sent or cut. The file is opened here (a
 // missing one is ApiError 404); one renamed or deleted meanwhile is still read whole.
@@ -143,6 +142,7 @@ void send_file(httplib::Response& res, const std::filesystem::path& path,
         });
 }
 
+std::string content_type_of(const std::filesystem::path& p) {
     static const std::map<std::string, std::string> types = {
         {".md", "text/markdown; charset=utf-8"},
         {".txt", "text/plain; charset=utf-8"},
@@ -448,6 +448,12 @@ struct HttpServer::Impl {
     static constexpr uint32_t kThumbnailSide = 96;
     ThumbnailCache thumbnails{1000};
 
+    Image image_or_404(const std::string& id, bool aovs) {
+        std::optional<Image> image = coordinator.image(id, aovs);
+        if (!image) throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
+        return std::move(*image);
+    }
+
     // A render in memory's thumbnail is made straight from its sums; a stored one's from
     // its EXR, once (a finished render's version does not change).
     std::string thumbnail_png(const std::string& id) {
@@ -456,9 +462,7 @@ struct HttpServer::Impl {
                 png = http_api::thumbnail_png(sums, kThumbnailSide);
             }))
             return png;
-        const std::optional<Image> image = coordinator.image(id, false);
-        if (!image) throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
-        return http_api::preview_png(*image, 0, kThumbnailSide);
+        return http_api::preview_png(image_or_404(id, false), 0, kThumbnailSide);
     }
 
     // A place among image_requests, or ApiError 503 with Retry-After.
@@ -905,25 +909,20 @@ struct HttpServer::Impl {
     // What the dashboard draws of one render: preview, heat maps, buckets. Every route
     // that makes or sends an image takes a place among image_requests first.
     void image_routes() {
-        server.Get(
-            R"(/api/renders/([^/]+)/preview\.png)",
-            guarded([this](const httplib::Request& req, auto& res) {
-                const std::string id = req.matches[1];
-                const double exposure = http_api::number_param(
-                    "exposure", query(req, "exposure", "0"), -20, 20);
-                const auto size = uint32_t(
-                    http_api::number_param("size", query(req, "size", "1024"), 16, 8192));
-                render_or_404(id);
-                const Admission::Place place = admit_image(res);
-                const std::optional<Image> image = coordinator.image(id, false);
-                if (!image)
-                    throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
-                res.set_header("Cache-Control", "no-store");
-                res.set_content(http_api::preview_png(*image, exposure, size),
-                                "image/png");
-            }));
-        server.Get(
-            R"(/api/renders/([^/]+)/image\.exr)",
+        server.Get(R"(/api/renders/([^/]+)/preview\.png)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const double exposure = http_api::number_param(
+                           "exposure", query(req, "exposure", "0"), -20, 20);
+                       const auto size = uint32_t(http_api::number_param(
+                           "size", query(req, "size", "1024"), 16, 8192));
+                       render_or_404(id);
+                       const Admission::Place place = admit_image(res);
+                       const Image image = image_or_404(id, false);
+                       res.set_header("Cache-Control", "no-store");
+                       res.set_content(http_api::preview_png(image, exposure, size),
+                                       "image/png");
+                   }));
         server.Get(R"(/api/renders/([^/]+)/thumbnail\.png)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];
@@ -943,51 +942,49 @@ struct HttpServer::Impl {
                        res.set_header("Cache-Control", "no-store");
                        res.set_content(png, "image/png");
                    }));
-            guarded([this](const httplib::Request& req, auto& res) {
-                const std::string id = req.matches[1];
-                const std::string aovs = query(req, "aovs", "0");
-                if (aovs != "0" && aovs != "1")
-                    throw ApiError(
-                        400, "'aovs' must be 0 or 1, got \"" + aovs.substr(0, 8) + "\"");
-                render_or_404(id);
-                Admission::Place place = admit_image(res);
-                res.set_header("Cache-Control", "no-store");
-                res.set_header("Content-Disposition",
-                               "attachment; filename=\"" + id + ".exr\"");
-                // OpenEXR's own name for its type; not compressed again (ZIP inside).
-                res.set_content(encode_exr(*image), "image/x-exr");
-            }));
-        server.Get(
-            R"(/api/renders/([^/]+)/maps)",
-            guarded([this](const httplib::Request& req, auto& res) {
-                const std::string id = req.matches[1];
-                const std::string kind = query(req, "kind", "spp");
-                if (kind != "spp" && kind != "error")
-                    throw ApiError(400,
-                                   "'kind' must be spp or error, got \"" + kind + "\"");
-                const auto size = uint32_t(
-                    http_api::number_param("size", query(req, "size", "256"), 8, 256));
-                render_or_404(id);
-                const Admission::Place place = admit_image(res);
-                const std::optional<Image> image = coordinator.image(id, true);
-                if (!image)
-                    throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
-                const auto map_kind =
-                    kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error;
-                json map = http_api::pixel_map(*image, map_kind, size);
-                map["id"] = id;
-                send_json(res, map);
-                if (const auto file = coordinator.image_file(id)) {
-                    // A finished render's stored file as it is, as FetchImage sends it,
-                    // read as it is sent: the response holds a chunk, not the file.
-                    send_file(res, stored_image(*file, aovs == "1"), "image/x-exr",
-                              std::move(place));
-                    return;
-                }
-                const std::optional<Image> image = coordinator.image(id, aovs == "1");
-                if (!image)
-                    throw ApiError(404, "render " + quoted_id(id) + " has no image yet");
-            }));
+        server.Get(R"(/api/renders/([^/]+)/image\.exr)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const std::string aovs = query(req, "aovs", "0");
+                       if (aovs != "0" && aovs != "1")
+                           throw ApiError(400, "'aovs' must be 0 or 1, got \"" +
+                                                   aovs.substr(0, 8) + "\"");
+                       render_or_404(id);
+                       Admission::Place place = admit_image(res);
+                       res.set_header("Cache-Control", "no-store");
+                       res.set_header("Content-Disposition",
+                                      "attachment; filename=\"" + id + ".exr\"");
+                       if (const auto file = coordinator.image_file(id)) {
+                           // A finished render's stored file as it is, as FetchImage
+                           // sends it, read as it is sent: the response holds a chunk,
+                           // not the file.
+                           send_file(res, stored_image(*file, aovs == "1"), "image/x-exr",
+                                     std::move(place));
+                           return;
+                       }
+                       const Image image = image_or_404(id, aovs == "1");
+                       // OpenEXR's own name for its type; not compressed again (ZIP
+                       // inside).
+                       res.set_content(encode_exr(image), "image/x-exr");
+                   }));
+        server.Get(R"(/api/renders/([^/]+)/maps)",
+                   guarded([this](const httplib::Request& req, auto& res) {
+                       const std::string id = req.matches[1];
+                       const std::string kind = query(req, "kind", "spp");
+                       if (kind != "spp" && kind != "error")
+                           throw ApiError(
+                               400, "'kind' must be spp or error, got \"" + kind + "\"");
+                       const auto size = uint32_t(http_api::number_param(
+                           "size", query(req, "size", "256"), 8, 256));
+                       render_or_404(id);
+                       const Admission::Place place = admit_image(res);
+                       const Image image = image_or_404(id, true);
+                       const auto map_kind = kind == "spp" ? http_api::MapKind::Spp
+                                                           : http_api::MapKind::Error;
+                       json map = http_api::pixel_map(image, map_kind, size);
+                       map["id"] = id;
+                       send_json(res, map);
+                   }));
         server.Get(R"(/api/renders/([^/]+)/buckets)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];
