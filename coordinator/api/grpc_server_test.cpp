@@ -669,6 +669,27 @@ TEST(GrpcIds, AnUnknownIdOfAMegabyteComesBackShortInEveryError) {
     }
 }
 
+// Issue 34: over the wire, a render with first hits leases jobs that ask for them, and
+// its worker's sums come back as the EXR's albedo and normal layers.
+TEST_F(WorkerServiceTest, ARenderWithFirstHitsGetsThemOverTheWire) {
+    RenderSpec spec = spec_;
+    spec.aux = true;
+    spec.priority = 10;  // leased before the fixture's render
+    const std::string id = coordinator_->submit(spec);
+    const v1::Lease l = lease();
+    ASSERT_EQ(l.render_id(), id);
+    EXPECT_TRUE(l.job().aux());
+    const v1::SampleJobResult result = trace(l);
+    EXPECT_EQ(result.sum_albedo_size(), 3 * 8 * 8);
+    EXPECT_EQ(complete(l.lease_id(), result), v1::COMPLETE_STATUS_MERGED);
+    const std::optional<Image> image = coordinator_->image(id, true);
+    ASSERT_TRUE(image);
+    size_t layers = 0;
+    for (const Image::Channel& c : image->extra)
+        layers += c.name.rfind("albedo.", 0) == 0 || c.name.rfind("normal.", 0) == 0;
+    EXPECT_EQ(layers, 6u);
+}
+
 // Issue 34: a worker from before wire version 1 (the first-hit sums) sends no version.
 // Its result is refused with the reason, nothing of it merges, and the job goes out
 // again.
