@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <limits>
 
+#include "accumulator.h"
 #include "aov_channels.h"
 #include "png_encoder.h"
 #include "resolution.h"

@@ -12,9 +12,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "accumulator.h"
 #include "coordinator.h"
 #include "render_json.h"
+
+namespace aliquot {
+class Accumulator;
+}
 
 namespace aliquot::http_api {
 
