@@ -64,6 +64,12 @@ void run(RenderSession& s, Make make) {
     ASSERT_EQ(s.state(), RenderState::Done);
 }
 
+// Starts the session and leases its first job to "w" as lease 1.
+std::optional<SampleJob> start_and_lease(RenderSession& s) {
+    s.start();
+    return s.issue(1, "w", RenderSession::Clock::now() + std::chrono::hours(1));
+}
+
 TEST(AuxRender, ItsJobsAskForFirstHitsAndItsImageHasTheirMeans) {
     RenderSession s("r", small_spec(true), 0);
     s.start();
@@ -85,9 +91,7 @@ TEST(AuxRender, ItsJobsAskForFirstHitsAndItsImageHasTheirMeans) {
 
 TEST(AuxRender, AResultWithoutFirstHitsIsRejectedAndNothingMerges) {
     RenderSession s("r", small_spec(true), 0);
-    s.start();
-    const auto far = RenderSession::Clock::now() + std::chrono::hours(1);
-    const std::optional<SampleJob> job = s.issue(1, "w", far);
+    const std::optional<SampleJob> job = start_and_lease(s);
     ASSERT_TRUE(job);
     SampleJobResult r = fake_result(*job);
     r.first_hits.clear();
@@ -99,9 +103,7 @@ TEST(AuxRender, AResultWithoutFirstHitsIsRejectedAndNothingMerges) {
 // result that brings first hits anyway is refused.
 TEST(AuxRender, ARenderThatDoesNotAskKeepsNone) {
     RenderSession s("r", small_spec(false), 0);
-    s.start();
-    const auto far = RenderSession::Clock::now() + std::chrono::hours(1);
-    const std::optional<SampleJob> job = s.issue(1, "w", far);
+    const std::optional<SampleJob> job = start_and_lease(s);
     ASSERT_TRUE(job);
     EXPECT_FALSE(job->aux);
     EXPECT_FALSE(s.aux().kept());
