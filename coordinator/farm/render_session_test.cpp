@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "checkpoint.h"
+#include "denoised_strategy.h"
 #include "scene_loader.h"
 #include "strategy_params.h"
 #include "synthetic_source.h"
@@ -89,6 +90,23 @@ TEST_F(RenderSessionTest, RunsRoundsUntilTheStrategyIsDone) {
     ASSERT_FALSE(rounds.empty());
     EXPECT_EQ(rounds.back().samples_total, 8u * 40 * 40);
     for (size_t i = 0; i < rounds.size(); ++i) EXPECT_EQ(rounds[i].index, i);
+}
+
+TEST_F(RenderSessionTest, AStrategyThatReadsFirstHitsHasItsRenderTraceThem) {
+    // denoised gives OIDN the first-hit albedo and normal: its render keeps them and its
+    // jobs ask for them, though the submitter did not.
+    spec.strategy.method = "denoised";
+    spec.aux = false;
+    const auto identity = [](const Image& in, const Image*, const Image*) { return in; };
+    RenderSession s("r", spec, 0,
+                    std::make_unique<DenoisedStrategy>(spec.strategy, spec.width,
+                                                       spec.height, identity));
+    EXPECT_TRUE(s.spec().aux);
+    EXPECT_TRUE(s.aux().kept());
+    s.start();
+    const auto job = s.issue(1, "w", far);
+    ASSERT_TRUE(job);
+    EXPECT_TRUE(job->aux);
 }
 
 // A farm of 32 worker cores: the round is cut into at least 64 jobs, where the cut for a
