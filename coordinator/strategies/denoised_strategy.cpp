@@ -48,9 +48,9 @@ namespace {
 // and is measured again, as optimal's kImageFactor.
 constexpr double kImageFactor = 1.0 / 256;
 
-// The window the denoised variance is pooled over: 5x5, 75 degrees of freedom a pixel
-// instead of 3, about OIDN's smallest footprint on a noisy image (its receptive field is
-// far wider, so the error it leaves varies slowly from pixel to pixel).
+// The window the denoised variance is pooled over: 5x5, 25 pixels' estimates instead of
+// one, about OIDN's smallest footprint on a noisy image (its receptive field is far
+// wider, so the error it leaves varies slowly from pixel to pixel).
 constexpr uint32_t kPoolRadius = 2;
 
 // The half images: the means of each pixel's even-index and odd-index samples. A pixel

@@ -30,7 +30,8 @@ DenoiseFunction oidn_denoise_function();
 
 class DenoisedStrategy : public Strategy {
 public:
-    // Uses budget (or spp), min_spp, floor_fraction, steer_rounds and max_spp.
+    // Uses budget (or spp), min_spp, floor_fraction, steer_rounds (0 is taken as 1: no
+    // doubling rounds, each would need its own denoised plan) and max_spp.
     DenoisedStrategy(const StrategyParams& params, uint32_t width, uint32_t height,
                      DenoiseFunction denoise);
 
