@@ -69,6 +69,7 @@ public:
         req.set_height(spec.height);
         req.set_seed(spec.seed);
         req.set_strategy_json(json(spec.strategy).dump());
+        req.set_albedo_normal(spec.aux);  // a study that denoises
         std::ifstream in(reference_path, std::ios::binary);
         std::stringstream bytes;
         bytes << in.rdbuf();
