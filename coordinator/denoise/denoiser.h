@@ -16,9 +16,9 @@ namespace aliquot {
 //   1. the file ALIQUOT_OIDN_LIBRARY names, and nothing else when it is set (so a test
 //      or a user can say which library, or that there is none);
 //   2. pyoidn's copy in the repository's .venv (scripts/install-deps.sh installs it):
-//      the source tree's, baked in at configure time, then the one two folders above
-//      the executable (build/bin/aliquot);
+//      the source tree's, baked in at configure time;
 //   3. the loader's own search (LD_LIBRARY_PATH, a system install).
+// A path in 1 or 2 under a folder another user owns or may write is refused unopened.
 inline constexpr const char* kOidnLibraryVariable = "ALIQUOT_OIDN_LIBRARY";
 
 class Denoiser {

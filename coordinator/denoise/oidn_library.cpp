@@ -1,6 +1,8 @@
 #include "oidn_library.h"
 
 #include <dlfcn.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -33,12 +35,46 @@ std::vector<std::string> venv_libraries(const fs::path& root) {
     return found;
 }
 
-// build/bin/aliquot -> the repository two folders up, where a fresh clone's .venv is.
-fs::path root_above_executable() {
+// Why the file or directory `path` (no symlink followed at its last component) could be
+// another user's: "" when it is owned by root or by us and writable by nobody else. A
+// symlink's own mode means nothing, only who owns it.
+std::string untrusted_because(const fs::path& path) {
+    struct stat st {};
+    if (lstat(path.c_str(), &st) != 0)
+        return "";  // absent: its parent decides who may make it
+    if (st.st_uid != 0 && st.st_uid != geteuid())
+        return path.string() + " is owned by another user (uid " +
+               std::to_string(st.st_uid) + ")";
+    if (!S_ISLNK(st.st_mode) && (st.st_mode & (S_IWGRP | S_IWOTH)) != 0)
+        return path.string() + " is writable by " +
+               ((st.st_mode & S_IWOTH) != 0 ? "every user" : "its group");
+    return "";
+}
+
+// Every reason from / down to `path` itself, lexically (each symlink on the way) and once
+// more with the symlinks resolved; "" when none. A sticky world-writable directory (/tmp)
+// counts too: anyone may create the name we would look up there.
+std::string untrusted_path(const std::string& library) {
     std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (ec) return {};
-    return exe.parent_path().parent_path().parent_path();
+    const fs::path lexical = fs::absolute(library, ec).lexically_normal();
+    if (ec) return library + " has no absolute path";
+    std::vector<std::string> reasons;
+    auto check = [&](const fs::path& full) {
+        fs::path prefix;
+        for (const auto& part : full) {
+            prefix /= part;
+            const std::string why = untrusted_because(prefix);
+            if (!why.empty() &&
+                std::find(reasons.begin(), reasons.end(), why) == reasons.end())
+                reasons.push_back(why);
+        }
+    };
+    check(lexical);
+    const fs::path resolved = fs::weakly_canonical(lexical, ec);
+    if (!ec) check(resolved);
+    std::string joined;
+    for (const auto& why : reasons) joined += (joined.empty() ? "" : ", ") + why;
+    return joined;
 }
 
 template <typename F>
@@ -80,8 +116,6 @@ std::vector<std::string> oidn_library_candidates(const std::string& search_root)
                 candidates.push_back(p);
     };
     if (!search_root.empty()) add(venv_libraries(search_root));
-    const fs::path above = root_above_executable();
-    if (!above.empty()) add(venv_libraries(above));
     candidates.push_back(kSoname);  // the loader's own search
     return candidates;
 }
@@ -94,6 +128,15 @@ std::unique_ptr<OidnLibrary> load_oidn_library(std::string* error) {
 #endif
     std::string tried;
     for (const auto& path : oidn_library_candidates(search_root)) {
+        // dlopen runs the file's initialisers: a file or a directory above it that
+        // another user could have written is refused before it is opened. The bare soname
+        // is the loader's own search, trusted as the system's directories are.
+        const std::string untrusted =
+            path.find('/') == std::string::npos ? "" : untrusted_path(path);
+        if (!untrusted.empty()) {
+            tried += (tried.empty() ? "" : "; ") + path + ": refused, " + untrusted;
+            continue;
+        }
         // RTLD_LOCAL: OIDN's symbols stay out of the process's namespace. Kept loaded.
         void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
         if (handle == nullptr) {

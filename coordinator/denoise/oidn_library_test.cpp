@@ -40,5 +40,29 @@ TEST(OidnLibrary, TheRepositorysVenvComesBeforeTheLoadersSearch) {
     EXPECT_EQ(candidates.back(), "libOpenImageDenoise.so.2");
 }
 
+// dlopen runs a library's initialisers: a real OIDN reached through a folder every user
+// can write (someone else's file could be there instead) is refused, naming the folder,
+// even when the operator's own variable names it.
+TEST(OidnLibrary, ALibraryInAFolderOthersCanWriteIsRefused) {
+    REQUIRE_DENOISER(denoiser);
+    const fs::path planted =
+        fs::path(testing::TempDir()) / ("oidn_planted_" + std::to_string(getpid()));
+    fs::create_directories(planted);
+    fs::permissions(planted, fs::perms::all);  // 0777, as a shared folder would be
+    const fs::path lib = planted / "libOpenImageDenoise.so.2";
+    fs::create_symlink(denoiser->library_path(), lib);
+    std::string error;
+    std::unique_ptr<OidnLibrary> loaded;
+    {
+        const testing_denoise::ScopedEnv chosen(kOidnLibraryVariable, lib.c_str());
+        loaded = load_oidn_library(&error);
+    }
+    fs::remove_all(planted);
+    EXPECT_EQ(loaded, nullptr);
+    EXPECT_NE(error.find(planted.string() + " is writable by every user"),
+              std::string::npos)
+        << error;
+}
+
 }  // namespace
 }  // namespace aliquot::oidn
