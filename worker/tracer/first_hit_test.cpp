@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <initializer_list>
 
 #include "scene_loader.h"
 #include "trace_job.h"
@@ -11,15 +12,32 @@ namespace aliquot {
 namespace {
 
 // A camera at z = 3 looking down -z at a diffuse rectangle ([-1, 1]^2 at z = 0) that
-// fills its view: every camera ray hits the wall.
-Scene wall_scene(const char* target) {
+// fills its view: every camera ray hits the wall. The scene's light is far to the side,
+// out of view; `shapes` adds more.
+Scene wall_scene(const char* target, const std::string& shapes = "") {
     return parse_scene(std::string(R"({
         "camera": {"position": [0, 0, 3], "target": )") +
                            target + R"(, "up": [0, 1, 0], "fov": 20},
         "materials": {"wall": {"type": "diffuse", "reflectance": [0.2, 0.4, 0.6]}},
-        "shapes": [{"type": "rectangle", "material": "wall", "emission": [1, 1, 1]}]
-    })",
+        "shapes": [{"type": "rectangle", "material": "wall"},
+                   {"type": "rectangle", "material": "wall", "emission": [1, 1, 1],
+                    "transform": {"translate": [50, 0, 0]}})" +
+                           shapes + "]}",
                        "scenes/wall.json", ".");
+}
+
+// Each pixel (x, y) with x and y in `at` of an 8x8 job over the whole image has the mean
+// first-hit albedo `expected`.
+void expect_mean_albedo(const SampleJobResult& r, std::initializer_list<uint32_t> at,
+                        const Vec3& expected) {
+    for (uint32_t y : at)
+        for (uint32_t x : at) {
+            const FirstHitSums& f = r.first_hits[y * 8 + x];
+            const double n = double(r.pixels[y * 8 + x].samples);
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(f.albedo[c] / n, expected[c], 1e-6)
+                    << x << "," << y << " " << c;
+        }
 }
 
 SampleJob job_of(const PixelRect& rect, uint32_t spp, bool aux) {
@@ -48,6 +66,36 @@ TEST(FirstHit, ADiffuseWallsMeanAlbedoIsItsReflectanceAndItsNormalFacesTheCamera
         EXPECT_NEAR(r.first_hits[i].normal[1] / n, 0.0, 1e-6);
         EXPECT_NEAR(r.first_hits[i].normal[2] / n, 1.0, 1e-6);
     }
+}
+
+// A light (a quarter-size rectangle at z = 0.5, the wall's material, emission 4, 2, 1)
+// in the middle of the view: its pixels record its emission's colour normalised to its
+// largest component, so the denoiser sees its edge; the corners, beside it, the wall's
+// reflectance. Before, the light's pixels had the wall's reflectance too.
+TEST(FirstHit, ALightRecordsItsNormalisedEmissionAndTheWallBesideItItsReflectance) {
+    const Scene scene =
+        wall_scene("[0, 0, 0]", R"(, {"type": "rectangle", "material": "wall",
+        "emission": [4, 2, 1], "transform": {"translate": [0, 0, 0.5], "scale": 0.25}})");
+    const PathTracer tracer(scene);
+    const SampleJobResult r =
+        trace_sample_job(tracer, {8, 8, 3}, job_of({0, 0, 8, 8}, 4, true), 1);
+    ASSERT_EQ(r.first_hits.size(), r.pixels.size());
+    expect_mean_albedo(r, {3, 4}, Vec3(1.0f, 0.5f, 0.25f));
+    expect_mean_albedo(r, {0, 7}, Vec3(0.2f, 0.4f, 0.6f));
+}
+
+// A light seen from behind does not emit (arrive adds emission from the front only): its
+// back records its surface's reflectance, as any wall.
+TEST(FirstHit, ALightsBackRecordsItsReflectance) {
+    const Scene scene =
+        wall_scene("[0, 0, 0]", R"(, {"type": "rectangle", "material": "wall",
+        "emission": [4, 2, 1],
+        "transform": {"translate": [0, 0, 0.5], "rotate": ["y", 180], "scale": 0.25}})");
+    const PathTracer tracer(scene);
+    const SampleJobResult r =
+        trace_sample_job(tracer, {8, 8, 3}, job_of({0, 0, 8, 8}, 4, true), 1);
+    ASSERT_EQ(r.first_hits.size(), r.pixels.size());
+    expect_mean_albedo(r, {3, 4}, Vec3(0.2f, 0.4f, 0.6f));
 }
 
 TEST(FirstHit, ARayThatLeavesTheSceneAddsZero) {

@@ -43,10 +43,25 @@ FirstHit PathTracer::first_hit(const Vec3& dir, const Hit& hit) const {
     // OIDN's documented first-hit features: a diffuse surface's reflectance, a mirror's
     // (its reflectivity), 1 for a dielectric; the shading normal, here the geometric one
     // (no normal interpolation), turned to face the ray as the shading does.
+    //
+    // An emitter seen from its emitting side records its emission's colour, normalised to
+    // its largest component (1 for a white light), not its surface's reflectance: OIDN's
+    // manual ("Albedos") asks only for the surfaces' "approximate color ... independent
+    // of illumination" between 0 and 1 and says nothing of emitters; with the reflectance
+    // a light has its ceiling's albedo and normal and OIDN, given no edge, blurred the
+    // light into the ceiling (docs/DENOISE.md, "the light's edge"). A light's colour is
+    // what stays of it when its brightness, the illumination, is divided out. Only the
+    // camera ray's hit is read here, with first hits asked for: the paths' loop is
+    // untouched.
     const Material& mat = material_at(hit);
     FirstHit out;
+    const bool front = dot(dir, hit.ng) < 0;
     out.albedo = mat.kind == Material::Kind::Dielectric ? Vec3(1.0f) : mat.reflectance;
-    out.normal = dot(dir, hit.ng) < 0 ? hit.ng : -hit.ng;
+    if (front && hit.geom_id != embree_.sphere_geometry()) {
+        const TriangleMesh& mesh = scene_.meshes[hit.geom_id];
+        if (mesh.is_emitter()) out.albedo = mesh.emission / max_component(mesh.emission);
+    }
+    out.normal = front ? hit.ng : -hit.ng;
     return out;
 }
 
