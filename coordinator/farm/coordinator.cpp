@@ -16,7 +16,11 @@ namespace aliquot {
 namespace {
 
 uint64_t memory_of(const RenderSpec& spec) {
-    return render_memory_estimate(spec.width, spec.height, spec.reference.has_value());
+    // `denoised` keeps first-hit sums whether or not the spec asked (RenderSession turns
+    // them on), so a render counts the same at submission and eviction.
+    const bool denoises = spec.strategy.method == "denoised";
+    return render_memory_estimate(spec.width, spec.height, spec.reference.has_value(),
+                                  spec.aux || denoises, denoises);
 }
 
 }  // namespace

@@ -254,6 +254,29 @@ TEST_F(CoordinatorTest, ASubmissionPastTheMemoryBudgetIsRefusedAndChangesNothing
     EXPECT_EQ(c.submit(small_spec()), "r-000002");
 }
 
+// Review of issue 34: first-hit sums (their checkpoint copy, the image's layers) and
+// `denoised`'s round end were not counted, so a render that fits without them was let
+// past the budget with them.
+TEST_F(CoordinatorTest, FirstHitSumsAndDenoisingCountAgainstTheMemoryBudget) {
+    options.memory_limit = render_memory_estimate(4, 4, false);  // exactly a plain one
+    Coordinator c(options);
+    RenderSpec with_sums = small_spec();
+    with_sums.aux = true;
+    EXPECT_THROW(c.submit(with_sums), MemoryBudgetError);
+    const std::string plain = c.submit(small_spec());
+    c.cancel(plain);
+    ASSERT_TRUE(wait_for_sessions(c, 0));
+
+    // `denoised` keeps the sums whatever the spec says, and denoises at each round end.
+    CoordinatorOptions in_memory;
+    in_memory.memory_limit = render_memory_estimate(4, 4, false, true, false);
+    Coordinator d(in_memory);
+    RenderSpec denoised = small_spec();
+    denoised.strategy.method = "denoised";
+    EXPECT_THROW(d.submit(denoised), MemoryBudgetError);
+    EXPECT_EQ(d.memory_in_use(), 0u);
+}
+
 // Issue 12, item 5: a job no worker can trace went round forever at 0 samples. Now it
 // fails the render with the reason, in memory and in the store.
 TEST_F(CoordinatorTest, AJobNoWorkerCanTraceFailsTheRenderWithTheReason) {

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "accumulator.h"
+#include "aux_sums.h"
 #include "sample_job.h"
 
 namespace aliquot {
@@ -40,7 +41,8 @@ uint64_t default_memory_limit() {
     return physical > 0 ? physical / 2 : uint64_t(4) << 30;
 }
 
-uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference) {
+uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference,
+                                bool first_hits, bool denoises) {
     const uint64_t pixels = uint64_t(width) * height;
     uint64_t per_pixel =
         Accumulator::kBytesPerPixel      // the accumulator
@@ -53,6 +55,16 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + (sizeof(PixelSums) + 12) / 4   // a round opened ahead: held results, jobs
         + 20;                            // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
+    if (first_hits)
+        per_pixel += AuxSums::kBytesPerPixel    // the sums
+                     + AuxSums::kBytesPerPixel  // their copy a checkpoint is written from
+                     + sizeof(FirstHitSums) / 4  // a round opened ahead: held results'
+                     + 24;                       // the image's albedo and normal layers
+    // `denoised`'s round end (DenoisedStrategy::denoised_sigma): the even and odd half
+    // images, the albedo and normal guides, both denoised halves (RGB floats each), the
+    // denoiser's finite copy of its input and its output, then the variance, its window
+    // median, the sorted copy and sigma (doubles). OIDN's own working memory is its own.
+    if (denoises) per_pixel += 6 * 12 + 2 * 12 + 4 * 8;
     return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
 }
 

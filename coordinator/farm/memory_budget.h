@@ -17,8 +17,12 @@ uint64_t default_memory_limit();
 // What a render's session may hold in memory at its peak, in bytes: the accumulator (96
 // bytes a pixel), a round's jobs and the strategy's per-pixel state, the copy of the
 // buffers a checkpoint is written from, the final image, and the reference with its
-// per-round comparison image when there is one. docs/FARM.md has the measured numbers.
-uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference);
+// per-round comparison image when there is one; with first_hits, the first-hit sums
+// (AuxSums), their checkpoint copy and the image's layers; with denoises (method
+// `denoised`), the images its round end denoises and compares. docs/FARM.md has the
+// measured numbers.
+uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference,
+                                bool first_hits = false, bool denoises = false);
 
 // Coordinator::submit refuses a render whose buffers would take the renders in memory
 // past the budget. Nothing has changed when it is thrown: no render id, no directory.
