@@ -8,6 +8,7 @@ import { matches, sortRenders, viewFromQuery, type RenderFilter, type SortKey } 
 import type { LiveEvent } from "../live";
 import { fieldSpecs, findMethod, strategyFromFields } from "../params";
 import { progressBar, setBadge, setProgress, setText, stateBadge, type Page } from "./page";
+import { ThumbnailSchedule } from "../thumbnails";
 
 // The table's columns: heading, and the sort key a click on it picks.
 const COLUMNS: [string, SortKey | null][] = [
@@ -65,7 +66,7 @@ export class RendersPage implements Page {
   private filterBar: HTMLElement;
   private headRow = h("tr");
   private order = "";
-  private thumbs = new Map<string, { samples: number; at: number; timer: ReturnType<typeof setTimeout> | null }>();
+  private thumbs = new Map<string, { schedule: ThumbnailSchedule; timer: ReturnType<typeof setTimeout> | null }>();
   private resubmitFrom: string | null;
   private formReady: Promise<void>;
 
@@ -294,6 +295,7 @@ export class RendersPage implements Page {
       const { renders } = await api.renders();
       clear(this.tbody);
       this.rows.clear();
+      this.forgetThumbnails();
       this.renders.clear();
       this.order = "";
       for (const r of renders) this.upsert(r);
@@ -314,21 +316,31 @@ export class RendersPage implements Page {
   }
 
   // The render's thumbnail, fetched again when its samples changed, at most every few
-  // seconds per render (the server keeps one per render and change: thumbnail.png).
+  // seconds per render (the server keeps one per render and change: thumbnail.png), and
+  // again after a failed load (a 503 when the image routes are busy), even when no event
+  // comes: a finished render's last thumbnail must not stay broken.
   private thumbnail(row: HTMLTableRowElement, r: RenderSummary): void {
     const img = row.querySelector<HTMLImageElement>("img.thumb")!;
-    if (r.samples_done === 0) return;
     let t = this.thumbs.get(r.id);
-    if (!t) this.thumbs.set(r.id, (t = { samples: -1, at: -Infinity, timer: null }));
-    if (t.samples === r.samples_done || t.timer) return;
+    if (!t) this.thumbs.set(r.id, (t = { schedule: new ThumbnailSchedule(THUMBNAIL_MS), timer: null }));
     const state = t;
+    if (state.timer) return;
+    const wait = state.schedule.wait(r.samples_done, performance.now());
+    if (wait === null) return;
     const load = () => {
       state.timer = null;
-      state.at = performance.now();
-      state.samples = this.renders.get(r.id)?.samples_done ?? r.samples_done;
-      img.src = api.thumbnailUrl(r.id, state.samples);
+      const latest = this.renders.get(r.id) ?? r;
+      const samples = latest.samples_done;
+      state.schedule.fetching(samples, performance.now());
+      img.onload = () => state.schedule.loaded();
+      img.onerror = () => {
+        state.schedule.failed();
+        // Not for a page left or a row rebuilt since (dispose clears thumbs).
+        if (this.thumbs.get(r.id) === state && this.rows.get(r.id) === row)
+          this.thumbnail(row, this.renders.get(r.id) ?? latest);
+      };
+      img.src = api.thumbnailUrl(r.id, samples);
     };
-    const wait = state.at + THUMBNAIL_MS - performance.now();
     if (wait <= 0) load();
     else state.timer = setTimeout(load, wait);
   }
@@ -401,7 +413,13 @@ export class RendersPage implements Page {
     }
   }
 
-  dispose(): void {
+  // The rows' <img>s are new (a reload) or gone: every thumbnail is fetched afresh.
+  private forgetThumbnails(): void {
     for (const t of this.thumbs.values()) if (t.timer) clearTimeout(t.timer);
+    this.thumbs.clear();
+  }
+
+  dispose(): void {
+    this.forgetThumbnails();
   }
 }
