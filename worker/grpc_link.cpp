@@ -82,6 +82,7 @@ Registration GrpcLink::register_worker(const std::string& name, uint32_t threads
     req.set_threads(threads);
     req.set_host(host_name());
     req.set_version(ALIQUOT_VERSION);
+    req.set_wire_version(kWireVersion);
     v1::RegisterReply reply;
     check(stub_->stub->Register(context().get(), req, &reply), endpoint_.address, true);
     if (reply.session().empty())

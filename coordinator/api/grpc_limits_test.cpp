@@ -23,6 +23,7 @@
 #include "scene_loader.h"
 #include "test_tokens.h"
 #include "trace_job.h"
+#include "wire.h"
 
 namespace aliquot {
 namespace {
@@ -245,6 +246,7 @@ protected:
         v1::RegisterRequest req;
         req.set_name(name);
         req.set_threads(1);
+        req.set_wire_version(kWireVersion);
         v1::RegisterReply reply;
         EXPECT_TRUE(stub_->Register(&ctx, req, &reply).ok());
         return reply.session();

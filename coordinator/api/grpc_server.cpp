@@ -322,6 +322,15 @@ public:
         if (req->host().size() > 128 || req->version().size() > 128)
             return {StatusCode::INVALID_ARGUMENT,
                     "a worker's host and version are at most 128 bytes each"};
+        // Every result of another version would be refused (wire.h) and count as a job
+        // failure: such a worker is turned away before it leases anything.
+        if (req->wire_version() != kWireVersion)
+            return {
+                StatusCode::FAILED_PRECONDITION,
+                "worker of wire protocol version " + std::to_string(req->wire_version()) +
+                    ", this coordinator speaks version " + std::to_string(kWireVersion) +
+                    (req->wire_version() < kWireVersion ? ": update the worker"
+                                                        : ": update the coordinator")};
         Registration r;
         try {
             // Failures count against the caller's host, never a name it chose.

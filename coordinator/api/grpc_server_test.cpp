@@ -61,6 +61,7 @@ protected:
         v1::RegisterRequest req;
         req.set_name(name);
         req.set_threads(1);
+        req.set_wire_version(kWireVersion);
         v1::RegisterReply reply;
         EXPECT_TRUE(stub_->Register(&ctx, req, &reply).ok());
         return reply.session();
@@ -352,6 +353,28 @@ TEST_F(WorkerServiceTest, AWorkerNameLongerThan128BytesIsRefused) {
               grpc::StatusCode::INVALID_ARGUMENT);
 }
 
+// Review of issue 34: a worker from before the first-hit sums (wire version 0, which
+// sends no version) registered and leased, and each of its results was refused and
+// counted as a job failure. It is turned away at registration, saying why.
+TEST_F(WorkerServiceTest, AWorkerOfAnotherWireVersionIsRefusedAtRegistration) {
+    for (const uint32_t version : {0u, kWireVersion + 1}) {
+        testing::TokenContext ctx(Role::Worker);
+        v1::RegisterRequest reg;
+        reg.set_name("old");
+        reg.set_threads(1);
+        reg.set_wire_version(version);
+        v1::RegisterReply reply;
+        const grpc::Status status = stub_->Register(&ctx, reg, &reply);
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+        EXPECT_NE(status.error_message().find("wire protocol version " +
+                                              std::to_string(version)),
+                  std::string::npos)
+            << status.error_message();
+        EXPECT_TRUE(reply.session().empty());
+    }
+    for (const WorkerStatus& w : coordinator_->workers()) EXPECT_NE(w.name, "old");
+}
+
 // Issue 32: what a worker says of itself is kept and listed, so it is bounded like its
 // name.
 TEST_F(WorkerServiceTest, AWorkerHostOrVersionLongerThan128BytesIsRefused) {
@@ -386,6 +409,7 @@ TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
         v1::RegisterRequest reg;
         reg.set_name("stranger");
         reg.set_threads(3);
+        reg.set_wire_version(kWireVersion);
         v1::RegisterReply ok;
         ASSERT_TRUE(stub_->Register(&ctx, reg, &ok).ok());
         EXPECT_EQ(ok.session().size(), 32u);
@@ -519,6 +543,7 @@ TEST(GrpcTokens, NoTokenIsUnauthenticatedAndTheOtherRolesTokenIsPermissionDenied
     v1::RegisterRequest reg;
     reg.set_name("intruder");
     reg.set_threads(1);
+    reg.set_wire_version(kWireVersion);
     const auto submit_with = [&](grpc::ClientContext& ctx) {
         v1::RenderInfo reply;
         return client->Submit(&ctx, submit, &reply);
