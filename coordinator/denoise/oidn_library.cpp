@@ -37,14 +37,17 @@ std::vector<std::string> venv_libraries(const fs::path& root) {
 
 // Why the file or directory `path` (no symlink followed at its last component) could be
 // another user's: "" when it is owned by root or by us and writable by nobody else. A
-// symlink's own mode means nothing, only who owns it.
+// symlink's own mode means nothing, only who owns it. A sticky directory of root's or
+// ours (/tmp) is trusted although everyone may write it: there nobody may rename or
+// remove an entry of another's, so what decides is the entry below, which must exist
+// (an absent name is one anyone could make there between this check and the load).
 std::string untrusted_because(const fs::path& path) {
     struct stat st {};
-    if (lstat(path.c_str(), &st) != 0)
-        return "";  // absent: its parent decides who may make it
+    if (lstat(path.c_str(), &st) != 0) return path.string() + " does not exist";
     if (st.st_uid != 0 && st.st_uid != geteuid())
         return path.string() + " is owned by another user (uid " +
                std::to_string(st.st_uid) + ")";
+    if (S_ISDIR(st.st_mode) && (st.st_mode & S_ISVTX) != 0) return "";
     if (!S_ISLNK(st.st_mode) && (st.st_mode & (S_IWGRP | S_IWOTH)) != 0)
         return path.string() + " is writable by " +
                ((st.st_mode & S_IWOTH) != 0 ? "every user" : "its group");
@@ -52,8 +55,7 @@ std::string untrusted_because(const fs::path& path) {
 }
 
 // Every reason from / down to `path` itself, lexically (each symlink on the way) and once
-// more with the symlinks resolved; "" when none. A sticky world-writable directory (/tmp)
-// counts too: anyone may create the name we would look up there.
+// more with the symlinks resolved; "" when none.
 std::string untrusted_path(const std::string& library) {
     std::error_code ec;
     const fs::path lexical = fs::absolute(library, ec).lexically_normal();

@@ -64,5 +64,29 @@ TEST(OidnLibrary, ALibraryInAFolderOthersCanWriteIsRefused) {
         << error;
 }
 
+// A clone under /tmp (sticky, everyone may write it) is still ours: nobody else may swap
+// an entry of ours there, so the folder below decides.
+TEST(OidnLibrary, ALibraryInOurFolderUnderAStickyFolderLoads) {
+    REQUIRE_DENOISER(denoiser);
+    const fs::path sticky =
+        fs::path(testing::TempDir()) / ("oidn_sticky_" + std::to_string(getpid()));
+    const fs::path ours = sticky / "clone";
+    fs::create_directories(ours);
+    fs::permissions(sticky, fs::perms::all | fs::perms::sticky_bit);  // 1777, as /tmp
+    fs::permissions(ours, fs::perms::owner_all | fs::perms::group_read |
+                              fs::perms::group_exec | fs::perms::others_read |
+                              fs::perms::others_exec);
+    const fs::path lib = ours / "libOpenImageDenoise.so.2";
+    fs::create_symlink(denoiser->library_path(), lib);
+    std::string error;
+    std::unique_ptr<OidnLibrary> loaded;
+    {
+        const testing_denoise::ScopedEnv chosen(kOidnLibraryVariable, lib.c_str());
+        loaded = load_oidn_library(&error);
+    }
+    fs::remove_all(sticky);
+    EXPECT_NE(loaded, nullptr) << error;
+}
+
 }  // namespace
 }  // namespace aliquot::oidn
