@@ -2,7 +2,6 @@
 
 #include <malloc.h>
 
-#include <algorithm>
 #include <stdexcept>
 
 #include "checkpoint.h"
@@ -49,86 +48,37 @@ Coordinator::~Coordinator() {
 }
 
 void Coordinator::stop() {
-    {
-        std::lock_guard lock(mutex_);
-        stopping_ = true;
-    }
-    progress_.notify_all();
-    work_ready_.notify_all();
+    renders_.stop();
     if (ticker_) ticker_->stop();
 }
 
-void Coordinator::changed() {
-    ++version_;
-    progress_.notify_all();
-    work_ready_.notify_all();
-}
-
-void Coordinator::notify_changed() {
-    std::lock_guard lock(mutex_);
-    changed();
-}
-
-SlotPtr Coordinator::slot_of(const std::string& id) const {
-    const auto it = sessions_.find(id);
-    return it == sessions_.end() ? nullptr : it->second;
-}
-
-SlotPtr Coordinator::find_slot(const std::string& id) {
-    std::lock_guard lock(mutex_);
-    return slot_of(id);
-}
-
 std::unique_lock<std::mutex> Coordinator::hold_render_for_test(const std::string& id) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     // The slot outlives the lock: a test holds it only while the render is in memory.
     return slot ? std::unique_lock(slot->mutex) : std::unique_lock<std::mutex>();
 }
 
-std::vector<SlotPtr> Coordinator::slots_in_order() const {
-    std::vector<SlotPtr> out;
-    out.reserve(order_.size());
-    for (const std::string& id : order_) out.push_back(sessions_.at(id));
-    return out;
-}
-
-std::vector<SlotPtr> Coordinator::slots_by_priority() const {
-    std::vector<SlotPtr> out = slots_in_order();
-    std::sort(out.begin(), out.end(), [](const SlotPtr& a, const SlotPtr& b) {
-        return LeaseOrder{a->priority, a->number} < LeaseOrder{b->priority, b->number};
-    });
-    return out;
-}
-
 void Coordinator::attach(std::unique_ptr<RenderSession> session, bool queued) {
-    auto slot = std::make_shared<RenderSlot>();
-    RenderSlot* raw = slot.get();  // the slot owns the session: it outlives the callbacks
-    RenderSession* s = session.get();
-    s->on_round = [this, raw](RenderSession& r, const RoundSummary& round) {
-        events_.on_render(EventKind::RoundEnded, r.id(), round_fields(round));
-        archive_.record_round(*raw, round);
-    };
-    s->on_finished = [this, raw](RenderSession& r) {
-        events_.on_render(end_event(r.state()), r.id(), end_fields(r));
-        archive_.record_end(*raw, [this](const std::string& id) {
-            std::lock_guard lock(mutex_);
-            evict(id);
-        });
-    };
-    slot->session = std::move(session);
-    slot->priority = s->spec().priority;
-    slot->number = submissions_++;
-    order_.push_back(s->id());
-    sessions_[s->id()] = std::move(slot);
-    s->set_worker_cores(registry_.alive_cores());  // the first round is cut for them
-    s->start();
-    const bool waits = queued && s->state() == RenderState::Running;
-    if (waits) queue_.add(s->id(), raw->priority, raw->number);  // running at its lease
-    if (s->state() == RenderState::Running) {
-        if (!waits) archive_.record_running(s->id());
-        archive_.prepare_checkpoint_copy(*raw);
-    }
-    changed();
+    renders_.add(std::move(session), [&](RenderSlot& slot) {
+        RenderSlot* raw = &slot;  // the slot owns the session: it outlives the callbacks
+        RenderSession* s = slot.session.get();
+        s->on_round = [this, raw](RenderSession& r, const RoundSummary& round) {
+            events_.on_render(EventKind::RoundEnded, r.id(), round_fields(round));
+            archive_.record_round(*raw, round);
+        };
+        s->on_finished = [this, raw](RenderSession& r) {
+            events_.on_render(end_event(r.state()), r.id(), end_fields(r));
+            archive_.record_end(*raw, [this](const std::string& id) { evict(id); });
+        };
+        s->set_worker_cores(registry_.alive_cores());  // the first round is cut for them
+        s->start();
+        const bool waits = queued && s->state() == RenderState::Running;
+        if (s->state() == RenderState::Running) {
+            if (!waits) archive_.record_running(s->id());
+            archive_.prepare_checkpoint_copy(slot);
+        }
+        return waits;
+    });
 }
 
 void Coordinator::note_started(const std::string& id) {
@@ -160,7 +110,6 @@ std::string Coordinator::submit(RenderSpec spec) {
         scenes_.keep(hash, spec.scene_json);
         scene_kept = true;
         events_.on_render(EventKind::Submitted, id, submitted_fields(spec));
-        std::lock_guard lock(mutex_);
         attach(std::move(session), true);
     } catch (...) {
         memory_.release(needed);
@@ -178,7 +127,6 @@ void Coordinator::resume_unfinished() {
         const RenderSpec& spec = r.session->spec();
         memory_.hold(memory_of(spec));
         scenes_.keep(r.scene_hash, spec.scene_json);
-        std::lock_guard lock(mutex_);  // the backlog's thread may evict meanwhile
         events_.resume(id);
         events_.on_render(EventKind::Resumed, id);
         attach(std::move(r.session), r.queued);
@@ -186,29 +134,21 @@ void Coordinator::resume_unfinished() {
 }
 
 std::optional<double> Coordinator::plan_wait_seconds(const std::string& id) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (!slot) return std::nullopt;
     std::lock_guard lock(slot->mutex);
     return slot->session->plan_wait_seconds();
 }
 
 std::optional<RenderInfo> Coordinator::info(const std::string& id) {
-    SlotPtr slot;
-    int32_t priority = 0;
-    uint32_t queued_at = 0;
-    {
-        std::lock_guard lock(mutex_);
-        slot = slot_of(id);
-        if (slot) priority = slot->priority;
-        queued_at = queue_.position(id);
-    }
-    if (slot) {
+    const RenderList::Place place = renders_.place_of(id);
+    if (const SlotPtr& slot = place.slot) {
         std::lock_guard lock(slot->mutex);
-        RenderInfo out = info_of(*slot->session, priority);
-        if (queued_at > 0 && out.state == RenderState::Running) {
+        RenderInfo out = info_of(*slot->session, place.priority);
+        if (place.queued_at > 0 && out.state == RenderState::Running) {
             out.state =
                 RenderState::Queued;  // the session is ready; no worker has it yet
-            out.queue_position = queued_at;
+            out.queue_position = place.queued_at;
         }
         return out;
     }
@@ -217,14 +157,9 @@ std::optional<RenderInfo> Coordinator::info(const std::string& id) {
 }
 
 std::vector<RenderInfo> Coordinator::list(size_t limit) {
-    std::vector<std::string> ids;
-    if (archive_.keeps_records()) {
-        ids = archive_.recent_ids(limit);
-    } else {
-        std::lock_guard lock(mutex_);
-        for (auto it = order_.rbegin(); it != order_.rend() && ids.size() < limit; ++it)
-            ids.push_back(*it);
-    }
+    const std::vector<std::string> ids = archive_.keeps_records()
+                                             ? archive_.recent_ids(limit)
+                                             : renders_.newest_ids(limit);
     std::vector<RenderInfo> out;
     for (const std::string& id : ids)
         if (auto i = info(id)) out.push_back(std::move(*i));
@@ -232,16 +167,13 @@ std::vector<RenderInfo> Coordinator::list(size_t limit) {
 }
 
 std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (slot) {
         {
             std::lock_guard lock(slot->mutex);
             slot->session->cancel();
         }
-        std::lock_guard lock(mutex_);
-        forget_ended_leases({}, {id});
-        queue_.leave(id);
-        changed();
+        renders_.cancelled(id, leases_);
     } else if (!archive_.knows(id)) {
         return std::nullopt;
     }
@@ -250,7 +182,7 @@ std::optional<RenderInfo> Coordinator::cancel(const std::string& id) {
 
 std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
                                                     int32_t priority) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     bool finished = true;
     if (slot) {
         std::lock_guard render(slot->mutex);
@@ -260,12 +192,7 @@ std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
     }
     if (finished)
         throw RenderFinished("render " + id + " has finished: nothing to schedule");
-    {
-        std::lock_guard lock(mutex_);
-        slot->priority = priority;
-        queue_.set_priority(id, priority);
-        changed();  // waiting workers look again, in the new order
-    }
+    renders_.set_priority(slot, priority);  // waiting workers look again, in its order
     // The store is written after the order changes: a full disk delays the record, not
     // the scheduling. A restart before it lands resumes the old priority.
     archive_.record_priority(id, priority);
@@ -273,14 +200,13 @@ std::optional<RenderInfo> Coordinator::set_priority(const std::string& id,
 }
 
 Coordinator::Removal Coordinator::remove(const std::string& id) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (slot) {
         {
             std::lock_guard render(slot->mutex);
             if (!slot->session->finished()) return Removal::Unfinished;
         }
         if (!archive_.keeps_records()) {
-            std::lock_guard lock(mutex_);
             evict(id);
             return Removal::Removed;
         }
@@ -288,14 +214,10 @@ Coordinator::Removal Coordinator::remove(const std::string& id) {
         // but not for a disk that refuses it. The writes wait in order, and on a full
         // disk they are retried for as long as it is full: waiting for the whole backlog
         // held the caller (an HTTP thread) for 30 s, and then failed anyway.
-        std::unique_lock lock(mutex_);
         const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
         std::string failing;
-        while (slot_of(id) && !stopping_ && (failing = archive_.warning()).empty() &&
-               std::chrono::steady_clock::now() < deadline)
-            // evict() wakes this; the backlog failing does not, hence the period.
-            progress_.wait_for(lock, std::chrono::milliseconds(100));
-        if (slot_of(id))
+        if (renders_.wait_until_gone(
+                id, deadline, [&] { return !(failing = archive_.warning()).empty(); }))
             throw std::runtime_error("render " + id + " is still being written to disk" +
                                      (failing.empty() ? "" : " (" + failing + ")") +
                                      "; try again later");
@@ -308,10 +230,7 @@ Coordinator::Removal Coordinator::remove(const std::string& id) {
         case RenderArchive::Deletion::Deleted:
             break;
     }
-    {
-        std::lock_guard lock(mutex_);
-        changed();
-    }
+    renders_.note_change();
     return Removal::Removed;
 }
 
@@ -336,7 +255,7 @@ size_t Coordinator::remove_expired(int64_t now_ms) {
 }
 
 std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (slot) {
         std::lock_guard lock(slot->mutex);
         return slot->session->image(aovs);
@@ -346,7 +265,7 @@ std::optional<Image> Coordinator::image(const std::string& id, bool aovs) {
 
 bool Coordinator::read_sums(const std::string& id,
                             const std::function<void(const Accumulator&)>& read) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (!slot) return false;
     std::lock_guard lock(slot->mutex);
     read(slot->session->merged());
@@ -354,17 +273,12 @@ bool Coordinator::read_sums(const std::string& id,
 }
 
 std::optional<std::filesystem::path> Coordinator::image_file(const std::string& id) {
-    {
-        std::lock_guard lock(mutex_);
-        if (slot_of(id)) return std::nullopt;
-    }
+    if (renders_.contains(id)) return std::nullopt;
     return archive_.image_file(id);
 }
 
 uint64_t Coordinator::wait_for_change(uint64_t seen, std::chrono::milliseconds timeout) {
-    std::unique_lock lock(mutex_);
-    progress_.wait_for(lock, timeout, [&] { return version_ > seen || stopping_; });
-    return version_;
+    return renders_.wait_for_change(seen, timeout);
 }
 
 FailurePolicy Coordinator::failure_policy_of(const WorkerRegistry::Link& caller) const {
@@ -384,14 +298,15 @@ Registration Coordinator::register_worker(const std::string& name, uint32_t thre
 
 void Coordinator::describe_worker(const std::string& name, std::string host,
                                   std::string version) {
-    if (registry_.describe(name, std::move(host), std::move(version))) notify_changed();
+    if (registry_.describe(name, std::move(host), std::move(version)))
+        renders_.note_change();
 }
 
 Registration Coordinator::register_link(const std::string& name, uint32_t threads,
                                         std::string identity, bool trusted) {
     std::string link =
         registry_.register_link(name, threads, std::move(identity), trusted);
-    notify_changed();
+    renders_.note_change();
     return {std::move(link), uint32_t(options_.lease_time.count())};
 }
 
@@ -403,11 +318,8 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
     const std::string worker = registry_.link_of(session).identity;
     const WorkerRegistry::Poll poll(registry_, session);
     const auto deadline = std::chrono::steady_clock::now() + wait;
-    std::unique_lock lock(mutex_);
-    while (!stopping_) {
-        const uint64_t seen = version_;
-        const std::vector<SlotPtr> slots = slots_by_priority();
-        lock.unlock();
+    while (const std::optional<RenderList::Snapshot> renders = renders_.by_priority()) {
+        const std::vector<SlotPtr>& slots = renders->slots;
         const std::shared_ptr<const std::set<std::string>> alive =
             registry_.alive_identities();
         const size_t cores = registry_.alive_cores();
@@ -421,23 +333,17 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
             leases_.grant(lease_id, grant->render_id, std::move(scan.label));
         else
             leases_.end(lease_id);
-        lock.lock();
-        if (!scan.failed.empty()) {  // as complete does for a render its merge failed
-            forget_ended_leases({}, scan.failed);
-            changed();
-        }
+        // As complete does for a render its merge failed.
+        if (!scan.failed.empty()) renders_.note_ended(leases_, {}, scan.failed);
         if (grant) {
-            if (queue_.leave(grant->render_id)) note_started(grant->render_id);
-            changed();
+            if (renders_.leased(grant->render_id)) note_started(grant->render_id);
             return grant;
         }
         // Whatever could give this worker a job (a round planned, a lease given back or
-        // expired, a worker lost) changes version_ under this lock: nothing is missed
-        // between the scan above and this wait. A round planned ahead whose plan ends on
-        // the session's thread is announced by tick(), within its 200 ms.
-        if (!work_ready_.wait_until(lock, deadline,
-                                    [&] { return version_ != seen || stopping_; }))
-            break;
+        // expired, a worker lost) moves the list's change counter: nothing is missed
+        // between the snapshot above and this wait. A round planned ahead whose plan ends
+        // on the session's thread is announced by tick(), within its 200 ms.
+        if (!renders_.wait_for_work(renders->seen, deadline)) break;
     }
     return std::nullopt;
 }
@@ -453,7 +359,7 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
     if (held.holding == LeaseTable::Holding::NotYours)
         return {CompleteStatus::Ignored, "not your lease"};
-    const SlotPtr slot = find_slot(held.render);
+    const SlotPtr slot = renders_.find(held.render);
     if (!slot) return {CompleteStatus::Ignored, "the render is no longer here"};
     const std::shared_ptr<const std::set<std::string>> alive =
         registry_.alive_identities();
@@ -479,9 +385,9 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         samples_merged_ += result.total_samples();
         registry_.note_merged(caller.worker, result.total_samples(), result.wall_seconds);
     }
-    std::lock_guard lock(mutex_);
-    if (render_failed) forget_ended_leases({}, {slot->session->id()});
-    changed();
+    renders_.note_ended(
+        leases_, {},
+        render_failed ? std::set{slot->session->id()} : std::set<std::string>{});
     return outcome;
 }
 
@@ -498,7 +404,7 @@ std::pair<WorkerRegistry::Link, SlotPtr> Coordinator::holder_and_render(
     // Only the holder's word counts: anyone else's leaves the lease with its holder.
     const LeaseTable::Held held = leases_.held(lease_id, session);
     if (held.holding != LeaseTable::Holding::Held) return {std::move(caller), nullptr};
-    return {std::move(caller), find_slot(held.render)};
+    return {std::move(caller), renders_.find(held.render)};
 }
 
 bool Coordinator::renew(const std::string& session, uint64_t lease_id) {
@@ -517,7 +423,7 @@ bool Coordinator::abandon(const std::string& session, uint64_t lease_id) {
         if (!slot->session->abandon(lease_id, caller.identity)) return false;
     }
     leases_.end(lease_id);
-    notify_changed();
+    renders_.note_change();
     return true;
 }
 
@@ -544,10 +450,10 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     }
     leases_.end(lease_id);
     registry_.note_failure(caller.worker);
-    std::lock_guard lock(mutex_);
     // The render's other leases ended with it.
-    if (render_failed) forget_ended_leases({}, {slot->session->id()});
-    changed();
+    renders_.note_ended(
+        leases_, {},
+        render_failed ? std::set{slot->session->id()} : std::set<std::string>{});
     return true;
 }
 
@@ -564,14 +470,8 @@ std::map<RenderState, uint64_t> Coordinator::render_counts() {
     if (archive_.keeps_records()) return archive_.counts_by_state();
     // A session is Running from its submission; it counts as Queued while no job of it
     // has been leased, as info() and list() show it.
-    std::vector<std::pair<SlotPtr, bool>> slots;  // with whether it waits in the queue
-    {
-        std::lock_guard lock(mutex_);
-        for (SlotPtr& slot : slots_in_order())
-            slots.emplace_back(slot, queue_.position(slot->session->id()) > 0);
-    }
     std::map<RenderState, uint64_t> counts;
-    for (const auto& [slot, queued] : slots) {
+    for (const auto& [slot, queued] : renders_.in_order_with_queued()) {
         std::lock_guard render(slot->mutex);
         const RenderState state = slot->session->state();
         ++counts[queued && state == RenderState::Running ? RenderState::Queued : state];
@@ -580,13 +480,6 @@ std::map<RenderState, uint64_t> Coordinator::render_counts() {
 }
 
 size_t Coordinator::worker_sessions() { return registry_.links(); }
-
-void Coordinator::forget_ended_leases(const std::vector<uint64_t>& ended,
-                                      const std::set<std::string>& finished) {
-    leases_.forget_ended(ended, finished, [this](const std::string& id) {
-        return sessions_.count(id) > 0;
-    });
-}
 
 std::vector<WorkerStatus> Coordinator::workers() {
     // Each lease keeps its label, so no render's lock is taken.
@@ -599,19 +492,12 @@ void Coordinator::tick() {
     // Leases past their deadline go back to their renders' queues, under each render's
     // lock; then, under the coordinator's, they and the leases of renders finished
     // since are gone for good.
-    std::vector<SlotPtr> slots;
-    {
-        std::lock_guard lock(mutex_);
-        slots = slots_in_order();
-    }
-    const LeaseSweep swept = sweep_leases(slots, RenderSession::Clock::now());
+    const LeaseSweep swept =
+        sweep_leases(renders_.in_order(), RenderSession::Clock::now());
     const TickChores due = tick_schedule_.next();
     const bool lost = registry_.tick(unix_millis_now(), due.sweep_worker_rows);
-    {
-        std::lock_guard lock(mutex_);
-        forget_ended_leases(swept.expired, swept.finished);
-        if (!swept.expired.empty() || swept.opened_ahead || lost) changed();
-    }
+    renders_.note_ended(leases_, swept.expired, swept.finished,
+                        !swept.expired.empty() || swept.opened_ahead || lost);
     archive_.tick(due.wal_checkpoint);
     // Outside the lock: deleting a render's files can take a while.
     if (due.retention) {
@@ -627,7 +513,7 @@ void Coordinator::tick() {
 // ---- Read-only views for the HTTP API and dashboard ----
 
 std::optional<std::vector<RoundSummary>> Coordinator::rounds(const std::string& id) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (slot) {
         std::lock_guard render(slot->mutex);
         archive_.complete_history(*slot);
@@ -642,7 +528,7 @@ std::optional<EventPage> Coordinator::events(const std::string& id, int64_t afte
 }
 
 std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
-    const SlotPtr slot = find_slot(id);
+    const SlotPtr slot = renders_.find(id);
     if (slot) {
         std::lock_guard render(slot->mutex);
         return slot->session->strategy().buckets();
@@ -652,32 +538,24 @@ std::optional<std::vector<Bucket>> Coordinator::buckets(const std::string& id) {
 
 // ---- Finished renders leaving memory ----
 
-size_t Coordinator::sessions_in_memory() {
-    std::lock_guard lock(mutex_);
-    return sessions_.size();
-}
+size_t Coordinator::sessions_in_memory() { return renders_.size(); }
 
 size_t Coordinator::scenes_in_memory() { return scenes_.size(); }
 
 void Coordinator::evict(const std::string& id) {
-    const auto it = sessions_.find(id);
-    // Finished sessions change no more, so this reads its state without its lock.
-    if (it == sessions_.end() || !it->second->session->finished()) return;
-    const RenderSpec& spec = it->second->session->spec();
-    memory_.release(memory_of(spec));
-    scenes_.drop(it->second->session->scene_hash());
-    sessions_.erase(it);  // a call that found the slot before keeps it until it is done
-    order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
-    queue_.leave(id);
-    events_.forget(id);  // its events are the store's to serve now
-    // Leases of a cancelled render that workers still hold: their results are now
-    // answered as unknown, which is what they were (ignored) before.
-    leases_.forget_render(id);
+    const bool dropped = renders_.drop_finished(id, [this](RenderSession& s) {
+        memory_.release(memory_of(s.spec()));
+        scenes_.drop(s.scene_hash());
+        events_.forget(s.id());  // its events are the store's to serve now
+        // Leases of a cancelled render that workers still hold: their results are now
+        // answered as unknown, which is what they were (ignored) before.
+        leases_.forget_render(s.id());
+    });
+    if (!dropped) return;
     // glibc keeps freed pages of its arenas for reuse; a finished render's buffers are
     // tens of megabytes, and given back they let the coordinator's size follow its live
     // renders rather than its busiest moment.
     malloc_trim(0);
-    changed();
 }
 
 }  // namespace aliquot

@@ -4,14 +4,14 @@
 // (render_archive.h), the farm's only includer of the store. Transport-free: the gRPC
 // services and the embedded render call the same methods.
 //
-// Locks (docs/FARM.md, "Locks", has the order). `mutex_` guards the render list only
-// (renders by id and in order, the queue, priorities, the change counter) and is held
-// for look-ups and bookkeeping. Each render has a lock of its own (RenderSlot::mutex)
-// for everything its session does: issuing a job, merging a result, and ending a round
-// (error estimate, checkpoint copy, planning and cutting the next one). A call finds its
-// render under `mutex_`, lets it go, works under the render's lock, and takes `mutex_`
-// again to note what changed; the two are never held together. The LeaseTable, the
-// WorkerRegistry, the memory budget, the scenes and the round-end counters have small
+// Locks (docs/FARM.md, "Locks", has the order). The RenderList's lock (render_list.h)
+// guards the render list only (renders by id and in order, the queue, priorities, the
+// change counter) and is held for look-ups and bookkeeping. Each render has a lock of its
+// own (RenderSlot::mutex) for everything its session does: issuing a job, merging a
+// result, and ending a round (error estimate, checkpoint copy, planning and cutting the
+// next one). A call finds its render in the list, works under the render's lock, and asks
+// the list again to note what changed; the two are never held together. The LeaseTable,
+// the WorkerRegistry, the memory budget, the scenes and the round-end counters have small
 // locks of their own, taken under either or none; so leases and merges of different
 // renders proceed in parallel, and a round end at 1920x1080 holds up that render's
 // workers only.
@@ -19,7 +19,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <filesystem>
 #include <functional>
 #include <map>
@@ -39,7 +38,7 @@
 #include "render_archive.h"
 #include "render_events.h"
 #include "render_info.h"
-#include "render_queue.h"
+#include "render_list.h"
 #include "render_session.h"
 #include "round_end_stats.h"
 #include "submitted_scenes.h"
@@ -206,22 +205,12 @@ public:
 
 private:
     void resume_unfinished();
-    // Wires a new session's callbacks, starts it and makes it visible; under `mutex_`
-    // (no one else can reach the session yet).
+    // Wires a new session's callbacks, starts it and makes it visible (RenderList::add).
     // `queued`: none of its jobs was leased yet (a submission, or a resumed render the
-    // store has queued); it waits in queue_ until one is.
+    // store has queued); it waits in the list's queue until one is.
     void attach(std::unique_ptr<RenderSession> session, bool queued);
     // Its first job was leased: out of the queue, so running in the record and the log.
-    // Under `mutex_`.
     void note_started(const std::string& id);
-    // The render `id` in memory, or null; under `mutex_`.
-    SlotPtr slot_of(const std::string& id) const;
-    // The same, taking `mutex_`.
-    SlotPtr find_slot(const std::string& id);
-    // Every render in memory, in submission order; under `mutex_`.
-    std::vector<SlotPtr> slots_in_order() const;
-    // The same in LeaseOrder (render_queue.h): whom lease() serves first.
-    std::vector<SlotPtr> slots_by_priority() const;
     // A new link of worker `name` (WorkerRegistry::register_link) as a Registration.
     Registration register_link(const std::string& name, uint32_t threads,
                                std::string identity, bool trusted);
@@ -232,27 +221,13 @@ private:
     // The policy a failure of `caller` is counted with: the options', with the rule for
     // farms of fewer hosts always on for a trusted (in-process) worker.
     FailurePolicy failure_policy_of(const WorkerRegistry::Link& caller) const;
-    // Drops the leases that ended (`ended`) and those of renders finished or gone; under
-    // `mutex_`.
-    void forget_ended_leases(const std::vector<uint64_t>& ended,
-                             const std::set<std::string>& finished);
-    // Something a waiting call may look for changed; under `mutex_` (notify_changed
-    // takes it).
-    void changed();
-    void notify_changed();
     // Drops a finished render whose end is recorded, and what is kept per render.
     void evict(const std::string& id);
 
     CoordinatorOptions options_;
     RenderArchive archive_;  // the store, the backlog of writes, the render directories
-    std::mutex mutex_;
-    std::condition_variable work_ready_;
-    std::condition_variable progress_;
-    uint64_t version_ = 0;
-    uint64_t submissions_ = 0;  // renders attached so far: RenderSlot::number
-    std::map<std::string, SlotPtr> sessions_;  // by id
-    std::vector<std::string> order_;           // submission order
-    RenderQueue queue_;  // under mutex_: renders no job of which was leased yet
+    // The renders in memory, under the coordinator-wide lock, and what waits on them.
+    RenderList renders_;
     // Each of these has its own lock, a leaf (or, for the registry, taken before the
     // lease table's only).
     LeaseTable leases_;       // every lease out, its holder and its label
@@ -262,8 +237,7 @@ private:
     RoundEndStats round_ends_;
     std::atomic<uint64_t> samples_merged_{0};  // atomic: read without the lock
     RenderEvents events_;
-    WorkerRegistry registry_;  // the workers and their links
-    bool stopping_ = false;
+    WorkerRegistry registry_;         // the workers and their links
     std::unique_ptr<Ticker> ticker_;  // started last, once the renders are resumed
 
     // ---- Read-only views for the HTTP API and dashboard (http_server.h) ----

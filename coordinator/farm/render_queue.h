@@ -1,7 +1,7 @@
 // RenderQueue: the renders none of whose jobs has been leased yet, in the order the
 // coordinator's lease() serves renders (LeaseOrder), so that a queued render's position
 // says which starts next (1: the next).
-// Not thread-safe: the Coordinator holds it under its `mutex_`, beside the priorities.
+// Not thread-safe: the RenderList holds it under its lock, beside the priorities.
 #pragma once
 
 #include <cstdint>
