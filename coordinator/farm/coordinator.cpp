@@ -385,9 +385,10 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
         samples_merged_ += result.total_samples();
         registry_.note_merged(caller.worker, result.total_samples(), result.wall_seconds);
     }
-    renders_.note_ended(
-        leases_, {},
-        render_failed ? std::set{slot->session->id()} : std::set<std::string>{});
+    if (render_failed)
+        renders_.note_ended(leases_, {}, {slot->session->id()});
+    else
+        renders_.note_change();
     return outcome;
 }
 
@@ -451,9 +452,10 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     leases_.end(lease_id);
     registry_.note_failure(caller.worker);
     // The render's other leases ended with it.
-    renders_.note_ended(
-        leases_, {},
-        render_failed ? std::set{slot->session->id()} : std::set<std::string>{});
+    if (render_failed)
+        renders_.note_ended(leases_, {}, {slot->session->id()});
+    else
+        renders_.note_change();
     return true;
 }
 

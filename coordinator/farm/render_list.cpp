@@ -133,7 +133,7 @@ void RenderList::note_change() {
 void RenderList::note_ended(LeaseTable& leases, const std::vector<uint64_t>& ended,
                             const std::set<std::string>& finished, bool changed_too) {
     std::lock_guard lock(mutex_);
-    if (!ended.empty() || !finished.empty()) forget_leases(leases, ended, finished);
+    forget_leases(leases, ended, finished);
     if (changed_too) changed();
 }
 
