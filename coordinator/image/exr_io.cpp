@@ -24,6 +24,7 @@
 #include <thread>
 
 #include "aov_channels.h"
+#include "exr_format.h"
 
 namespace aliquot {
 namespace {
@@ -90,8 +91,7 @@ void write_to(Imf::OStream& stream, const Image& image, int threads) {
     // The header holds only the fixed attributes: no dates or software names, so the same
     // Image always gives the same bytes (tests compare files produced by different runs).
     Imf::Header header(int(image.width), int(image.height));
-    header.compression() = Imf::ZIP_COMPRESSION;
-    header.lineOrder() = Imf::INCREASING_Y;
+    set_written_format(header);
     // The image's own attributes (a render's spec): deterministic by construction, and
     // written in name order whatever order they were set in.
     for (const auto& [name, value] : image.attributes)

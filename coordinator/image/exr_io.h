@@ -26,12 +26,12 @@ public:
 
 // The threads that compress an EXR's blocks of rows as it is written: one per hardware
 // thread, in OpenEXR's own pool (made on first use), while the calling thread writes.
-// The bytes do not depend on the count: each block of 16 rows is compressed alone and
-// the blocks are written in row order. A count of 0 compresses in the calling thread.
+// The bytes do not depend on the count: each scan line is compressed alone and the
+// lines are written in row order. A count of 0 compresses in the calling thread.
 int exr_write_threads();
 
-// Writes float R, G, B plus every extra channel (FLOAT, ZIP compression). Throws
-// ImageFileError naming the path when the file cannot be written.
+// Writes float R, G, B plus every extra channel (FLOAT, RLE compression: exr_format.h).
+// Throws ImageFileError naming the path when the file cannot be written.
 void write_exr(const std::filesystem::path& path, const Image& image,
                int threads = exr_write_threads());
 

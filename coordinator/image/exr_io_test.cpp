@@ -7,6 +7,7 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfThreading.h>
@@ -142,7 +143,7 @@ TEST_F(ExrIo, SameImageGivesIdenticalBytes) {
 }
 
 TEST_F(ExrIo, TheBytesDoNotDependOnHowManyThreadsCompress) {
-    // Many blocks of 16 rows, the last one short, so that threads take different ones.
+    // Many blocks (a scan line each), so that threads take different ones.
     const Image image = patterned(67, 203);
     const std::string alone = encode_exr(image, 0);
     for (int threads : {1, 2, 4, 7})
@@ -153,6 +154,17 @@ TEST_F(ExrIo, TheBytesDoNotDependOnHowManyThreadsCompress) {
     write_exr(dir / "a.exr", image, 4);
     EXPECT_EQ(bytes_of(dir / "a.exr"), alone);
     expect_same(decode_exr(alone, "alone"), image);
+}
+
+// Issue 33: ZIP's zlib was ~0.4 CPU s of a 1920x1080 render's end, about 1 % of a
+// 64-spp render's worker CPU; RLE costs a fifth of it for files a quarter larger.
+TEST_F(ExrIo, WritesRleCompressedScanLinesInOrder) {
+    Imf::StdISStream stream;
+    stream.str(encode_exr(patterned(9, 5)));
+    Imf::InputFile file(stream, 0);
+    EXPECT_EQ(file.header().compression(), Imf::RLE_COMPRESSION);
+    EXPECT_EQ(file.header().lineOrder(), Imf::INCREASING_Y);
+    EXPECT_FALSE(file.header().hasTileDescription());
 }
 
 TEST_F(ExrIo, WritingIntoMissingDirectoryNamesThePath) {

@@ -14,6 +14,7 @@
 #include <fstream>
 #include <vector>
 
+#include "exr_format.h"
 #include "exr_io.h"
 
 namespace aliquot {
@@ -55,8 +56,7 @@ void copy(const std::filesystem::path& from, std::ofstream& os,
 
     // As write_exr makes it: the fixed attributes and the image's own, nothing else.
     Imf::Header header(width, height);
-    header.compression() = Imf::ZIP_COMPRESSION;
-    header.lineOrder() = Imf::INCREASING_Y;
+    set_written_format(header);
     for (auto it = in.header().begin(); it != in.header().end(); ++it)
         if (std::strcmp(it.attribute().typeName(), "string") == 0 &&
             std::strchr(it.name(), ':'))
