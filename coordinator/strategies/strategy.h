@@ -32,6 +32,22 @@ constexpr uint64_t kRoundSamples = uint64_t(1) << 25;
 // milliseconds.
 constexpr uint64_t kFirstRoundSamples = kRoundSamples / 8;
 
+// A render's rounds where a method is free to choose hold at most round_samples(budget):
+// kRoundSamples, or an eighth of the budget when that is more. Every round merges each
+// pixel it covers once (~30-40 ns of the coordinator's a pixel), so rounds capped at
+// kRoundSamples alone merged a 1920x1080 pixel 67 times at 1024 spp, and the merges, not
+// the samples, were the coordinator's CPU (docs/PERFORMANCE.md, "rounds that grow with
+// the budget"); with the cap growing with the budget a pixel is merged about
+// log2(spp) + 7 times. A function of the budget alone, never of the farm, so the bits do
+// not depend on who traces them. What it costs: a restart traces again at most an eighth
+// of the render, and a small farm hears of a round's end, and may checkpoint, less often
+// (docs/FARM.md, "How long a round is").
+constexpr uint64_t kRoundsOfABudget = 8;
+constexpr uint64_t round_samples(uint64_t budget) {
+    return budget / kRoundsOfABudget > kRoundSamples ? budget / kRoundsOfABudget
+                                                     : kRoundSamples;
+}
+
 struct Round {
     uint32_t index = 0;
     std::vector<uint32_t> spp;  // samples each pixel gets this round, row-major

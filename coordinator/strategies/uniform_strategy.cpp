@@ -9,14 +9,15 @@ UniformStrategy::UniformStrategy(uint32_t width, uint32_t height, uint32_t spp)
     : spp_(spp), pixels_(size_t(width) * height) {}
 
 uint32_t UniformStrategy::round_spp(uint32_t done, uint32_t spp, size_t pixels) {
-    // Doubling keeps the number of rounds logarithmic; the cap (kRoundSamples) keeps each
-    // round short enough that a checkpoint is never far behind. Every round ends in a
+    // Doubling keeps the number of rounds logarithmic; the cap (round_samples: an eighth
+    // of the render, at least kRoundSamples) keeps a restart from tracing much again and
+    // the merges a pixel few (each round merges every pixel once). Every round ends in a
     // barrier (its last job holds up the next round), so the doubling starts from
     // kFirstRoundSamples, not from 1 spp: on a small image rounds of 1, 1, 2, 4 spp are
     // milliseconds of tracing each and their ends cost a two-worker farm a fifth of a
     // 64-spp render (docs/PERFORMANCE.md, farm efficiency).
     const size_t n = std::max<size_t>(pixels, 1);
-    const uint64_t cap = std::max<uint64_t>(1, kRoundSamples / n);
+    const uint64_t cap = std::max<uint64_t>(1, round_samples(uint64_t(spp) * n) / n);
     const uint64_t floor = std::max<uint64_t>(1, kFirstRoundSamples / n);
     const uint64_t want = std::min<uint64_t>(std::max<uint64_t>(done, floor), cap);
     return uint32_t(std::min<uint64_t>(want, spp - done));

@@ -27,7 +27,7 @@ public:
     }
 
     // Samples per pixel of the next round after `done` of `spp`: rounds double from
-    // about kFirstRoundSamples up to about kRoundSamples samples.
+    // about kFirstRoundSamples up to about round_samples(spp x pixels) samples.
     static uint32_t round_spp(uint32_t done, uint32_t spp, size_t pixels);
 
 private:

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <vector>
+
 #include "strategy_params.h"
 #include "synthetic_source.h"
 
@@ -47,13 +50,80 @@ TEST(Uniform, RoundsDoubleFromAboutKFirstRoundSamples) {
     EXPECT_EQ(UniformStrategy::round_spp(0, 4096, 4096 * 4096), 1u);  // never below 1
 }
 
-TEST(Uniform, RoundsOfALargeImageStayNearKRoundSamples) {
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 8192 * 8192), 1u);  // never below 1
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 4096 * 4096), 2u);
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1920 * 1080), 16u);
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1 << 20), 32u);
+TEST(Uniform, RoundsOfASmallBudgetStayNearKRoundSamples) {
+    // Budgets of at most 8 kRoundSamples: rounds of kRoundSamples, as before the cap grew
+    // with the budget.
+    EXPECT_EQ(UniformStrategy::round_spp(2, 4, 8192 * 8192), 1u);  // never below 1
+    EXPECT_EQ(UniformStrategy::round_spp(4, 16, 4096 * 4096), 2u);
+    EXPECT_EQ(UniformStrategy::round_spp(100, 128, 1920 * 1080), 16u);
+    EXPECT_EQ(UniformStrategy::round_spp(100, 256, 1 << 20), 32u);
     EXPECT_EQ(UniformStrategy::round_spp(512, 1000, 1024),
               488u);  // the last, partial round
+}
+
+TEST(Uniform, RoundsGrowWithTheBudget) {
+    // Above 8 kRoundSamples a round holds up to an eighth of the budget, so that a pixel
+    // is merged about log2(spp) + 7 times, not spp / 16 times at 1920x1080.
+    EXPECT_EQ(round_samples(kRoundSamples), kRoundSamples);
+    EXPECT_EQ(round_samples(8 * kRoundSamples), kRoundSamples);
+    EXPECT_EQ(round_samples(64 * kRoundSamples), 8 * kRoundSamples);
+    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1920 * 1080),
+              100u);  // still doubling
+    EXPECT_EQ(UniformStrategy::round_spp(256, 1024, 1920 * 1080), 128u);  // an eighth
+    EXPECT_EQ(UniformStrategy::round_spp(512, 4096, 4096 * 4096), 512u);
+}
+
+// The spp of each round of a render of `spp` over `pixels`, from round_spp as next_round
+// hands them out.
+std::vector<uint32_t> schedule(uint32_t spp, size_t pixels) {
+    std::vector<uint32_t> rounds;
+    for (uint32_t done = 0; done < spp; done += rounds.back())
+        rounds.push_back(UniformStrategy::round_spp(done, spp, pixels));
+    return rounds;
+}
+
+TEST(Uniform, A1080pRenderOf1024SppIsMergedFourteenTimes) {
+    // 2, 2, 4, ... 128 spp, then six more of 128: 14 rounds where rounds of at most
+    // kRoundSamples (16 spp here) were 67.
+    const std::vector<uint32_t> rounds = schedule(1024, 1920 * 1080);
+    EXPECT_EQ(rounds, (std::vector<uint32_t>{2, 2, 4, 8, 16, 32, 64, 128, 128, 128, 128,
+                                             128, 128, 128}));
+    // At most log2(spp) + 7 rounds for every budget, at every size; the rounds add up to
+    // the spp.
+    for (const size_t pixels :
+         {size_t(64 * 64), size_t(1920 * 1080), size_t(4096 * 2160)})
+        for (uint32_t spp = 1; spp <= 16384; spp = spp * 3 / 2 + 1) {
+            const std::vector<uint32_t> r = schedule(spp, pixels);
+            uint64_t sum = 0;
+            for (uint32_t s : r) sum += s;
+            EXPECT_EQ(sum, spp) << pixels << " pixels, " << spp << " spp";
+            EXPECT_LE(double(r.size()), std::log2(double(spp)) + 7.0)
+                << pixels << " pixels, " << spp << " spp";
+        }
+}
+
+TEST(Uniform, ARenderOf1024SppRestoredMidWayGoesOnInTheSameRounds) {
+    const uint32_t w = 1920, h = 1080;
+    UniformStrategy whole(w, h, 1024), first(w, h, 1024);
+    Accumulator merged(1, 1);      // uniform reads nothing merged
+    for (int k = 0; k < 9; ++k) {  // past the doubling, into the rounds of 128 spp
+        ASSERT_TRUE(whole.next_round(merged));
+        ASSERT_TRUE(first.next_round(merged));
+    }
+    UniformStrategy resumed(w, h, 1024);
+    resumed.restore_state(nlohmann::json::parse(first.save_state().dump()));
+    uint32_t rounds = 9;
+    uint64_t samples = 0;
+    for (auto a = whole.next_round(merged), b = resumed.next_round(merged); a || b;
+         a = whole.next_round(merged), b = resumed.next_round(merged)) {
+        ASSERT_TRUE(a && b);
+        EXPECT_EQ(a->index, rounds++);
+        EXPECT_EQ(b->index, a->index);
+        EXPECT_EQ(b->spp, a->spp);
+        samples += b->total();
+    }
+    EXPECT_EQ(rounds, 14u);
+    EXPECT_EQ(samples, uint64_t(w) * h * (1024 - 256 - 128));
 }
 
 TEST(Uniform, RestoredStateContinuesWhereItStopped) {
