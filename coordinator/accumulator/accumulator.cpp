@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
+#include <type_traits>
+#include <utility>
 
 #include "aov_channels.h"
 #include "bands.h"
@@ -107,18 +110,99 @@ void derive_two(const PixelSums& a, const PixelSums& b, double half_difference[2
     variance[1] = b.samples < 2 ? 0.0 : (var[1] > 0 ? var[1] : 0.0);
 }
 
+// Whether a result's pixel is what its job asked for (Accumulator::check's `counts`). No
+// branches: the pass over a result vectorises.
+bool as_asked(const PixelSums& p, uint32_t count) {
+    constexpr double kLargest = std::numeric_limits<double>::max();  // NaN fails <=
+    bool ok = p.samples == count;
+    ok &= p.nonfinite <= p.samples;
+    bool finite = p.sum_sq_luminance >= 0 && p.sum_sq_luminance <= kLargest;
+    bool zero = p.sum_sq_luminance == 0 && p.rays == 0 && p.nonfinite == 0;
+    for (int c = 0; c < 3; ++c) {
+        finite &= std::abs(p.even[c]) <= kLargest;
+        finite &= std::abs(p.odd[c]) <= kLargest;
+        zero &= p.even[c] == 0 && p.odd[c] == 0;
+    }
+    return ok & finite & (p.samples != 0 || zero);
+}
+
+// Why a result is not what its job asked for: the first pixel that is not, as the
+// render session said it before the check joined the merge's pass.
+std::string why_not_as_asked(const SampleJobResult& result, const uint32_t* counts) {
+    for (size_t i = 0; i < result.pixels.size(); ++i) {
+        const PixelSums& p = result.pixels[i];
+        if (p.samples != counts[i])
+            return "pixel " + std::to_string(i) + " has " + std::to_string(p.samples) +
+                   " samples, job asked for " + std::to_string(counts[i]);
+        if (p.nonfinite > p.samples) return "more non-finite samples than samples";
+        if (p.samples == 0 && p != PixelSums{})
+            return "pixel " + std::to_string(i) + " has no samples but non-zero sums";
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(p.even[c]) || !std::isfinite(p.odd[c]))
+                return "non-finite sum at pixel " + std::to_string(i);
+        if (!std::isfinite(p.sum_sq_luminance) || p.sum_sq_luminance < 0)
+            return "bad sum of squares at pixel " + std::to_string(i);
+    }
+    return "result differs from its job";  // as_asked and this disagree: never
+}
+
 }  // namespace
 
 Accumulator::Accumulator(uint32_t width, uint32_t height)
     : width_(width),
       height_(height),
       pixels_(size_t(width) * height),
-      samples_(pixels_.size(), 0),
-      rays_(pixels_.size(), 0),
-      half_difference_(pixels_.size(), -1.0),
-      luminance_variance_(pixels_.size(), 0.0) {}
+      samples_(pixels_.size()),
+      rays_(pixels_.size()),
+      half_difference_(pixels_.size()),
+      luminance_variance_(pixels_.size()) {
+    // The one buffer whose start is not zero: below two samples a pixel has no half
+    // difference.
+    std::fill(half_difference_.begin(), half_difference_.end(), -1.0);
+}
 
-void Accumulator::merge(const SampleJobResult& result) {
+Accumulator::Accumulator(Accumulator&& other) noexcept { *this = std::move(other); }
+
+Accumulator& Accumulator::operator=(Accumulator&& other) noexcept {
+    if (this == &other) return *this;
+    width_ = std::exchange(other.width_, 0);
+    height_ = std::exchange(other.height_, 0);
+    pixels_ = std::move(other.pixels_);
+    samples_ = std::move(other.samples_);
+    rays_ = std::move(other.rays_);
+    half_difference_ = std::move(other.half_difference_);
+    luminance_variance_ = std::move(other.luminance_variance_);
+    total_samples_ = other.total_samples_.exchange(0);
+    total_rays_ = other.total_rays_.exchange(0);
+    total_nonfinite_ = other.total_nonfinite_.exchange(0);
+    roomy_ = other.roomy_.exchange(true);
+    return *this;
+}
+
+void Accumulator::touch_pages() {
+    pixels_.touch();
+    samples_.touch();
+    rays_.touch();
+    half_difference_.touch();
+    luminance_variance_.touch();
+}
+
+ResultTotals check_as_asked(const SampleJobResult& result, const uint32_t* counts) {
+    ResultTotals totals;
+    bool asked = true;
+    for (const PixelSums& p : result.pixels) {
+        totals.samples += p.samples;
+        totals.rays += p.rays;
+        totals.nonfinite += p.nonfinite;
+        asked &= as_asked(p, *counts++);
+    }
+    if (!asked) throw MergeError(why_not_as_asked(result, counts - result.pixels.size()));
+    return totals;
+}
+
+void Accumulator::merge(const SampleJobResult& result) { add(result, check(result)); }
+
+ResultTotals Accumulator::check(const SampleJobResult& result, const uint32_t* counts) {
     const PixelRect& r = result.rect;
     if (uint64_t(r.x) + r.width > width_ || uint64_t(r.y) + r.height > height_)
         throw MergeError("result rectangle lies outside the " + std::to_string(width_) +
@@ -126,26 +210,43 @@ void Accumulator::merge(const SampleJobResult& result) {
     if (result.pixels.size() != r.size())
         throw MergeError("result has " + std::to_string(result.pixels.size()) +
                          " pixels for a rectangle of " + std::to_string(r.size()));
-    // While every merged sum is within 3/4 of the bound a sample (roomy_), a result
-    // within 1/4 of it cannot take a pixel past 3/4 (|d + s| <= 3/4 n_d + 1/4 n_s <= 3/4
-    // (n_d + n_s), rounding far inside the margin left to the bound), so it is merged
-    // after a pass over its own sums alone, not the buffers' as well: the check read
-    // twice the bytes the merge itself reads, and the rows of the buffers it touches
-    // twice. Any other result is checked against the buffers, as always, and ends the
-    // shortcut for good. Which results are refused does not change.
-    bool fits = roomy_;
-    for (size_t i = 0; fits && i < result.pixels.size(); i += kRoomyBlock) {
-        const size_t end = std::min(result.pixels.size(), i + kRoomyBlock);
-        for (size_t k = i; k < end; ++k) fits &= roomy(result.pixels[k]);
-    }
-    if (!fits) {
+    // One pass over the result: its totals, whether it is what its job asked for, and
+    // whether it is roomy. While every merged sum is within 3/4 of the bound a sample
+    // (roomy_), a result within 1/4 of it cannot take a pixel past 3/4 (|d + s| <= 3/4
+    // n_d + 1/4 n_s <= 3/4 (n_d + n_s), rounding far inside the margin left to the
+    // bound), so it is merged after this pass over its own sums alone, not the
+    // buffers' as well. Any other result is checked against the buffers, as always,
+    // and ends the shortcut for good. Which results are refused does not change.
+    ResultTotals totals;
+    bool fits = true, asked = true;
+    const PixelSums* const pixels = result.pixels.data();
+    const size_t n = result.pixels.size();
+    const auto pass = [&](auto with_counts) {
+        for (size_t i = 0; i < n; ++i) {
+            totals.samples += pixels[i].samples;
+            totals.rays += pixels[i].rays;
+            totals.nonfinite += pixels[i].nonfinite;
+            fits &= roomy(pixels[i]);
+            if constexpr (decltype(with_counts)::value)
+                asked &= as_asked(pixels[i], counts[i]);
+        }
+    };
+    if (counts)
+        pass(std::true_type{});
+    else
+        pass(std::false_type{});
+    if (!asked) throw MergeError(why_not_as_asked(result, counts));
+    if (!fits || !roomy_.load(std::memory_order_relaxed)) {
         check_finite_after(result);
-        roomy_ = false;
+        roomy_.store(false, std::memory_order_relaxed);
     }
-    // A row at a time through plain pointers, the totals in locals: stores to the
-    // uint64_t arrays could otherwise alias the totals, and every pixel would reload and
-    // store them (a third of the merge's time at 1920x1080, with the index arithmetic).
-    uint64_t samples = 0, rays = 0, nonfinite = 0;
+    return totals;
+}
+
+void Accumulator::add(const SampleJobResult& result, const ResultTotals& totals) {
+    const PixelRect& r = result.rect;
+    // A row at a time through plain pointers: stores to the uint64_t arrays could
+    // otherwise alias what the loop reads, and every pixel would reload it.
     for (uint32_t row = 0; row < r.height; ++row) {
         const size_t first = size_t(r.y + row) * width_ + r.x;
         const PixelSums* src = result.pixels.data() + size_t(row) * r.width;
@@ -167,9 +268,6 @@ void Accumulator::merge(const SampleJobResult& result) {
             d.nonfinite += s.nonfinite;
             pixel_samples[col] = d.samples;
             pixel_rays[col] = d.rays;
-            samples += s.samples;
-            rays += s.rays;
-            nonfinite += s.nonfinite;
         }
         // The derived values from the row just merged, still in cache, two at a time.
         uint32_t col = 0;
@@ -180,9 +278,9 @@ void Accumulator::merge(const SampleJobResult& result) {
             variance[col] = luminance_variance_of(dst[col]);
         }
     }
-    total_samples_ += samples;
-    total_rays_ += rays;
-    total_nonfinite_ += nonfinite;
+    total_samples_.fetch_add(totals.samples, std::memory_order_relaxed);
+    total_rays_.fetch_add(totals.rays, std::memory_order_relaxed);
+    total_nonfinite_.fetch_add(totals.nonfinite, std::memory_order_relaxed);
 }
 
 void Accumulator::check_finite_after(const SampleJobResult& result) const {
@@ -217,10 +315,10 @@ void Accumulator::copy_from(const Accumulator& other) {
     if (this == &other) return;
     width_ = other.width_;
     height_ = other.height_;
-    total_samples_ = other.total_samples_;
-    total_rays_ = other.total_rays_;
-    total_nonfinite_ = other.total_nonfinite_;
-    roomy_ = other.roomy_;
+    total_samples_ = other.total_samples();
+    total_rays_ = other.total_rays();
+    total_nonfinite_ = other.total_nonfinite();
+    roomy_ = other.roomy_.load(std::memory_order_relaxed);
     pixels_.resize(other.pixels_.size());
     samples_.resize(other.samples_.size());
     rays_.resize(other.rays_.size());

@@ -204,6 +204,79 @@ TEST(Accumulator, AResultIsRefusedWholeForABadPixelAnywhereAfterRoomyMerges) {
     EXPECT_THROW(acc.merge(over), MergeError);
 }
 
+// Issue 33: the render session's check of a result against its job joined the merge's
+// one pass. With the job's counts, a pixel unlike its job anywhere refuses the result
+// whole, with the session's reason as before; the pass totals what it adds.
+TEST(Accumulator, CheckWithCountsRefusesAResultUnlikeItsJobWholeAndTotalsTheRest) {
+    Accumulator acc(300, 1);
+    SampleJobResult r;
+    r.rect = {0, 0, 300, 1};
+    r.pixels.resize(300);
+    std::vector<uint32_t> counts(300, 2);
+    counts[7] = 0;  // a pixel the job gave no samples
+    for (size_t i = 0; i < r.pixels.size(); ++i)
+        if (counts[i])
+            r.pixels[i].samples = 2, r.pixels[i].even[1] = 0.5, r.pixels[i].rays = 5;
+    const auto refused = [&](SampleJobResult bad) {
+        try {
+            acc.check(bad, counts.data());
+        } catch (const MergeError& e) {
+            return std::string(e.what());
+        }
+        return std::string("taken");
+    };
+    SampleJobResult bad = r;
+    bad.pixels[250].samples = 3;
+    bad.pixels[250].even[0] = 9;  // roomy: only the count is wrong
+    EXPECT_EQ(refused(bad), "pixel 250 has 3 samples, job asked for 2");
+    bad = r;
+    bad.pixels[7].rays = 1;
+    EXPECT_EQ(refused(bad), "pixel 7 has no samples but non-zero sums");
+    bad = r;
+    bad.pixels[299].nonfinite = 3;
+    EXPECT_EQ(refused(bad), "more non-finite samples than samples");
+    bad = r;
+    bad.pixels[100].odd[2] = INFINITY;
+    EXPECT_EQ(refused(bad), "non-finite sum at pixel 100");
+    bad = r;
+    bad.pixels[100].sum_sq_luminance = -1;
+    EXPECT_EQ(refused(bad), "bad sum of squares at pixel 100");
+    EXPECT_EQ(acc.total_samples(), 0u);
+    EXPECT_EQ(acc.at(100).samples, 0u);
+    const ResultTotals totals = acc.check(r, counts.data());
+    EXPECT_EQ(totals.samples, 598u);
+    EXPECT_EQ(totals.rays, 5u * 299);
+    acc.add(r, totals);
+    EXPECT_EQ(acc.total_samples(), 598u);
+    EXPECT_EQ(acc.total_rays(), 5u * 299);
+    EXPECT_EQ(acc.at(1).even[1], 0.5);
+    // check_as_asked, for a result held before it merges, says the same.
+    bad = r;
+    bad.pixels[250].samples = 3;
+    EXPECT_THROW(check_as_asked(bad, counts.data()), MergeError);
+    EXPECT_EQ(check_as_asked(r, counts.data()).samples, 598u);
+}
+
+// A render's buffers come zeroed from the kernel, half differences at -1, however large.
+TEST(Accumulator, ANewAccumulatorIsZeroWhateverItsSize) {
+    for (const uint32_t side : {3u, 1100u}) {  // calloc'd, and mapped in huge pages
+        Accumulator acc(side, side);
+        acc.touch_pages();
+        for (const size_t i :
+             {size_t(0), size_t(side) * side / 2, size_t(side) * side - 1}) {
+            EXPECT_EQ(acc.at(i), PixelSums{});
+            EXPECT_EQ(acc.samples(i), 0u);
+            EXPECT_EQ(acc.rays(i), 0u);
+            EXPECT_EQ(acc.half_difference(i), -1.0);
+            EXPECT_EQ(acc.luminance_variance(i), 0.0);
+        }
+        acc.merge(one_pixel(side - 1, side - 1, 1, 1, 2, 1));
+        Accumulator moved = std::move(acc);
+        EXPECT_EQ(moved.total_samples(), 2u);
+        EXPECT_EQ(moved.at(size_t(side) * side - 1).samples, 2u);
+    }
+}
+
 TEST(Accumulator, CopyFromMakesAnEqualCopyOverAnyPreviousContents) {
     // Several bands of pixels, so the copy runs on the pool's threads.
     Accumulator source(400, 400), copy(3, 2);

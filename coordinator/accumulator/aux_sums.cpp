@@ -90,8 +90,18 @@ void AuxSums::add_layers(const Accumulator& merged, Image& image) const {
 }
 
 void merge_with_aux(Accumulator& merged, AuxSums& aux, const SampleJobResult& result) {
-    aux.check(result);     // before the colour: a refusal leaves both as they were
-    merged.merge(result);  // checks the rectangle, then refuses or adds the whole
+    add_with_aux(merged, aux, result, check_with_aux(merged, aux, result));
+}
+
+ResultTotals check_with_aux(Accumulator& merged, const AuxSums& aux,
+                            const SampleJobResult& result, const uint32_t* counts) {
+    aux.check(result);  // the colour's check also checks the rectangle
+    return merged.check(result, counts);
+}
+
+void add_with_aux(Accumulator& merged, AuxSums& aux, const SampleJobResult& result,
+                  const ResultTotals& totals) {
+    merged.add(result, totals);
     aux.add(result);
 }
 

@@ -55,7 +55,15 @@ private:
 };
 
 // Merges `result` into both or neither: throws MergeError, touching neither, when either
-// would refuse it. A render session's one call.
+// would refuse it. check_with_aux, then add_with_aux.
 void merge_with_aux(Accumulator& merged, AuxSums& aux, const SampleJobResult& result);
+// Throws MergeError unless both would take `result` (Accumulator::check, with the job's
+// `counts` when given); what it adds.
+ResultTotals check_with_aux(Accumulator& merged, const AuxSums& aux,
+                            const SampleJobResult& result,
+                            const uint32_t* counts = nullptr);
+// Adds a result check_with_aux took to both. Adds of disjoint rectangles may run at once.
+void add_with_aux(Accumulator& merged, AuxSums& aux, const SampleJobResult& result,
+                  const ResultTotals& totals);
 
 }  // namespace aliquot

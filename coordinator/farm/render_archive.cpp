@@ -239,7 +239,8 @@ void RenderArchive::prepare_checkpoint_copy(RenderSlot& slot) {
             if (const SlotPtr s = weak.lock(); !s || !wanted(s)) return;
             auto copy = std::make_shared<CheckpointCopy>();
             try {
-                copy->cp.merged = Accumulator(width, height);  // zeroed: pages touched
+                // Zeroed, so every page is touched here.
+                copy->cp.sums.assign(size_t(width) * height, PixelSums{});
             } catch (const std::bad_alloc&) {
                 return;  // the round end tries when a checkpoint is due
             }
