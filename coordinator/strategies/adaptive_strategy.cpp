@@ -109,10 +109,12 @@ void AdaptiveStrategy::plan_remainder() {
     }
     unspent_ = remainder_ - given;
     // The remainder is decided once, after the initial pass (as in the seed), and
-    // delivered in rounds of about kRoundSamples so that progress, per-round error and
-    // checkpoints stay frequent; the decision does not depend on how it is delivered.
-    deliveries_ =
-        uint32_t(std::max<uint64_t>(1, (given + kRoundSamples - 1) / kRoundSamples));
+    // delivered in rounds of about round_samples(budget) (an eighth of the budget, at
+    // least kRoundSamples) so that progress, per-round error and checkpoints stay
+    // frequent while a pixel is merged a few times, not once every kRoundSamples; the
+    // decision does not depend on how it is delivered, only the sums' grouping does.
+    const uint64_t round = round_samples(budget_);
+    deliveries_ = uint32_t(std::max<uint64_t>(1, (given + round - 1) / round));
 }
 
 std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 
 #include "synthetic_source.h"
 
@@ -182,6 +183,39 @@ TEST(Adaptive, RestoredStateDeliversTheSameRounds) {
     EXPECT_EQ(first->total() + second_a->total() + 4096u * 4, budget);
     EXPECT_FALSE(a.next_round(merged));
     EXPECT_FALSE(b.next_round(merged));
+}
+
+TEST(Adaptive, ALargeRemainderIsDeliveredInEighthsOfTheBudget) {
+    // 64 kRoundSamples of budget (1024 spp at 2048x1024): delivered in rounds of an
+    // eighth of it, so each pixel is merged 9 times, not 65 (rounds of kRoundSamples).
+    // Restored mid-way, the rest comes in the same rounds.
+    const SyntheticImage image(64, 64, 3, {0.5, 0.2});
+    const uint64_t budget = 64 * kRoundSamples;
+    StrategyParams p = adaptive(budget);
+    p.initial_spp = 4;
+    AdaptiveStrategy a(p, 64, 64);
+    Accumulator merged(64, 64);
+    run_synthetic(a, image, merged, 1);  // the initial pass
+    uint64_t samples = 4096u * 4;
+    uint32_t deliveries = 0;
+    std::optional<AdaptiveStrategy> resumed;
+    while (const auto round = a.next_round(merged)) {
+        if (resumed) {
+            const auto again = resumed->next_round(merged);
+            ASSERT_TRUE(again);
+            EXPECT_EQ(again->spp, round->spp);
+            EXPECT_EQ(again->index, round->index);
+        }
+        EXPECT_LE(round->total(), budget / 8 + 4096);  // a pixel's rounding at most
+        samples += round->total();
+        if (++deliveries == 3) {
+            resumed.emplace(p, 64, 64);
+            resumed->restore_state(nlohmann::json::parse(a.save_state().dump()));
+        }
+    }
+    EXPECT_FALSE(resumed->next_round(merged));
+    EXPECT_EQ(deliveries, 8u);
+    EXPECT_EQ(samples, budget);
 }
 
 }  // namespace
