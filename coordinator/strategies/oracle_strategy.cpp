@@ -28,10 +28,12 @@ OracleStrategy::OracleStrategy(const StrategyParams& p, uint32_t width, uint32_t
         OptimalStrategy::optimal_counts(weight, {}, double(budget_), floor, double(cap));
     allocation_ = apportion(target, double(budget_), std::vector<uint32_t>(pixels, cap));
     for (uint32_t n : allocation_) planned_ += n;
-    // Rounds of about kRoundSamples: the allocation is fixed, so rounds only let progress
-    // and the per-round error be watched and keep checkpoints frequent.
-    rounds_total_ =
-        uint32_t(std::max<uint64_t>(1, (planned_ + kRoundSamples - 1) / kRoundSamples));
+    // Rounds of about round_samples(budget) (an eighth of the budget, at least
+    // kRoundSamples): the allocation is fixed, so rounds only let progress and the
+    // per-round error be watched and keep checkpoints frequent, and each merges every
+    // pixel once more.
+    const uint64_t round = round_samples(budget_);
+    rounds_total_ = uint32_t(std::max<uint64_t>(1, (planned_ + round - 1) / round));
 }
 
 std::optional<Round> OracleStrategy::next_round(const Accumulator&) {

@@ -102,5 +102,21 @@ TEST(Oracle, ResumesFromItsStateWithTheSameRounds) {
     EXPECT_EQ(a->index, 1u);
 }
 
+TEST(Oracle, ALargeBudgetIsDeliveredInEighths) {
+    // 64 kRoundSamples of budget: rounds of an eighth of it, so each pixel is merged 8
+    // times, not 64 (rounds of kRoundSamples), and the rounds add up to the budget.
+    const uint64_t budget = 64 * kRoundSamples;
+    OracleStrategy strategy(oracle(banded_image(), budget), 64, 64);
+    Accumulator merged(64, 64);  // the oracle reads nothing merged
+    uint32_t rounds = 0;
+    uint64_t samples = 0;
+    while (const auto round = strategy.next_round(merged)) {
+        EXPECT_EQ(round->index, rounds++);
+        samples += round->total();
+    }
+    EXPECT_EQ(rounds, 8u);
+    EXPECT_EQ(samples, budget);
+}
+
 }  // namespace
 }  // namespace aliquot
