@@ -65,7 +65,7 @@ void RenderSession::start() {
     if (finished()) return;
     started_ = Clock::now();
     state_ = RenderState::Running;
-    plan_next_round();
+    begin_next_round();
 }
 
 Image RenderSession::image(bool aovs) const {
@@ -250,6 +250,7 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
                                               const std::set<std::string>& alive,
                                               const FailurePolicy& policy) {
     if (state_ != RenderState::Running) return std::nullopt;
+    if (!open_round_end_plan(alive, policy)) return std::nullopt;
     if (pending_.empty()) open_next_round();
     if (state_ != RenderState::Running || (pending_.empty() && next_pending_.empty())) {
         if (state_ == RenderState::Running && pending_.empty() && plan_coming() &&
@@ -378,7 +379,9 @@ void RenderSession::end_rounds(const std::set<std::string>& alive,
         fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
              e.what());
     };
-    while (state_ == RenderState::Running && merged_jobs_ == current_jobs_) {
+    // A plan begun off the lock (begin_next_round) ends the loop: its round comes later.
+    while (state_ == RenderState::Running && !planning_round_end_ &&
+           merged_jobs_ == current_jobs_) {
         try {
             finish_work_ahead();
         } catch (const std::exception& e) {
@@ -399,7 +402,7 @@ void RenderSession::end_rounds(const std::set<std::string>& alive,
         last_round_ = summary;
         if (on_round) on_round(*this, summary);
         try {
-            plan_next_round(alive, policy);
+            begin_next_round(alive, policy);
         } catch (const std::exception& e) {
             return planning_failed(e);
         }
@@ -408,6 +411,44 @@ void RenderSession::end_rounds(const std::set<std::string>& alive,
 
 void RenderSession::finish_work_ahead() {
     if (work_ahead_.valid()) work_ahead_.get();
+}
+
+void RenderSession::begin_next_round(const std::set<std::string>& alive,
+                                     const FailurePolicy& policy) {
+    if (std::function<void()> work = strategy_->take_round_end(merged_)) {
+        try {
+            work_ahead_ = std::async(std::launch::async, work);
+            planning_round_end_ = true;
+            // As for a plan made ahead: has_pending, and the tick's announce_next_round
+            // once it has ended (issue hands its round out).
+            next_tried_ = false;
+            announced_ = false;
+            return;
+        } catch (const std::system_error&) {
+            // No thread to be had: next_round plans here, as before.
+        }
+    }
+    plan_next_round(alive, policy);
+}
+
+bool RenderSession::open_round_end_plan(const std::set<std::string>& alive,
+                                        const FailurePolicy& policy) {
+    if (!planning_round_end_) return true;
+    if (work_ahead_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+        // The workers that ask meanwhile wait on the coordinator (plan_wait_seconds).
+        if (!plan_wait_since_) plan_wait_since_ = Clock::now();
+        return false;
+    }
+    planning_round_end_ = false;
+    try {
+        work_ahead_.get();
+        plan_next_round(alive, policy);
+    } catch (const std::exception& e) {
+        fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
+             e.what());
+    }
+    end_plan_wait(state_ == RenderState::Running);
+    return state_ == RenderState::Running;
 }
 
 bool RenderSession::renew(uint64_t lease_id, const std::string& worker,

@@ -193,6 +193,16 @@ private:
     // Waits for the strategy's work ahead (take_work_ahead) to end; rethrows what it
     // threw.
     void finish_work_ahead();
+    // After a round end (or at start): the strategy's long plan made on work_ahead_'s
+    // thread, off the caller's lock (Strategy::take_round_end), or the next round planned
+    // here. While that plan runs no round is out: issue finds nothing, and once it has
+    // ended the next issue hands the round out (open_round_end_plan).
+    void begin_next_round(const std::set<std::string>& alive = {},
+                          const FailurePolicy& policy = {});
+    // True when no round end's plan runs: none did, or it has ended and its round is
+    // out; false while it runs, or when its end ended the render.
+    bool open_round_end_plan(const std::set<std::string>& alive,
+                             const FailurePolicy& policy);
     void finish(RenderState state);
     std::string check_result(const JobSlot& slot, const SampleJobResult& result) const;
     bool blocklisted(const std::string& worker, const FailurePolicy& policy) const;
@@ -259,6 +269,8 @@ private:
     bool plan_coming() const { return !next_spp_ && !next_tried_ && work_ahead_.valid(); }
     // Ends that wait: counted when a round planned ahead came of the plan.
     void end_plan_wait(bool a_round_came);
+    // A round end's plan runs on work_ahead_ (begin_next_round): no round is out.
+    bool planning_round_end_ = false;
 
     // The strategy's work ahead, running on its own thread while the round's results
     // merge (it reads only what the strategy copied). Last, so that it is waited for

@@ -55,10 +55,13 @@ constexpr uint32_t kPoolRadius = 2;
 
 // The half images: the means of each pixel's even-index and odd-index samples. A pixel
 // with fewer than two samples has one half only; both get its mean.
+// Images of the right size are written over: every value is, so nothing carries over.
 void half_images(const Accumulator& merged, Image& even, Image& odd) {
     const size_t n = merged.pixel_count();
-    even = Image(merged.width(), merged.height());
-    odd = Image(merged.width(), merged.height());
+    for (Image* half : {&even, &odd})
+        if (half->width != merged.width() || half->height != merged.height() ||
+            half->rgb.size() != 3 * n)
+            *half = Image(merged.width(), merged.height());
     for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
         for (size_t i = begin; i < end; ++i) {
             double e[3], o[3];
@@ -121,26 +124,45 @@ DenoisedStrategy::DenoisedStrategy(const StrategyParams& p, uint32_t width,
     pilot_spp_ = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
 }
 
+void DenoisedStrategy::read_round_end(const Accumulator& merged,
+                                      const AuxSums* first_hits, RoundEndCopy& copy) {
+    const size_t n = merged.pixel_count();
+    half_images(merged, copy.even, copy.odd);
+    // Both halves are denoised with the guides of all samples: the guides' own noise
+    // (edges, textures) is small, and the same guides keep the two halves' filters alike,
+    // which the difference assumes.
+    if (first_hits && first_hits->kept()) {
+        copy.albedo = first_hits->albedo(merged);
+        copy.normal = first_hits->normal(merged);
+    } else {
+        copy.albedo = Image();
+        copy.normal = Image();
+    }
+    copy.samples.resize(n);
+    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) copy.samples[i] = merged.samples(i);
+    });
+    copy.spent = double(merged.total_samples());
+}
+
 std::vector<double> DenoisedStrategy::denoised_sigma(const Accumulator& merged,
                                                      const AuxSums* first_hits,
                                                      const DenoiseFunction& denoise,
                                                      uint32_t radius) {
-    const uint32_t w = merged.width(), h = merged.height();
-    const size_t n = merged.pixel_count();
-    Image even, odd;
-    half_images(merged, even, odd);
-    // Both halves are denoised with the guides of all samples: the guides' own noise
-    // (edges, textures) is small, and the same guides keep the two halves' filters alike,
-    // which the difference assumes.
-    Image albedo, normal;
-    if (first_hits && first_hits->kept()) {
-        albedo = first_hits->albedo(merged);
-        normal = first_hits->normal(merged);
-    }
-    const Image* a = albedo.rgb.empty() ? nullptr : &albedo;
-    const Image* nm = normal.rgb.empty() ? nullptr : &normal;
-    const std::vector<float> de = denoise(even, a, nm).rgb;
-    const std::vector<float> dodd = denoise(odd, a, nm).rgb;
+    RoundEndCopy copy;
+    read_round_end(merged, first_hits, copy);
+    return denoised_sigma(copy, denoise, radius);
+}
+
+std::vector<double> DenoisedStrategy::denoised_sigma(const RoundEndCopy& copy,
+                                                     const DenoiseFunction& denoise,
+                                                     uint32_t radius) {
+    const uint32_t w = copy.even.width, h = copy.even.height;
+    const size_t n = copy.samples.size();
+    const Image* a = copy.albedo.rgb.empty() ? nullptr : &copy.albedo;
+    const Image* nm = copy.normal.rgb.empty() ? nullptr : &copy.normal;
+    const std::vector<float> de = denoise(copy.even, a, nm).rgb;
+    const std::vector<float> dodd = denoise(copy.odd, a, nm).rgb;
     if (de.size() != 3 * n || dodd.size() != 3 * n)
         throw std::runtime_error("the denoiser returned an image of another size");
     // (Da - Db)^2 / 4 per channel, averaged over RGB: the denoised full image's variance.
@@ -161,13 +183,14 @@ std::vector<double> DenoisedStrategy::denoised_sigma(const Accumulator& merged,
     const double least = n ? kImageFactor * sorted[n / 2] : 0.0;
     std::vector<double> sigma(n);
     for (size_t i = 0; i < n; ++i)
-        sigma[i] = std::sqrt(std::max(variance[i], least) * double(merged.samples(i)));
+        sigma[i] = std::sqrt(std::max(variance[i], least) * double(copy.samples[i]));
     return sigma;
 }
 
-std::vector<uint32_t> DenoisedStrategy::steered_round(const Accumulator& merged) {
-    const size_t pixels = merged.pixel_count();
-    const double spent = double(merged.total_samples());
+std::vector<uint32_t> DenoisedStrategy::steered_round() const {
+    const RoundEndCopy& copy = round_end_;
+    const size_t pixels = copy.samples.size();
+    const double spent = copy.spent;
     const double remaining = double(budget_) - spent;
     if (!(remaining >= 1)) return {};
     // optimal's steered rounds: each at most what was spent before it and at most half
@@ -178,8 +201,7 @@ std::vector<uint32_t> DenoisedStrategy::steered_round(const Accumulator& merged)
     share = steered + 1 < steer_rounds_
                 ? std::min(share, std::max(1.0, std::floor(remaining / 2)))
                 : remaining;
-    const std::vector<double> sigma =
-        denoised_sigma(merged, first_hits_, denoise_, kPoolRadius);
+    const std::vector<double> sigma = denoised_sigma(copy, denoise_, kPoolRadius);
     std::vector<double> weight(pixels);
     bool noise_seen = false;
     for (size_t i = 0; i < pixels; ++i) {
@@ -192,11 +214,28 @@ std::vector<uint32_t> DenoisedStrategy::steered_round(const Accumulator& merged)
         weight, {}, spent + share, double(min_spp_), double(cap_));
     std::vector<uint32_t> room(pixels);
     for (size_t i = 0; i < pixels; ++i) {
-        const uint64_t have = merged.samples(i);
+        const uint64_t have = copy.samples[i];
         gap[i] = std::max(0.0, gap[i] - double(have));
         room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
     }
     return apportion(gap, share, room);
+}
+
+// Off the lock. A round end of `denoised` is two OIDN passes over the whole image (0.1 s
+// at 128x128, minutes at 8192x8192 on 2 cores): under the render's lock it held up
+// every lease scan that reached the render and the results of its own. Nothing is out
+// while it runs (each plan needs everything merged before it, so no round is planned
+// ahead), but the render's lock is free: the copy is one pass over the buffers, and the
+// plan from it is the plan next_round makes in place, the same bits.
+std::function<void()> DenoisedStrategy::take_round_end(const Accumulator& merged) {
+    // The pilot needs no plan, and a spent budget ends the render in next_round.
+    if (finished_ || rounds_ == 0 || round_end_read_ ||
+        !(double(budget_) - double(merged.total_samples()) >= 1))
+        return {};
+    read_round_end(merged, first_hits_, round_end_);
+    round_end_read_ = true;
+    planned_.reset();
+    return [this] { planned_ = steered_round(); };
 }
 
 std::optional<Round> DenoisedStrategy::next_round(const Accumulator& merged) {
@@ -214,7 +253,11 @@ std::optional<Round> DenoisedStrategy::next_round(const Accumulator& merged) {
                                   std::vector<uint32_t>(pixels, cap_));
         }
     } else {
-        round.spp = steered_round(merged);
+        // Read here unless take_round_end did; planned here unless its work ran.
+        if (!round_end_read_) read_round_end(merged, first_hits_, round_end_);
+        round.spp = planned_ ? std::move(*planned_) : steered_round();
+        planned_.reset();
+        round_end_read_ = false;
     }
     const uint64_t total = round.total();
     if (total == 0) {
@@ -241,6 +284,8 @@ void DenoisedStrategy::restore_state(const nlohmann::json& state) {
     rounds_ = state.at("rounds").get<uint32_t>();
     issued_ = state.at("issued").get<uint64_t>();
     finished_ = state.at("finished").get<bool>();
+    round_end_read_ = false;
+    planned_.reset();
 }
 
 }  // namespace aliquot

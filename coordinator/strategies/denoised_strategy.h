@@ -37,6 +37,11 @@ public:
 
     std::string name() const override { return "denoised"; }
     std::optional<Round> next_round(const Accumulator& merged) override;
+    // A steered round's plan, both OIDN passes in it, for the caller to make off its lock
+    // (RenderSession runs it on a thread of its own): copies what the plan reads of
+    // `merged` (read_round_end) and returns the work that plans from the copy. The round
+    // is the one next_round would plan in place, bit for bit.
+    std::function<void()> take_round_end(const Accumulator& merged) override;
     uint64_t planned_samples() const override { return budget_; }
     nlohmann::json save_state() const override;
     void restore_state(const nlohmann::json& state) override;
@@ -48,6 +53,19 @@ public:
         first_hits_ = first_hits;
     }
 
+    // What a steered round's plan reads of the merged buffers, copied at the round end:
+    // the half images (the means of each pixel's even and odd samples), the first-hit
+    // guides (empty when the render keeps none), each pixel's samples and their total.
+    // Kept from one round end to the next (56 bytes a pixel with guides, counted in the
+    // render's memory estimate).
+    struct RoundEndCopy {
+        Image even, odd, albedo, normal;
+        std::vector<uint64_t> samples;
+        double spent = 0;
+    };
+    static void read_round_end(const Accumulator& merged, const AuxSums* first_hits,
+                               RoundEndCopy& copy);
+
     // Per pixel, the standard deviation of one sample as seen through the denoiser:
     // sqrt(n_i * Var[denoised_i]), Var estimated from the two denoised halves and pooled
     // over the (2 radius + 1)^2 window by its median. What the weights n ∝ s^(2/3) are
@@ -56,9 +74,14 @@ public:
                                               const AuxSums* first_hits,
                                               const DenoiseFunction& denoise,
                                               uint32_t radius);
+    // The same from a copy read_round_end made.
+    static std::vector<double> denoised_sigma(const RoundEndCopy& copy,
+                                              const DenoiseFunction& denoise,
+                                              uint32_t radius);
 
 private:
-    std::vector<uint32_t> steered_round(const Accumulator& merged);
+    // The next steered round's counts from round_end_; empty when the budget is spent.
+    std::vector<uint32_t> steered_round() const;
 
     uint32_t width_, height_;
     uint64_t budget_;
@@ -70,6 +93,13 @@ private:
     uint32_t rounds_ = 0;
     uint64_t issued_ = 0;
     bool finished_ = false;
+
+    // The round end read (take_round_end) and the round its work planned from it, until
+    // next_round hands that out. The work writes planned_ alone; nothing else reads it
+    // until the caller has let the work finish.
+    RoundEndCopy round_end_;
+    bool round_end_read_ = false;
+    std::optional<std::vector<uint32_t>> planned_;
 };
 
 }  // namespace aliquot

@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <thread>
 
+#include "round_cutter.h"
 #include "strategy_params.h"
 #include "synthetic_source.h"
 
@@ -164,6 +166,45 @@ TEST(Denoised, IsDeterministic) {
     }
     EXPECT_GT(rounds[0].size(), 2u);
     EXPECT_EQ(rounds[0], rounds[1]);
+}
+
+// Issue 33's review: a round end's two denoiser passes ran under the render's lock. Now
+// take_round_end copies what the plan reads and the plan runs elsewhere (RenderSession:
+// a thread of its own); the rounds are those planned in place, whether the work ran on
+// another thread, or was taken and never run (next_round then plans from the copy).
+TEST(Denoised, ARoundEndPlannedOffTheLockIsTheRoundPlannedInPlace) {
+    SyntheticImage image(24, 16, 9, {0.5, 0.4});
+    for (uint32_t y = 0; y < 16; ++y) image.at(3, y).firefly_probability = 0.01;
+    for (uint32_t y = 0; y < 16; ++y) image.at(3, y).firefly_value = 50;
+    std::vector<std::vector<uint32_t>> in_place;
+    {
+        DenoisedStrategy s(budgeted("denoised", 48), 24, 16, box_smoother(1));
+        Accumulator merged(24, 16);
+        run_synthetic(s, image, merged, 1000, [&](const Round& r, const Accumulator&) {
+            in_place.push_back(r.spp);
+        });
+    }
+    ASSERT_GT(in_place.size(), 2u);
+    for (const bool run_work : {true, false}) {
+        DenoisedStrategy s(budgeted("denoised", 48), 24, 16, box_smoother(1));
+        Accumulator merged(24, 16);
+        std::vector<std::vector<uint32_t>> off_lock;
+        size_t works = 0;
+        while (true) {
+            if (std::function<void()> work = s.take_round_end(merged)) {
+                ++works;
+                if (run_work) std::thread(work).join();
+            }
+            const std::optional<Round> round = s.next_round(merged);
+            if (!round) break;
+            for (const SampleJob& job : cut_round(*round, merged))
+                merged.merge(image.trace(job));
+            off_lock.push_back(round->spp);
+        }
+        EXPECT_EQ(off_lock, in_place) << (run_work ? "work run" : "work not run");
+        // Every steered round, none for the pilot nor after the budget is spent.
+        EXPECT_EQ(works, in_place.size() - 1);
+    }
 }
 
 TEST(Denoised, ContinuesFromItsSavedStateAsItWouldHave) {

@@ -79,6 +79,14 @@ public:
     // results merge, and must let it finish before calling the strategy again; work not
     // taken is done by the next next_round. Empty when there is none.
     virtual std::function<void()> take_work_ahead() { return {}; }
+    // At a round end, before next_round: the work that plans the next round when that is
+    // long (denoised's two OIDN passes, minutes on a large image), which the caller runs
+    // off its lock, no round being out meanwhile. It copies what the plan reads of
+    // `merged` and returns that work; the next next_round hands out the round it made
+    // (and makes it itself when the work was not run). Empty: next_round plans in place.
+    virtual std::function<void()> take_round_end(const Accumulator& /*merged*/) {
+        return {};
+    }
     // Whether the strategy holds a round planned before the last round's results merged:
     // its state then does not follow from the merged buffers alone. A checkpoint taken
     // then holds that round's counts too (round_planned_ahead, once its work has run),

@@ -1,0 +1,201 @@
+// A `denoised` render's round end (issue 33's review): its two denoiser passes ran on the
+// merging thread under the render's lock (minutes at 8192x8192), and every lease scan
+// that reached the render waited on it. Now they run on the session's own thread while
+// the lock is free: another render's leases and merges go on, and a scan of the render
+// itself finds nothing there and returns. A gated denoiser stands for a long OIDN run. No
+// test here bounds a time: the waits are generous and fail on a deadlock only.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <future>
+#include <memory>
+#include <thread>
+
+#include "denoised_strategy.h"
+#include "lease_scan.h"
+#include "scene_loader.h"
+
+namespace aliquot {
+namespace {
+
+constexpr auto kDeadlock = std::chrono::seconds(60);
+
+// A denoiser (the identity) whose calls wait until open() once it is shut; entered()
+// is ready once a call has begun. Opened when it goes, so no thread is left waiting.
+class GatedDenoiser {
+public:
+    GatedDenoiser() : state_(std::make_shared<State>()) {
+        state_->opened = state_->open.get_future().share();
+        state_->began = state_->entered.get_future().share();
+    }
+    ~GatedDenoiser() { open(); }
+    GatedDenoiser(const GatedDenoiser&) = delete;
+    GatedDenoiser& operator=(const GatedDenoiser&) = delete;
+
+    DenoiseFunction function() const {
+        return [state = state_](const Image& in, const Image*, const Image*) {
+            if (!state->entered_once.exchange(true)) state->entered.set_value();
+            state->opened.wait();
+            return in;
+        };
+    }
+    std::shared_future<void> entered() const { return state_->began; }
+    void open() {
+        if (!state_->open_once.exchange(true)) state_->open.set_value();
+    }
+
+private:
+    struct State {
+        std::promise<void> open, entered;
+        std::shared_future<void> opened, began;
+        std::atomic<bool> open_once = false, entered_once = false;
+    };
+    std::shared_ptr<State> state_;
+};
+
+// What a worker returns for `job` without tracing: colour, albedo and normal that vary
+// over the image, with the first hits a render that keeps them needs.
+SampleJobResult fake_result(const SampleJob& job) {
+    SampleJobResult r;
+    r.rect = job.rect;
+    r.pixels.resize(job.rect.size());
+    if (job.aux) r.first_hits.resize(job.rect.size());
+    for (size_t i = 0; i < r.pixels.size(); ++i) {
+        const double n = double(job.counts[i]);
+        const double k = double(job.first_sample[i]);
+        r.pixels[i].samples = job.counts[i];
+        r.pixels[i].even[0] = 0.5 * n * (0.5 + 0.25 * std::sin(double(i) + k));
+        r.pixels[i].odd[0] = 0.5 * n * 0.5;
+        if (job.aux) {
+            for (int c = 0; c < 3; ++c) r.first_hits[i].albedo[c] = 0.25 * n;
+            r.first_hits[i].normal[1] = n;
+        }
+    }
+    return r;
+}
+
+RenderSpec spec_of(const char* method, uint32_t side, uint32_t spp) {
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = side;
+    spec.strategy.method = method;
+    spec.strategy.spp = spp;
+    return spec;
+}
+
+SlotPtr slot_of(std::unique_ptr<RenderSession> session) {
+    auto slot = std::make_shared<RenderSlot>();
+    slot->session = std::move(session);
+    slot->session->start();
+    return slot;
+}
+
+class DenoisedRoundEnd : public ::testing::Test {
+protected:
+    // A lease from `slots` as the Coordinator asks for one (lease_scan.h).
+    std::optional<LeaseGrant> lease(const std::vector<SlotPtr>& slots) {
+        LeaseAsk ask;
+        ask.lease_id = ++last_lease;
+        ask.worker = "w";
+        ask.lease_time = std::chrono::minutes(10);
+        ask.alive = &alive;
+        ask.cores = 1;
+        return scan_for_a_job(slots, ask).grant;
+    }
+    // Merges `grant`'s result under its render's lock, as Coordinator::complete does.
+    static CompleteStatus complete(RenderSlot& slot, const LeaseGrant& grant) {
+        std::lock_guard render(slot.mutex);
+        return slot.session->complete(grant.lease_id, "w", fake_result(grant.job)).status;
+    }
+    // Leases and merges `slot`'s jobs until none is to be had now.
+    void merge_all_now(const SlotPtr& slot) {
+        while (const std::optional<LeaseGrant> grant = lease({slot}))
+            ASSERT_EQ(complete(*slot, *grant), CompleteStatus::Merged);
+    }
+
+    std::set<std::string> alive;
+    uint64_t last_lease = 0;
+};
+
+TEST_F(DenoisedRoundEnd, OtherRendersAndItsOwnLeaseScanGoOnWhileItsPlanIsMade) {
+    const RenderSpec spec = spec_of("denoised", 16, 8);
+    GatedDenoiser gate;
+    const SlotPtr denoised = slot_of(std::make_unique<RenderSession>(
+        "denoised", spec, 0,
+        std::make_unique<DenoisedStrategy>(spec.strategy, spec.width, spec.height,
+                                           gate.function())));
+    const SlotPtr other =
+        slot_of(std::make_unique<RenderSession>("other", spec_of("uniform", 4, 1), 0));
+    // Opened before the sessions go (declared after them): the session waits for its
+    // plan when it goes, and the plan for the gate.
+    struct Opener {
+        GatedDenoiser& gate;
+        ~Opener() { gate.open(); }
+    } opener{gate};
+
+    // The pilot: every job but the last merged; the last ends the round, whose plan
+    // then waits at the gate.
+    std::vector<LeaseGrant> pilot;
+    while (std::optional<LeaseGrant> grant = lease({denoised})) pilot.push_back(*grant);
+    ASSERT_FALSE(pilot.empty());
+    for (size_t j = 0; j + 1 < pilot.size(); ++j)
+        ASSERT_EQ(complete(*denoised, pilot[j]), CompleteStatus::Merged);
+    auto last =
+        std::async(std::launch::async, [&] { return complete(*denoised, pilot.back()); });
+    ASSERT_EQ(gate.entered().wait_for(kDeadlock), std::future_status::ready)
+        << "the round end did not denoise";
+    // Before, the merge that ended the round ran both passes under the render's lock
+    // and returned only once the gate opened.
+    const bool returned = last.wait_for(kDeadlock) == std::future_status::ready;
+    if (!returned) gate.open();
+    ASSERT_TRUE(returned) << "the round end's merge waited for the denoiser";
+    EXPECT_EQ(last.get(), CompleteStatus::Merged);
+
+    // While the plan waits at the gate: the render's lock is free, a lease scan that
+    // reaches it passes on to another render's job (and that merges), and one of the
+    // render alone finds nothing yet and returns.
+    {
+        std::unique_lock free(denoised->mutex, std::try_to_lock);
+        EXPECT_TRUE(free.owns_lock());
+    }
+    const std::optional<LeaseGrant> elsewhere = lease({denoised, other});
+    ASSERT_TRUE(elsewhere);
+    EXPECT_EQ(elsewhere->render_id, "other");
+    EXPECT_EQ(complete(*other, *elsewhere), CompleteStatus::Merged);
+    EXPECT_EQ(other->session->state(), RenderState::Done);
+    EXPECT_FALSE(lease({denoised}));
+    {
+        std::lock_guard render(denoised->mutex);
+        EXPECT_EQ(denoised->session->state(), RenderState::Running);
+        EXPECT_TRUE(denoised->session->has_pending());  // workers keep asking
+        EXPECT_EQ(denoised->session->rounds_done(), 1u);
+    }
+
+    // Opened, the plan ends; the tick's sweep announces it and the next lease opens the
+    // round it made. The render then runs to its end, each round end planned alike.
+    gate.open();
+    const auto give_up = std::chrono::steady_clock::now() + kDeadlock;
+    bool announced = false;
+    while (!announced && std::chrono::steady_clock::now() < give_up) {
+        announced = sweep_leases({denoised}, RenderSession::Clock::now()).opened_ahead;
+        if (!announced) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    ASSERT_TRUE(announced);
+    for (bool done = false; !done && std::chrono::steady_clock::now() < give_up;) {
+        merge_all_now(denoised);
+        {
+            std::lock_guard render(denoised->mutex);
+            done = denoised->session->finished();
+        }
+        if (!done) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    std::lock_guard render(denoised->mutex);
+    EXPECT_EQ(denoised->session->state(), RenderState::Done);
+    EXPECT_GT(denoised->session->rounds_done(), 2u);
+    EXPECT_EQ(denoised->session->merged().total_samples(), 8u * 16 * 16);
+}
+
+}  // namespace
+}  // namespace aliquot
