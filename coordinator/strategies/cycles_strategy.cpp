@@ -17,6 +17,15 @@ constexpr uint32_t kDefaultMaxSpp = 4096;  // Cycles' default render samples
 // small constant for the same reason).
 constexpr double kIntensityEpsilon = 1e-4;
 
+// judged_at_ for a pixel never judged, or judged at more samples than a uint32_t holds
+// (judged again every round then, as before).
+constexpr uint32_t kNeverJudged = UINT32_MAX;
+
+// Rows in one band of a pass over rows: about kBandPixels pixels.
+size_t rows_per_band(uint32_t width) {
+    return std::max<size_t>(1, kBandPixels / std::max(width, 1u));
+}
+
 }  // namespace
 
 uint32_t CyclesStrategy::automatic_min_samples(double threshold) {
@@ -60,17 +69,51 @@ double CyclesStrategy::pixel_error(const Accumulator& merged, size_t i) {
 
 std::vector<bool> CyclesStrategy::dilate_unconverged(const std::vector<bool>& converged,
                                                      uint32_t w, uint32_t h) {
-    std::vector<bool> rows(converged.size()), out(converged.size());
-    auto at = [w](uint32_t x, uint32_t y) { return size_t(y) * w + x; };
+    const std::vector<char> below(converged.begin(), converged.end());
+    std::vector<char> rows(below.size());
+    for (uint32_t y = 0; y < h; ++y)
+        dilate_row(&below[size_t(y) * w], &rows[size_t(y) * w], w);
+    std::vector<bool> out(converged.size());
     for (uint32_t y = 0; y < h; ++y)
         for (uint32_t x = 0; x < w; ++x)
-            rows[at(x, y)] = converged[at(x, y)] && (x == 0 || converged[at(x - 1, y)]) &&
-                             (x + 1 == w || converged[at(x + 1, y)]);
-    for (uint32_t y = 0; y < h; ++y)
-        for (uint32_t x = 0; x < w; ++x)
-            out[at(x, y)] = rows[at(x, y)] && (y == 0 || rows[at(x, y - 1)]) &&
-                            (y + 1 == h || rows[at(x, y + 1)]);
+            out[size_t(y) * w + x] = dilated(rows, x, y, w, h);
     return out;
+}
+
+void CyclesStrategy::dilate_row(const char* below, char* rows, uint32_t w) {
+    for (uint32_t x = 0; x < w; ++x)
+        rows[x] = below[x] && (x == 0 || below[x - 1]) && (x + 1 == w || below[x + 1]);
+}
+
+bool CyclesStrategy::dilated(const std::vector<char>& rows, uint32_t x, uint32_t y,
+                             uint32_t w, uint32_t h) {
+    const size_t i = size_t(y) * w + x;
+    return rows[i] && (y == 0 || rows[i - w]) && (y + 1 == h || rows[i + w]);
+}
+
+void CyclesStrategy::judge(const Accumulator& merged) {
+    const size_t pixels = size_t(width_) * height_;
+    if (judged_at_.size() != pixels) {
+        judged_at_.assign(pixels, kNeverJudged);
+        below_.assign(pixels, 0);
+        rows_.assign(pixels, 0);
+    }
+    // In bands of whole rows on the pool's threads (bands.h): each row's errors, into
+    // bytes (two threads must not write bits of one std::vector<bool> word), then the
+    // dilation's row pass over it. Only pixels with samples the last judgement did not
+    // see are judged: the same bytes as judging all.
+    for_each_band(height_, rows_per_band(width_), [&](size_t, size_t row0, size_t row1) {
+        for (size_t y = row0; y < row1; ++y) {
+            const size_t row = y * width_;
+            for (size_t i = row; i < row + width_; ++i) {
+                const uint64_t have = merged.samples(i);
+                if (have < kNeverJudged && have == judged_at_[i]) continue;
+                below_[i] = pixel_error(merged, i) < threshold_;
+                judged_at_[i] = have < kNeverJudged ? uint32_t(have) : kNeverJudged;
+            }
+            dilate_row(&below_[row], &rows_[row], width_);
+        }
+    });
 }
 
 std::optional<Round> CyclesStrategy::next_round(const Accumulator& merged) {
@@ -82,29 +125,28 @@ std::optional<Round> CyclesStrategy::next_round(const Accumulator& merged) {
         // samples is itself too noisy to stop on.
         std::fill(round.spp.begin(), round.spp.end(), min_samples_);
     } else {
-        // The per-pixel errors in bands on the pool's threads (bands.h), into bytes: two
-        // threads must not write bits of one std::vector<bool> word.
-        std::vector<char> below(pixels);
-        for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
-            for (size_t i = begin; i < end; ++i)
-                below[i] = pixel_error(merged, i) < threshold_;
-        });
-        std::vector<bool> converged(below.begin(), below.end());
-        converged = dilate_unconverged(converged, width_, height_);
-        const size_t bands = band_count(pixels, kBandPixels);
+        judge(merged);
+        // The dilation's column pass and the plan, in bands of rows; the counts are
+        // whole numbers, added in any order.
+        const size_t band_rows = rows_per_band(width_);
+        const size_t bands = band_count(height_, band_rows);
         std::vector<size_t> band_done(bands, 0), band_capped(bands, 0);
-        for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-            for (size_t i = begin; i < end; ++i) {
-                const uint64_t have = merged.samples(i);
-                if (converged[i]) {
-                    ++band_done[band];
-                } else if (have >= max_spp_) {
-                    ++band_capped[band];
-                } else {
-                    // The first check falls on a multiple of the step, as Cycles aligns
-                    // it.
-                    const uint64_t next = (have / step_ + 1) * uint64_t(step_);
-                    round.spp[i] = uint32_t(std::min<uint64_t>(next, max_spp_) - have);
+        for_each_band(height_, band_rows, [&](size_t band, size_t row0, size_t row1) {
+            for (uint32_t y = uint32_t(row0); y < row1; ++y) {
+                for (uint32_t x = 0; x < width_; ++x) {
+                    const size_t i = size_t(y) * width_ + x;
+                    const uint64_t have = merged.samples(i);
+                    if (dilated(rows_, x, y, width_, height_)) {
+                        ++band_done[band];
+                    } else if (have >= max_spp_) {
+                        ++band_capped[band];
+                    } else {
+                        // The first check falls on a multiple of the step, as Cycles
+                        // aligns it.
+                        const uint64_t next = (have / step_ + 1) * uint64_t(step_);
+                        round.spp[i] =
+                            uint32_t(std::min<uint64_t>(next, max_spp_) - have);
+                    }
                 }
             }
         });
@@ -151,6 +193,7 @@ nlohmann::json CyclesStrategy::save_state() const {
 }
 
 void CyclesStrategy::restore_state(const nlohmann::json& state) {
+    judged_at_.clear();  // the buffers restored with it are judged afresh
     rounds_ = state.at("rounds").get<uint32_t>();
     converged_fraction_ = state.at("converged_fraction").get<double>();
     stopped_by_ = state.at("stopped_by").get<std::string>();

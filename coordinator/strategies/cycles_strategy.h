@@ -40,6 +40,14 @@ public:
     uint32_t min_samples() const { return min_samples_; }
 
 private:
+    // The dilation in two passes: a row's pixels converged with both neighbours in the
+    // row, then pixel (x, y) of those with both neighbours in its column.
+    static void dilate_row(const char* below, char* rows, uint32_t width);
+    static bool dilated(const std::vector<char>& rows, uint32_t x, uint32_t y,
+                        uint32_t width, uint32_t height);
+    // Brings below_ and rows_ up to date with `merged`.
+    void judge(const Accumulator& merged);
+
     uint32_t width_, height_;
     double threshold_;
     uint32_t min_samples_, step_, max_spp_;
@@ -48,6 +56,16 @@ private:
     uint32_t rounds_ = 0;
     double converged_fraction_ = 0;
     std::string stopped_by_;  // empty while running
+
+    // Kept from one round end to the next (nothing of it is saved): a pixel's error is a
+    // function of its own sums, which change only when it gets samples, so a pixel is
+    // judged again only when its sample count differs from the one it was judged at.
+    // Late in a render most pixels have stopped, and judging every pixel every round
+    // (divisions and a square root each) was most of a round end. below_: the error is
+    // under the threshold; judged_at_: the samples then (kNeverJudged: not yet, or more
+    // than fit); rows_: the dilation's row pass.
+    std::vector<char> below_, rows_;
+    std::vector<uint32_t> judged_at_;
 };
 
 }  // namespace aliquot

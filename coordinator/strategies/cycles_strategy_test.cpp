@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include "round_cutter.h"
 #include "strategy_params.h"
 #include "synthetic_source.h"
 
@@ -120,6 +121,35 @@ TEST(Cycles, ResumesFromItsStateWithTheSameDecisions) {
     ASSERT_TRUE(a && b);
     EXPECT_EQ(a->spp, b->spp);
     EXPECT_EQ(a->index, b->index);
+}
+
+TEST(Cycles, JudgingOnlyThePixelsThatGotSamplesPlansAsJudgingEveryPixel) {
+    // A strategy keeps each pixel's judgement until the pixel gets samples; one restored
+    // from its state judges every pixel afresh. Asked at every round end, with pixels
+    // stopping, and neighbours of pixels whose error rose sampled again, they plan alike.
+    SyntheticImage image(40, 30, 5);
+    for (uint32_t y = 0; y < 30; ++y)
+        for (uint32_t x = 0; x < 40; ++x)
+            image.at(x, y) = {0.3 + 0.01 * y, (x / 5 + y / 5) % 3 ? 0.01 * (x % 4) : 0.4};
+    StrategyParams p = cycles(0.02);
+    p.adaptive_min_samples = 8;
+    p.adaptive_step = 4;
+    p.max_spp = 256;
+    CyclesStrategy kept(p, 40, 30);
+    Accumulator merged(40, 30);
+    uint32_t rounds = 0;
+    for (; rounds < 100; ++rounds) {
+        CyclesStrategy afresh(p, 40, 30);
+        afresh.restore_state(kept.save_state());
+        const std::optional<Round> a = kept.next_round(merged);
+        const std::optional<Round> b = afresh.next_round(merged);
+        ASSERT_EQ(a.has_value(), b.has_value()) << "round " << rounds;
+        if (!a) break;
+        ASSERT_EQ(a->spp, b->spp) << "round " << rounds;
+        for (const SampleJob& job : cut_round(*a, merged)) merged.merge(image.trace(job));
+    }
+    EXPECT_GT(rounds, 10u);  // pixels stopped and others went on
+    EXPECT_GT(kept.outcome()["converged_fraction"].get<double>(), 0.25);
 }
 
 }  // namespace
