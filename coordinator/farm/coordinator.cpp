@@ -95,7 +95,8 @@ std::string Coordinator::submit(RenderSpec spec) {
     const uint64_t needed = memory_of(spec);
     // Before anything is claimed or written: a refused render leaves no trace. Counted
     // from now, so that submissions meanwhile see it; given back when it leaves memory.
-    memory_.claim(needed);
+    memory_.claim(needed, render_memory_note(spec.width, spec.height,
+                                             spec.strategy.method == "denoised"));
     std::string id;
     bool recorded = false;  // its row is in the store
     bool scene_kept = false;

@@ -8,6 +8,7 @@
 
 #include "accumulator.h"
 #include "aux_sums.h"
+#include "denoised_strategy.h"
 #include "sample_job.h"
 
 namespace aliquot {
@@ -60,34 +61,38 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
                      + AuxSums::kBytesPerPixel  // their copy a checkpoint is written from
                      + sizeof(FirstHitSums) / 4  // a round opened ahead: held results'
                      + 24;                       // the image's albedo and normal layers
-    // `denoised`'s round end (DenoisedStrategy::denoised_sigma): the even and odd half
-    // images, the albedo and normal guides, both denoised halves (RGB floats each), the
-    // denoiser's finite copy of its input and its output, then the variance, its window
-    // median, the sorted copy and sigma (doubles). OIDN's own working memory is its own.
-    if (denoises) per_pixel += 6 * 12 + 2 * 12 + 4 * 8;
-    return pixels * per_pixel + (uint64_t(1) << 20);  // and a megabyte for the rest
+    // and a megabyte for the rest; `denoised`'s round ends: the copies they plan from,
+    // their plans' buffers and Open Image Denoise's working memory, ~764 bytes a pixel.
+    return pixels * per_pixel + (uint64_t(1) << 20) +
+           (denoises ? DenoisedStrategy::round_end_memory(pixels) : 0);
+}
+
+std::string render_memory_note(uint32_t width, uint32_t height, bool denoises) {
+    if (!denoises) return "";
+    return mib(DenoisedStrategy::round_end_memory(uint64_t(width) * height)) +
+           " of it to denoise its round ends, method denoised";
 }
 
 MemoryBudgetError::MemoryBudgetError(uint64_t needed_, uint64_t in_use_, size_t renders,
-                                     uint64_t limit_)
+                                     uint64_t limit_, const std::string& note)
     : std::runtime_error("not enough memory for this render: it needs " + mib(needed_) +
-                         " and the " + std::to_string(renders) +
-                         " render(s) in memory use " + mib(in_use_) +
-                         " of the coordinator's " + mib(limit_) +
+                         (note.empty() ? "" : " (" + note + ")") + " and the " +
+                         std::to_string(renders) + " render(s) in memory use " +
+                         mib(in_use_) + " of the coordinator's " + mib(limit_) +
                          " (--memory-limit); wait for renders to finish, or submit a "
                          "smaller one"),
       needed(needed_),
       in_use(in_use_),
       limit(limit_) {}
 
-void MemoryBudget::check_locked(uint64_t bytes) const {
+void MemoryBudget::check_locked(uint64_t bytes, const std::string& note) const {
     if (limit_ > 0 && (bytes > limit_ || in_use_ > limit_ - bytes))
-        throw MemoryBudgetError(bytes, in_use_, renders_, limit_);
+        throw MemoryBudgetError(bytes, in_use_, renders_, limit_, note);
 }
 
-void MemoryBudget::claim(uint64_t bytes) {
+void MemoryBudget::claim(uint64_t bytes, const std::string& note) {
     std::lock_guard lock(mutex_);
-    check_locked(bytes);
+    check_locked(bytes, note);
     in_use_ += bytes;
     ++renders_;
 }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <mutex>
 #include <stdexcept>
+#include <string>
 
 namespace aliquot {
 
@@ -19,16 +20,22 @@ uint64_t default_memory_limit();
 // buffers a checkpoint is written from, the final image, and the reference with its
 // per-round comparison image when there is one; with first_hits, the first-hit sums
 // (AuxSums), their checkpoint copy and the image's layers; with denoises (method
-// `denoised`), the images its round end denoises and compares. docs/FARM.md has the
-// measured numbers.
+// `denoised`), what its round ends hold: the copies they plan from, the plans' buffers
+// and Open Image Denoise's working memory (DenoisedStrategy::round_end_memory).
+// docs/FARM.md has the measured numbers.
 uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference,
                                 bool first_hits = false, bool denoises = false);
+// What a refusal says of the largest part of that estimate, when one part dwarfs the
+// rest: "" but for denoises, then what denoising the round ends takes.
+std::string render_memory_note(uint32_t width, uint32_t height, bool denoises);
 
 // Coordinator::submit refuses a render whose buffers would take the renders in memory
 // past the budget. Nothing has changed when it is thrown: no render id, no directory.
 class MemoryBudgetError : public std::runtime_error {
 public:
-    MemoryBudgetError(uint64_t needed, uint64_t in_use, size_t renders, uint64_t limit);
+    // `note` (render_memory_note), when not empty, follows what the render needs.
+    MemoryBudgetError(uint64_t needed, uint64_t in_use, size_t renders, uint64_t limit,
+                      const std::string& note = {});
     uint64_t needed, in_use, limit;
 };
 
@@ -38,9 +45,9 @@ public:
 class MemoryBudget {
 public:
     explicit MemoryBudget(uint64_t limit) : limit_(limit) {}
-    // Counts `bytes` for one more render, or throws MemoryBudgetError and counts
-    // nothing.
-    void claim(uint64_t bytes);
+    // Counts `bytes` for one more render, or throws MemoryBudgetError (with `note`) and
+    // counts nothing.
+    void claim(uint64_t bytes, const std::string& note = {});
     // Counts `bytes` for a render whatever the limit (one resumed at start-up).
     void hold(uint64_t bytes);
     // A render counted so left memory, or its submission failed.
@@ -53,7 +60,7 @@ public:
     uint64_t reference_allowance(uint32_t width, uint32_t height) const;
 
 private:
-    void check_locked(uint64_t bytes) const;
+    void check_locked(uint64_t bytes, const std::string& note = {}) const;
 
     const uint64_t limit_;
     mutable std::mutex mutex_;

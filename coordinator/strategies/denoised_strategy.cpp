@@ -53,6 +53,20 @@ constexpr double kImageFactor = 1.0 / 256;
 // wider, so the error it leaves varies slowly from pixel to pixel).
 constexpr uint32_t kPoolRadius = 2;
 
+// Open Image Denoise's working memory for one RT filter (HDR, high quality, colour,
+// albedo and normal, CPU device), which its manual leaves "unspecified" and
+// "device-dependent": the peak RSS one denoise added, OIDN 2.5.1 (pyoidn's library) on
+// this 2-core EPYC: 42 MiB at 256x256, 150 at 512x512, 582 at 1024x1024, 1153 at
+// 1920x1080, 2310 at 2048x2048 (578-583 bytes a pixel from a million pixels on, 6 MiB
+// besides), and 2514 at 4096x2048, where OIDN denoises in tiles to keep its scratch
+// under its default limit (maxMemoryMB, about 3000 MB since OIDN 1.4). Filters of one
+// device run one at a time (the Denoiser's mutex), so a render's two passes, and
+// several renders' round ends, never hold it twice at once; each render counts it all
+// the same, as it is the budget's one place to ask.
+constexpr uint64_t kOidnBytesPerPixel = 600;
+constexpr uint64_t kOidnLargest = uint64_t(3000) << 20;
+constexpr uint64_t kOidnFixed = uint64_t(16) << 20;
+
 // The half images: the means of each pixel's even-index and odd-index samples. A pixel
 // with fewer than two samples has one half only; both get its mean.
 // Images of the right size are written over: every value is, so nothing carries over.
@@ -122,6 +136,20 @@ DenoisedStrategy::DenoisedStrategy(const StrategyParams& p, uint32_t width,
         std::max<uint32_t>(p.min_spp, uint32_t(std::min(double(UINT32_MAX), floor))),
         cap_);
     pilot_spp_ = std::min<uint64_t>({min_spp_, budget_ / pixels, cap_});
+}
+
+uint64_t DenoisedStrategy::round_end_memory(uint64_t pixels) {
+    const uint64_t per_pixel =
+        4 * 12    // kept: the half images and the guides (RGB floats)
+        + 8       // kept: each pixel's samples
+        + 2 * 12  // both denoised halves
+        + 12      // the denoiser's finite copy of a colour with NaN or negatives
+        + 4 * 8   // the variance, its window median, the sorted copy, sigma
+        + 2 * 8   // the weights and the gaps (optimal_counts)
+        + 2 * 4   // the room and the round's counts
+        + sizeof(RemainderKey);  // apportion's order of the remainders
+    return pixels * per_pixel + std::min(pixels * kOidnBytesPerPixel, kOidnLargest) +
+           kOidnFixed;
 }
 
 void DenoisedStrategy::read_round_end(const Accumulator& merged,

@@ -6,6 +6,7 @@
 // reconstruction; the .cpp says why and from where).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <vector>
@@ -65,6 +66,12 @@ public:
     };
     static void read_round_end(const Accumulator& merged, const AuxSums* first_hits,
                                RoundEndCopy& copy);
+
+    // What a render of this method holds for its round ends beyond any render's buffers,
+    // in bytes, at their peak: the copy kept from one round end to the next, the plan's
+    // buffers while it is made, and one Open Image Denoise filter's working memory (the
+    // .cpp has the measurements). The memory budget counts it (render_memory_estimate).
+    static uint64_t round_end_memory(uint64_t pixels);
 
     // Per pixel, the standard deviation of one sample as seen through the denoiser:
     // sqrt(n_i * Var[denoised_i]), Var estimated from the two denoised halves and pooled
