@@ -190,7 +190,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                     if (!grant) continue;
                     const auto granted = Clock::now();
                     const double making = thread_cpu();
-                    const SampleJobResult result = bench::synthetic_result(*grant);
+                    SampleJobResult result = bench::synthetic_result(*grant);
                     const uint64_t samples = result.total_samples();  // the bench's own
                     made += thread_cpu() - making;
                     if (rate > 0)
@@ -199,7 +199,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                             std::chrono::duration_cast<Clock::duration>(
                                 std::chrono::duration<double>(double(samples) / rate)));
                     const auto sent = Clock::now();
-                    coordinator.complete(session, grant->lease_id, result);
+                    coordinator.complete(session, grant->lease_id, std::move(result));
                     const auto done = Clock::now();
                     leases.push_back(
                         std::chrono::duration<double, std::milli>(granted - asked)

@@ -374,7 +374,7 @@ public:
             }
             const auto began = std::chrono::steady_clock::now();
             const CompleteOutcome outcome =
-                c_.complete(req->session(), req->lease_id(), result);
+                c_.complete(req->session(), req->lease_id(), std::move(result));
             if (metrics_) metrics_->observe_merge(seconds_since(began));
             reply->set_status(to_proto(outcome.status));
             reply->set_message(outcome.message);

@@ -58,6 +58,14 @@ std::unique_lock<std::mutex> Coordinator::hold_render_for_test(const std::string
     return slot ? std::unique_lock(slot->mutex) : std::unique_lock<std::mutex>();
 }
 
+void Coordinator::set_while_adding_for_test(const std::string& id,
+                                            std::function<void(size_t job)> hook) {
+    if (const SlotPtr slot = renders_.find(id)) {
+        std::lock_guard render(slot->mutex);
+        slot->session->while_adding = std::move(hook);
+    }
+}
+
 void Coordinator::attach(std::unique_ptr<RenderSession> session, bool queued) {
     renders_.add(std::move(session), [&](RenderSlot& slot) {
         RenderSlot* raw = &slot;  // the slot owns the session: it outlives the callbacks
@@ -269,6 +277,7 @@ bool Coordinator::read_sums(const std::string& id,
     const SlotPtr slot = renders_.find(id);
     if (!slot) return false;
     std::lock_guard lock(slot->mutex);
+    slot->session->wait_for_adds();  // its pixels as the merges counted made them
     read(slot->session->merged());
     return true;
 }
@@ -351,6 +360,18 @@ std::optional<LeaseGrant> Coordinator::lease(const std::string& session,
 
 CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
                                       const SampleJobResult& result) {
+    return complete_result(session, lease_id, result, nullptr);
+}
+
+CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease_id,
+                                      SampleJobResult&& result) {
+    return complete_result(session, lease_id, result, &result);
+}
+
+CompleteOutcome Coordinator::complete_result(const std::string& session,
+                                             uint64_t lease_id,
+                                             const SampleJobResult& result,
+                                             SampleJobResult* movable) {
     const WorkerRegistry::Link caller = registry_.link_of(session);
     // Whatever the outcome, a lease held has ended here. Someone else's lease is refused
     // before anything is looked at, and it stays with its holder, whose own result still
@@ -365,32 +386,40 @@ CompleteOutcome Coordinator::complete(const std::string& session, uint64_t lease
     const std::shared_ptr<const std::set<std::string>> alive =
         registry_.alive_identities();
     const size_t cores = registry_.alive_cores();
-    // The merge, and when this is the round's last job the round's end, under the
-    // render's lock alone.
-    CompleteOutcome outcome;
+    const FailurePolicy policy = failure_policy_of(caller);
+    const double wall_seconds = result.wall_seconds;  // `movable` may be taken
+    // The lease checked and the job marked merging under the render's lock; the sums
+    // added off it (the slot, held here, keeps the session and its buffers); the merge
+    // counted, and when it is the round's last the round ended, under it again.
+    RenderSession& s = *slot->session;
+    RenderSession::Merge merge;
     RoundEnd round_end;
     bool render_failed = false;
     {
         std::lock_guard render(slot->mutex);
-        RenderSession& s = *slot->session;
-        const RoundEndMeter meter(s);
         s.set_worker_cores(cores);  // the next round is cut for them
         // A rejected result counts as a failure.
-        outcome = s.complete(lease_id, caller.identity, result, *alive,
-                             failure_policy_of(caller));
+        merge = s.begin_merge(lease_id, caller.identity, result, movable, *alive, policy);
+        render_failed = s.state() == RenderState::Failed;
+    }
+    if (!merge.outcome) {
+        s.add_merge(merge, result);
+        std::lock_guard render(slot->mutex);
+        const RoundEndMeter meter(s);
+        merge.outcome = s.end_merge(merge, *alive, policy);
         round_end = meter.finish(s);
         render_failed = s.state() == RenderState::Failed;
     }
     round_ends_.add(round_end);
-    if (outcome.status == CompleteStatus::Merged) {
-        samples_merged_ += result.total_samples();
-        registry_.note_merged(caller.worker, result.total_samples(), result.wall_seconds);
+    if (merge.outcome->status == CompleteStatus::Merged) {
+        samples_merged_ += merge.totals.samples;
+        registry_.note_merged(caller.worker, merge.totals.samples, wall_seconds);
     }
     if (render_failed)
-        renders_.note_ended(leases_, {}, {slot->session->id()});
+        renders_.note_ended(leases_, {}, {s.id()});
     else
         renders_.note_change();
-    return outcome;
+    return *merge.outcome;
 }
 
 std::optional<std::string> Coordinator::fetch_scene(const std::string& session,

@@ -144,8 +144,13 @@ public:
                                  const std::string& peer);
     std::optional<LeaseGrant> lease(const std::string& session,
                                     std::chrono::milliseconds wait) override;
+    // A result's sums are added off the render's lock (RenderSession::begin_merge), so
+    // results of one render's disjoint jobs merge at once.
     CompleteOutcome complete(const std::string& session, uint64_t lease_id,
                              const SampleJobResult& result) override;
+    // The same, a result held for the round ahead taken by move, not copied.
+    CompleteOutcome complete(const std::string& session, uint64_t lease_id,
+                             SampleJobResult&& result);
     std::optional<std::string> fetch_scene(const std::string& session,
                                            const std::string& hash) override;
     bool renew(const std::string& session, uint64_t lease_id) override;
@@ -202,8 +207,16 @@ public:
     // For tests: holds render `id`'s lock, as a long merge or round end of it would,
     // until the lock returned is let go (an empty one for an unknown render).
     std::unique_lock<std::mutex> hold_render_for_test(const std::string& id);
+    // For tests: RenderSession::while_adding of render `id` (called off its lock, in
+    // each merge between its check and its add).
+    void set_while_adding_for_test(const std::string& id,
+                                   std::function<void(size_t job)> hook);
 
 private:
+    // complete's: `movable` is `result` when the caller gives it up, else null.
+    CompleteOutcome complete_result(const std::string& session, uint64_t lease_id,
+                                    const SampleJobResult& result,
+                                    SampleJobResult* movable);
     void resume_unfinished();
     // Wires a new session's callbacks, starts it and makes it visible (RenderList::add).
     // `queued`: none of its jobs was leased yet (a submission, or a resumed render the

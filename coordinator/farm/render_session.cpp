@@ -69,6 +69,7 @@ void RenderSession::start() {
 }
 
 Image RenderSession::image(bool aovs) const {
+    wait_for_adds();  // no half-added result
     Image image = merged_.image(aovs);
     if (aovs) aux_.add_layers(merged_, image);
     image.attributes =
@@ -215,6 +216,11 @@ std::vector<const SampleJob*> RenderSession::unmerged_jobs() const {
     for (const auto& [lease, j] : lease_to_job_)
         if (j < current_jobs_) out.push_back(&jobs_[j].job);
     for (size_t j : pending_) out.push_back(&jobs_[j].job);
+    // A result refused off the lock leaves its job unmerged; its end_merge has not put
+    // it back in pending_ yet (issue waits for adds in flight before it asks).
+    std::lock_guard adds(adds_mutex_);
+    for (const Adding& a : adding_)
+        if (a.refused) out.push_back(&jobs_[a.job].job);
     return out;
 }
 
@@ -292,6 +298,10 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
             spare = std::move(spare_.back());
             spare_.pop_back();
         }
+        // A job of the round out reads its own pixels' counts, which no add in flight
+        // touches (a round's jobs are disjoint); one of the round after counts its
+        // pixels' samples to come in the round out too, whose adds must be over.
+        if (j >= current_jobs_) wait_for_adds();
         slot.job = j < current_jobs_
                        ? cut_job(slot.job.rect, round_, merged_, std::move(spare))
                        : cut_job_after(slot.job.rect, *next_spp_, merged_,
@@ -307,29 +317,13 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
     return slot.job;
 }
 
-std::string RenderSession::check_result(const JobSlot& slot,
-                                        const SampleJobResult& result) const {
+std::string RenderSession::check_shape(const JobSlot& slot,
+                                       const SampleJobResult& result) {
     const SampleJob& job = slot.job;
     if (!(result.rect == job.rect)) return "result rectangle differs from the job's";
     if (result.pixels.size() != job.rect.size())
         return "result has " + std::to_string(result.pixels.size()) +
                " pixels, job has " + std::to_string(job.rect.size());
-    for (size_t i = 0; i < result.pixels.size(); ++i) {
-        const PixelSums& p = result.pixels[i];
-        if (p.samples != job.counts[i])
-            return "pixel " + std::to_string(i) + " has " + std::to_string(p.samples) +
-                   " samples, job asked for " + std::to_string(job.counts[i]);
-        if (p.nonfinite > p.samples) return "more non-finite samples than samples";
-        // A pixel the job gave no samples is not the worker's to change: its sums would
-        // put light (or rays, or variance) where nothing was traced.
-        if (p.samples == 0 && p != PixelSums{})
-            return "pixel " + std::to_string(i) + " has no samples but non-zero sums";
-        for (int c = 0; c < 3; ++c)
-            if (!std::isfinite(p.even[c]) || !std::isfinite(p.odd[c]))
-                return "non-finite sum at pixel " + std::to_string(i);
-        if (!std::isfinite(p.sum_sq_luminance) || p.sum_sq_luminance < 0)
-            return "bad sum of squares at pixel " + std::to_string(i);
-    }
     return {};
 }
 
@@ -337,23 +331,56 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
                                         const SampleJobResult& result,
                                         const std::set<std::string>& alive,
                                         const FailurePolicy& policy) {
-    if (state_ != RenderState::Running)
-        return {CompleteStatus::Ignored, "render is " + std::string(to_string(state_))};
+    Merge merge = begin_merge(lease_id, worker, result, nullptr, alive, policy);
+    if (merge.outcome) return *merge.outcome;
+    add_merge(merge, result);
+    return end_merge(merge, alive, policy);
+}
+
+CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& worker,
+                                        SampleJobResult&& result,
+                                        const std::set<std::string>& alive,
+                                        const FailurePolicy& policy) {
+    Merge merge = begin_merge(lease_id, worker, result, &result, alive, policy);
+    if (merge.outcome) return *merge.outcome;
+    add_merge(merge, result);
+    return end_merge(merge, alive, policy);
+}
+
+RenderSession::Merge RenderSession::begin_merge(uint64_t lease_id,
+                                                const std::string& worker,
+                                                const SampleJobResult& result,
+                                                SampleJobResult* movable,
+                                                const std::set<std::string>& alive,
+                                                const FailurePolicy& policy) {
+    Merge merge;
+    if (state_ != RenderState::Running) {
+        merge.outcome = {CompleteStatus::Ignored,
+                         "render is " + std::string(to_string(state_))};
+        return merge;
+    }
     const auto it = lease_to_job_.find(lease_id);
-    if (it == lease_to_job_.end())
-        return {CompleteStatus::Ignored, "unknown, expired or already merged lease"};
+    if (it == lease_to_job_.end()) {
+        merge.outcome = {CompleteStatus::Ignored,
+                         "unknown, expired or already merged lease"};
+        return merge;
+    }
     JobSlot& slot = jobs_[it->second];
     // Checked before anything else: a result from anyone but the holder neither merges
     // nor ends the lease, and cannot get the holder's job rejected.
-    if (slot.worker != worker) return {CompleteStatus::Ignored, "not your lease"};
+    if (slot.worker != worker) {
+        merge.outcome = {CompleteStatus::Ignored, "not your lease"};
+        return merge;
+    }
     lease_to_job_.erase(it);
     const size_t j = size_t(&slot - jobs_.data());
     const bool ahead = j >= current_jobs_;  // the round after's: held, merged later
-    std::string why = check_result(slot, result);
-    if (why.empty() && !ahead) {
+    std::string why = check_shape(slot, result);
+    if (why.empty() && ahead) {
+        // Its sums are checked against the buffers when it merges, at the end of the
+        // round out; what it is made of, now.
         try {
-            // Refuses, whole, sums that would stop being finite.
-            merge_with_aux(merged_, aux_, result);
+            merge.totals = check_as_asked(result, slot.job.counts.data());
         } catch (const MergeError& e) {
             why = e.what();
         }
@@ -361,14 +388,73 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     if (!why.empty()) {
         // Nothing was merged; the job is traced again, preferably by another worker.
         count_failure(j, worker, "result rejected: " + why, alive, policy);
-        return {CompleteStatus::Rejected, why};
+        merge.outcome = {CompleteStatus::Rejected, why};
+        return merge;
     }
     if (ahead) {
-        slot.held = result;
-        return {CompleteStatus::Merged, {}};
+        if (movable)
+            slot.held = std::move(*movable);
+        else
+            slot.held = result;
+        merge.outcome = {CompleteStatus::Merged, {}};
+        return merge;
     }
+    merge.job = j;
+    merge.counts = slot.job.counts.data();  // cut at its lease, kept until the round ends
+    std::lock_guard adds(adds_mutex_);
+    adding_.push_back({j});
+    return merge;
+}
+
+void RenderSession::add_merge(Merge& merge, const SampleJobResult& result) {
+    try {
+        // Refuses, whole, a result unlike its job or sums that would stop being finite.
+        merge.totals = check_with_aux(merged_, aux_, result, merge.counts);
+        if (while_adding) while_adding(merge.job);
+        add_with_aux(merged_, aux_, result, merge.totals);
+        merge.added = true;
+    } catch (const std::exception& e) {  // MergeError; a test's hook: none leaves it open
+        merge.refused = e.what();
+    }
+    {
+        std::lock_guard adds(adds_mutex_);
+        for (Adding& a : adding_)
+            if (a.job == merge.job) {
+                a.over = true;
+                a.refused = !merge.added;
+            }
+    }
+    adds_over_.notify_all();
+}
+
+CompleteOutcome RenderSession::end_merge(Merge& merge, const std::set<std::string>& alive,
+                                         const FailurePolicy& policy) {
+    {
+        std::lock_guard adds(adds_mutex_);
+        adding_.erase(std::find_if(adding_.begin(), adding_.end(),
+                                   [&](const Adding& a) { return a.job == merge.job; }));
+    }
+    if (!merge.added) {
+        // The render ended meanwhile: its job no longer matters.
+        if (state_ != RenderState::Running)
+            return {CompleteStatus::Ignored,
+                    "render is " + std::string(to_string(state_))};
+        count_failure(merge.job, jobs_[merge.job].worker,
+                      "result rejected: " + merge.refused, alive, policy);
+        return {CompleteStatus::Rejected, merge.refused};
+    }
+    // Added before the render ended (its end waited for the add): in its image.
+    if (state_ != RenderState::Running) return {CompleteStatus::Merged, {}};
     if (++merged_jobs_ == current_jobs_) end_rounds(alive, policy);
     return {CompleteStatus::Merged, {}};
+}
+
+void RenderSession::wait_for_adds() const {
+    std::unique_lock adds(adds_mutex_);
+    adds_over_.wait(adds, [&] {
+        return std::all_of(adding_.begin(), adding_.end(),
+                           [](const Adding& a) { return a.over; });
+    });
 }
 
 void RenderSession::end_rounds(const std::set<std::string>& alive,
@@ -379,6 +465,9 @@ void RenderSession::end_rounds(const std::set<std::string>& alive,
         fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
              e.what());
     };
+    // Every job of the round out has merged, each counted after its add was over, so no
+    // add of the round out is in flight, and the round ahead's results are held: the
+    // round's end reads buffers no one writes.
     // A plan begun off the lock (begin_next_round) ends the loop: its round comes later.
     while (state_ == RenderState::Running && !planning_round_end_ &&
            merged_jobs_ == current_jobs_) {
@@ -575,6 +664,9 @@ void RenderSession::finish(RenderState state) {
     // A plan still being made ahead is let finish here, under the render's own lock:
     // whoever drops the session last (the coordinator, under its lock) must not wait.
     if (work_ahead_.valid()) work_ahead_.wait();
+    // Adds in flight end first: what the render's end writes from its buffers no longer
+    // changes (a merge that ends after it counts nothing more).
+    wait_for_adds();
     final_seconds_ = seconds();
     state_ = state;
     pending_.clear();

@@ -1,14 +1,17 @@
 // RenderSession: one render's life on the coordinator. It owns the render's buffers and
 // strategy, cuts each round into sample jobs, hands them out under leases and merges what
-// comes back. No I/O and no locking here: the Coordinator serialises calls and persists.
+// comes back. No I/O, and no locking but the merges' own: the Coordinator serialises
+// calls (the render's lock) and persists; a merge's add runs off that lock (add_merge).
 #pragma once
 
 #include <chrono>
+#include <condition_variable>
 #include <deque>
 #include <functional>
 #include <future>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -85,10 +88,48 @@ public:
     // ("not your lease") and stays with its holder; so do renew, abandon and fail_job.
     // A result that does not fit its job is rejected and counts as a failure, as
     // fail_job's do: a worker that keeps returning one cannot keep a render going round.
+    // begin_merge, add_merge and end_merge in one (a caller that serialises every call).
     CompleteOutcome complete(uint64_t lease_id, const std::string& worker,
                              const SampleJobResult& result,
                              const std::set<std::string>& alive = {},
                              const FailurePolicy& policy = {});
+    // The same, a result held for the round ahead taken by move.
+    CompleteOutcome complete(uint64_t lease_id, const std::string& worker,
+                             SampleJobResult&& result,
+                             const std::set<std::string>& alive = {},
+                             const FailurePolicy& policy = {});
+
+    // A merge in three steps, so that merges of one round's jobs, which cover disjoint
+    // pixels, add their sums at once: begin_merge under the render's lock (the lease
+    // checked and ended, the job marked merging), add_merge off it, end_merge under it
+    // again (the merge counted, the round ended). A round ends when its last job's
+    // end_merge counts it, so no add of its is in flight then; results of the round
+    // ahead are held (moved from `movable` when given, copied otherwise) in begin_merge
+    // and added at the round end, under the lock. Readers of the buffers' pixels
+    // (image, wait_for_adds) and the render's end wait for adds in flight.
+    struct Merge {
+        // Set: decided in begin_merge (ignored, rejected or held); add and end nothing.
+        std::optional<CompleteOutcome> outcome;
+        ResultTotals totals;  // what the result adds (when merged or held)
+        size_t job = 0;
+        const uint32_t* counts = nullptr;  // the job's, stable while it merges
+        std::string refused;               // add_merge's reason, when it refused
+        bool added = false;
+    };
+    Merge begin_merge(uint64_t lease_id, const std::string& worker,
+                      const SampleJobResult& result, SampleJobResult* movable,
+                      const std::set<std::string>& alive = {},
+                      const FailurePolicy& policy = {});
+    // Checks `result` against its job and the buffers, then adds it, or refuses it
+    // whole. Takes no lock but the adds' own; never throws.
+    void add_merge(Merge& merge, const SampleJobResult& result);
+    CompleteOutcome end_merge(Merge& merge, const std::set<std::string>& alive = {},
+                              const FailurePolicy& policy = {});
+    // Waits (under the render's lock) until no add is in flight: the buffers' pixels
+    // are then what the merges counted so far made them.
+    void wait_for_adds() const;
+    // Tests: called in add_merge between its check and its add, off the render's lock.
+    std::function<void(size_t job)> while_adding;
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
     // `worker` could not trace its lease, for `reason`: the failure counts against the
@@ -204,7 +245,8 @@ private:
     bool open_round_end_plan(const std::set<std::string>& alive,
                              const FailurePolicy& policy);
     void finish(RenderState state);
-    std::string check_result(const JobSlot& slot, const SampleJobResult& result) const;
+    // Whether `result` is of its job's rectangle and size (its pixels are add_merge's).
+    static std::string check_shape(const JobSlot& slot, const SampleJobResult& result);
     bool blocklisted(const std::string& worker, const FailurePolicy& policy) const;
     // Whether someone in `alive` but `worker` may take `slot`: not blocklisted and not
     // among those it failed on.
@@ -253,6 +295,16 @@ private:
     bool opened_ahead_ = false;
     std::unordered_map<uint64_t, size_t> lease_to_job_;
     size_t merged_jobs_ = 0;
+    // Jobs between begin_merge and end_merge, and whether each add is over (true) and
+    // refused (the job still unmerged, for unmerged_jobs()). Under adds_mutex_, which
+    // add_merge takes without the render's lock; the lock order: the render's, then it.
+    struct Adding {
+        size_t job;
+        bool over = false, refused = false;
+    };
+    mutable std::mutex adds_mutex_;
+    mutable std::condition_variable adds_over_;
+    std::vector<Adding> adding_;
     std::map<std::string, uint32_t> worker_failures_;  // the blocklist's counts
     uint32_t rounds_done_ = 0;
     RoundSummary last_round_;

@@ -1,0 +1,171 @@
+// Issue 33: merges of one render's disjoint jobs add their sums off the render's lock, at
+// once; the render's lock is held only to check the lease and to count the merge.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <future>
+#include <thread>
+
+#include "coordinator.h"
+#include "farm_test_results.h"
+#include "scene_loader.h"
+
+namespace aliquot {
+namespace {
+
+using std::chrono::milliseconds;
+
+RenderSpec spec_of(const char* method, uint32_t side, uint32_t spp) {
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = side;
+    spec.seed = 7;
+    spec.strategy.method = method;
+    if (spec.strategy.method == "uniform") {
+        spec.strategy.spp = spp;
+    } else {
+        spec.strategy.spp = 0;
+        spec.strategy.budget = uint64_t(side) * side * spp;
+    }
+    return spec;
+}
+
+uint64_t samples_of(const LeaseGrant& grant) {
+    uint64_t n = 0;
+    for (const uint32_t c : grant.job.counts) n += c;
+    return n;
+}
+
+// Holds the first merge that reaches its add until released.
+struct HeldAdd {
+    std::promise<void> reached, release;
+    std::shared_future<void> released = release.get_future().share();
+    std::atomic<bool> first{true};
+
+    std::function<void(size_t)> hook() {
+        return [this](size_t) {
+            if (!first.exchange(false)) return;
+            reached.set_value();
+            released.wait();
+        };
+    }
+};
+
+// Two merges of one render at once: one held mid-merge (between its check and its add)
+// while a second job of the same round completes and is counted. With the add under
+// the render's lock, the second waited for the first.
+TEST(ParallelMerges, TwoMergesOfOneRenderProceedAtOnce) {
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(spec_of("uniform", 64, 4));
+    const std::string a = c.register_worker("a", 8).session;
+    const std::string b = c.register_worker("b", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    const std::optional<LeaseGrant> gb = c.lease(b, milliseconds(0));
+    ASSERT_TRUE(ga && gb);
+    ASSERT_FALSE(ga->job.rect == gb->job.rect);
+    HeldAdd held;
+    c.set_while_adding_for_test(id, held.hook());
+    auto first = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    held.reached.get_future().wait();
+    auto second = std::async(std::launch::async, [&] {
+        return c.complete(b, gb->lease_id, made_up_result(*gb)).status;
+    });
+    // Not a time limit on the merge: only so a regression fails rather than hangs.
+    const bool second_ended =
+        second.wait_for(std::chrono::seconds(20)) == std::future_status::ready;
+    EXPECT_TRUE(second_ended) << "the second merge waited for the first";
+    if (second_ended) {
+        EXPECT_EQ(second.get(), CompleteStatus::Merged);
+        // Counted while the first is still being added.
+        EXPECT_EQ(c.info(id)->samples_done, samples_of(*gb));
+    }
+    held.release.set_value();
+    EXPECT_EQ(first.get(), CompleteStatus::Merged);
+    EXPECT_EQ(c.info(id)->samples_done, samples_of(*ga) + samples_of(*gb));
+    EXPECT_EQ(c.info(id)->state, RenderState::Running);
+}
+
+// A render cancelled while one of its merges is mid-add ends with that merge whole: the
+// cancel waits for the add, so the render's end (its samples, the image written from its
+// buffers) does not change after it.
+TEST(ParallelMerges, ACancelDuringAMergeWaitsForItsAdd) {
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(spec_of("uniform", 64, 4));
+    const std::string a = c.register_worker("a", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    ASSERT_TRUE(ga);
+    HeldAdd held;
+    c.set_while_adding_for_test(id, held.hook());
+    auto merge = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    held.reached.get_future().wait();
+    auto cancel = std::async(std::launch::async, [&] { return c.cancel(id); });
+    // Without the wait the cancel ends meanwhile, before the add (a wait too short only
+    // makes this test weaker, never wrong).
+    cancel.wait_for(milliseconds(300));
+    held.release.set_value();
+    const std::optional<RenderInfo> ended = cancel.get();
+    ASSERT_TRUE(ended);
+    EXPECT_EQ(ended->state, RenderState::Cancelled);
+    EXPECT_EQ(merge.get(), CompleteStatus::Merged);
+    EXPECT_EQ(ended->samples_done, samples_of(*ga));
+    // The image holds exactly the samples the ended render counts.
+    const Image image = *c.image(id, true);
+    const auto spp =
+        std::find_if(image.extra.begin(), image.extra.end(),
+                     [](const Image::Channel& ch) { return ch.name == "sampleCount.Y"; });
+    ASSERT_NE(spp, image.extra.end());
+    double shown = 0;
+    for (const float v : spp->values) shown += v;
+    EXPECT_EQ(uint64_t(shown), samples_of(*ga));
+}
+
+// Many workers merging one render's jobs at once, rounds planned ahead and results held
+// for the round after included: the render's bytes are those of one worker alone.
+TEST(ParallelMerges, ManyWorkersOnOneRenderEndAsOneWorkerAlone) {
+    for (const char* method : {"uniform", "optimal", "adaptive"}) {
+        const RenderSpec spec = spec_of(method, 96, 16);
+        Image alone;
+        {
+            Coordinator c(CoordinatorOptions{});
+            const std::string id = c.submit(spec);
+            const std::string session = c.register_worker("alone", 1).session;
+            while (!is_terminal(c.info(id)->state))
+                if (auto grant = c.lease(session, milliseconds(20)))
+                    c.complete(session, grant->lease_id, made_up_result(*grant));
+            ASSERT_EQ(c.info(id)->state, RenderState::Done) << method;
+            alone = *c.image(id, true);
+        }
+        Coordinator c(CoordinatorOptions{});
+        const std::string id = c.submit(spec);
+        std::vector<std::thread> threads;
+        for (int w = 0; w < 6; ++w)
+            threads.emplace_back([&, w] {
+                const std::string session =
+                    c.register_worker("w" + std::to_string(w), 4).session;
+                while (!is_terminal(c.info(id)->state)) {
+                    const std::optional<LeaseGrant> grant =
+                        c.lease(session, milliseconds(20));
+                    if (!grant) continue;
+                    SampleJobResult result = made_up_result(*grant);
+                    c.complete(session, grant->lease_id, std::move(result));
+                    if (w == 0) (void)c.image(id, false);  // a reader among the merges
+                }
+            });
+        for (std::thread& t : threads) t.join();
+        ASSERT_EQ(c.info(id)->state, RenderState::Done) << method;
+        const Image together = *c.image(id, true);
+        EXPECT_EQ(together.rgb, alone.rgb) << method;
+        ASSERT_EQ(together.extra.size(), alone.extra.size()) << method;
+        for (size_t e = 0; e < alone.extra.size(); ++e)
+            EXPECT_EQ(together.extra[e].values, alone.extra[e].values) << method;
+    }
+}
+
+}  // namespace
+}  // namespace aliquot
