@@ -38,7 +38,7 @@ public:
 
     Accumulator() = default;
     // Zeroed by the kernel, not written: pages are faulted in by the first merges (or
-    // touch_pages()), in huge pages where the system gives them.
+    // touch_pages()).
     Accumulator(uint32_t width, uint32_t height);
     Accumulator(Accumulator&& other) noexcept;
     Accumulator& operator=(Accumulator&& other) noexcept;

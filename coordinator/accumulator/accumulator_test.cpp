@@ -259,7 +259,7 @@ TEST(Accumulator, CheckWithCountsRefusesAResultUnlikeItsJobWholeAndTotalsTheRest
 
 // A render's buffers come zeroed from the kernel, half differences at -1, however large.
 TEST(Accumulator, ANewAccumulatorIsZeroWhateverItsSize) {
-    for (const uint32_t side : {3u, 1100u}) {  // calloc'd, and mapped in huge pages
+    for (const uint32_t side : {3u, 1100u}) {  // calloc'd, and mapped
         Accumulator acc(side, side);
         acc.touch_pages();
         for (const size_t i :

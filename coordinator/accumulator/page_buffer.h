@@ -1,8 +1,7 @@
 // PageBuffer: a fixed-size array of plain values whose memory comes zeroed from the
-// kernel, with no second pass writing zeros over it, and in huge pages where it is large.
-// A render's sums are ~230 MB at 1920x1080; std::vector's value-initialisation wrote
-// every byte the kernel had just zeroed, faulting in 4 KiB pages one at a time (page
-// faults are dear on virtual machines): ~0.3 s of a 1080p render's coordinator CPU.
+// kernel, with no second pass writing zeros over it. A render's sums are ~230 MB at
+// 1920x1080; std::vector's value-initialisation wrote every byte the kernel had just
+// zeroed, on top of the page faults.
 #pragma once
 
 #include <cstddef>
@@ -12,9 +11,7 @@
 namespace aliquot {
 
 namespace page_memory {
-// `bytes` of zeroed memory; large ones mapped from the kernel and advised to use huge
-// pages (transparent huge pages set to "madvise" honour only advised memory). Throws
-// std::bad_alloc.
+// `bytes` of zeroed memory; large ones mapped from the kernel. Throws std::bad_alloc.
 void* allocate_zeroed(size_t bytes);
 void release(void* memory, size_t bytes);
 // Writes a zero into every page, so that later writes take no page faults (a copy
