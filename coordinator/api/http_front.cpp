@@ -116,12 +116,18 @@ FrontConnection::~FrontConnection() {
     if (ssl_) {
         // close_notify, best effort: the socket does not block, and a session that
         // failed must not be shut down (OpenSSL's rule).
-        if (handshake_done_ && !failed_) {
+        if (handshake_done_ && !failed_ && !cut_) {
             ERR_clear_error();
             SSL_shutdown(ssl_);
         }
         SSL_free(ssl_);
         ERR_clear_error();
+    }
+    if (cut_) {
+        // Reset, not a FIN behind the unsent bytes: the slow reader would otherwise
+        // take the kernel's send buffer (megabytes) at its own pace.
+        const linger abort{1, 0};
+        ::setsockopt(fd_, SOL_SOCKET, SO_LINGER, &abort, sizeof abort);
     }
     ::shutdown(fd_, SHUT_RDWR);
     ::close(fd_);
@@ -224,7 +230,17 @@ bool FrontConnection::wait_for(short events, Clock::time_point until) const {
 }
 
 Clock::time_point FrontConnection::write_until() const {
-    return std::min(Clock::now() + limits_.io_timeout, response_deadline_);
+    return std::min(
+        {Clock::now() + limits_.io_timeout, response_deadline_, write_deadline_});
+}
+
+// How long a paced reader may take for `bytes`: the grace, then min_read_rate.
+Clock::duration FrontConnection::reading_time(size_t bytes) const {
+    const double seconds =
+        double(bytes) / double(std::max<size_t>(limits_.min_read_rate, 1));
+    return limits_.read_grace +
+           std::chrono::duration_cast<Clock::duration>(
+               std::chrono::duration<double>(std::min(seconds, 1e9)));
 }
 
 bool FrontConnection::is_readable() const {
@@ -234,7 +250,13 @@ bool FrontConnection::is_readable() const {
 }
 
 bool FrontConnection::is_writable() const {
-    if (!wait_for(POLLOUT, write_until())) return false;
+    // Room for the next write, for a paced response, within the grace.
+    const auto until =
+        paced_ ? std::min(write_until(), Clock::now() + reading_time(0)) : write_until();
+    if (!wait_for(POLLOUT, until)) {
+        cut_ = paced_;
+        return false;
+    }
     // Whether the peer is still there (httplib's test): nothing to read, or something.
     pollfd p{fd_, POLLIN, 0};
     if (::poll(&p, 1, 0) <= 0) return true;
@@ -287,8 +309,20 @@ ssize_t FrontConnection::read(char* ptr, size_t size) {
 }
 
 ssize_t FrontConnection::write(const char* ptr, size_t size) {
+    if (paced_) write_deadline_ = Clock::now() + reading_time(size);
+    const ssize_t written = send_all(ptr, size);
+    write_deadline_ = Clock::time_point::max();
+    // A paced response that could not be sent (its reader fell behind, or left) is
+    // never kept alive, and is reset.
+    if (written < 0 && paced_) failed_ = cut_ = true;
+    return written;
+}
+
+ssize_t FrontConnection::send_all(const char* ptr, size_t size) {
     size_t sent = 0;
     while (sent < size) {
+        // A reader that keeps taking a little never makes a wait time out.
+        if (Clock::now() >= std::min(write_deadline_, response_deadline_)) return -1;
         if (ssl_) {
             // After a WANT_*, OpenSSL wants the same arguments again: `sent` moves only
             // when a whole call succeeded.
@@ -406,6 +440,15 @@ void HttpFront::close_after_current_response() {
     if (serving_now) serving_now->close_after_ = true;
 }
 
+void HttpFront::pace_current_response(std::optional<size_t> size) {
+    if (!serving_now) return;
+    serving_now->paced_ = true;
+    if (size)
+        serving_now->response_deadline_ =
+            std::min(serving_now->response_deadline_,
+                     Clock::now() + serving_now->reading_time(*size));
+}
+
 void HttpFront::make_room(std::vector<std::unique_ptr<FrontConnection>>& waiting) {
     // The oldest waiting connection of the address with the most waiting: a flood from
     // one address evicts its own, and one that reconnects as fast as it is cut never
@@ -478,6 +521,7 @@ void HttpFront::to_ready(std::unique_ptr<FrontConnection> c) {
     c->trusted_ = false;
     c->close_after_ = false;
     c->response_deadline_ = Clock::now() + limits_.untrusted_response_deadline;
+    c->paced_ = false;
     {
         std::lock_guard lock(mutex_);
         ready_.push_back(std::move(c));

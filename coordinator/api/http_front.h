@@ -23,6 +23,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
@@ -60,6 +61,14 @@ struct FrontLimits {
     std::chrono::milliseconds untrusted_response_deadline{20000};
     // Requests on one connection at most; the last response says Connection: close.
     size_t requests_per_connection = 100;
+    // A paced response (images and downloads, event streams) must be taken at
+    // min_read_rate at least, after a grace: each write within read_grace + its bytes /
+    // min_read_rate, and one of known size whole within read_grace + size /
+    // min_read_rate. Else its connection is closed and what it held (a thread, an image
+    // place) is free: io_timeout alone bounds one wait, so a reader taking a few bytes
+    // every second (curl --limit-rate 2k) kept a 32 MiB download for hours.
+    std::chrono::milliseconds read_grace{30000};
+    size_t min_read_rate = 64 * 1024;  // bytes a second
 };
 
 // One accepted connection, as httplib reads and writes it: the bytes the front buffered
@@ -94,6 +103,10 @@ private:
     // Waits up to `timeout` for `events` on the socket; false on timeout or error.
     bool wait_for(short events, std::chrono::steady_clock::time_point until) const;
     std::chrono::steady_clock::time_point write_until() const;
+    // A paced response's reader's time for `bytes`.
+    std::chrono::steady_clock::duration reading_time(size_t bytes) const;
+    // write() without its pace's bookkeeping.
+    ssize_t send_all(const char* ptr, size_t size);
     // A short answer sent before closing, best effort and without blocking.
     void refuse(int status, const std::string& message);
 
@@ -112,6 +125,11 @@ private:
     bool trusted_ = false;      // the current request carries the client token
     bool close_after_ = false;  // the current response says Connection: close
     std::chrono::steady_clock::time_point response_deadline_;
+    bool paced_ = false;        // the current response's writes each have a deadline
+    mutable bool cut_ = false;  // its reader fell behind the pace: reset, not closed
+    // Of the write under way; none between writes.
+    std::chrono::steady_clock::time_point write_deadline_ =
+        std::chrono::steady_clock::time_point::max();
 };
 
 class HttpFront {
@@ -137,6 +155,9 @@ public:
     // hurried), or its response closes the connection (its body was not read).
     static void trust_current_request();
     static void close_after_current_response();
+    // For a route, before its response is written: pace it (FrontLimits::min_read_rate);
+    // `size`, when known, also bounds the whole response.
+    static void pace_current_response(std::optional<size_t> size);
 
 private:
     void run_front();

@@ -114,15 +114,34 @@ void send_error(httplib::Response& res, int status, const std::string& message) 
     send_json(res, {{"error", message}}, status);
 }
 
+// Sends `body`, made by an image route, keeping `place` until it is sent or cut: the
+// body is what the place bounds, and a slow reader holds both until the pace it must
+// keep (FrontLimits::min_read_rate) cuts it.
+void send_image(httplib::Response& res, std::string body, const std::string& type,
+                Admission::Place place) {
+    HttpFront::pace_current_response(body.size());
+    if (body.empty()) return res.set_content("", type);
+    auto held = std::make_shared<const std::string>(std::move(body));
+    res.set_content_provider(
+        held->size(), type,
+        [held, place](size_t offset, size_t length, httplib::DataSink& sink) {
+            return offset <= held->size() &&
+                   sink.write(held->data() + offset,
+                              std::min(length, held->size() - offset));
+        });
+}
+
 // Sends the file at `path` as it is read, 1 MiB at a time: the response holds one chunk,
-// never the file, and keeps `place` until it is sent or cut. The file is opened here (a
-// missing one is ApiError 404); one renamed or deleted meanwhile is still read whole.
+// never the file, and keeps `place` until it is sent or cut, its reader paced as
+// send_image's. The file is opened here (a missing one is ApiError 404); one renamed or
+// deleted meanwhile is still read whole.
 void send_file(httplib::Response& res, const std::filesystem::path& path,
                const std::string& type, Admission::Place place) {
     constexpr size_t kChunk = 1 << 20;
     auto in = std::make_shared<std::ifstream>(path, std::ios::binary | std::ios::ate);
     if (!*in) throw ApiError(404, "no file " + path.filename().string());
     const auto size = size_t(in->tellg());
+    HttpFront::pace_current_response(size);
     if (size == 0) return res.set_content("", type);
     auto buffer = std::make_shared<std::vector<char>>(std::min(size, kChunk));
     res.set_content_provider(
@@ -494,13 +513,19 @@ struct HttpServer::Impl {
         }
         res.set_header("Cache-Control", "no-store");
         res.set_header("X-Accel-Buffering", "no");
+        // Each event must be taken in time, as an image is; one its client does not
+        // read at all fills the sockets' buffers only after hours, so every stream also
+        // ends after event_stream_life (the browser's EventSource opens another after
+        // the `retry` below, and the dashboard fetches afresh).
+        HttpFront::pace_current_response(std::nullopt);
+        const auto ends = std::chrono::steady_clock::now() + options.event_stream_life;
         auto from = std::make_shared<uint64_t>(hub.next());
         auto greeted = std::make_shared<bool>(false);
         // The provider owns the slot: httplib destroys it with the response, however the
         // stream ends (client gone, write failed, server stopping).
         res.set_chunked_content_provider(
             "text/event-stream",
-            [this, from, greeted, slot](size_t, httplib::DataSink& sink) {
+            [this, from, greeted, slot, ends](size_t, httplib::DataSink& sink) {
                 std::string out;
                 if (!*greeted) {
                     *greeted = true;
@@ -521,7 +546,8 @@ struct HttpServer::Impl {
                 const auto idle_until =
                     std::chrono::steady_clock::now() + std::chrono::seconds(15);
                 for (;;) {
-                    if (!hub.wait(*from, options.client_check_interval, messages,
+                    if (std::chrono::steady_clock::now() >= ends ||
+                        !hub.wait(*from, options.client_check_interval, messages,
                                   missed)) {
                         sink.done();
                         return true;
@@ -917,11 +943,11 @@ struct HttpServer::Impl {
                        const auto size = uint32_t(http_api::number_param(
                            "size", query(req, "size", "1024"), 16, 8192));
                        render_or_404(id);
-                       const Admission::Place place = admit_image(res);
-                       const Image image = image_or_404(id, false);
+                       Admission::Place place = admit_image(res);
+                       std::string png =
+                           http_api::preview_png(image_or_404(id, false), exposure, size);
                        res.set_header("Cache-Control", "no-store");
-                       res.set_content(http_api::preview_png(image, exposure, size),
-                                       "image/png");
+                       send_image(res, std::move(png), "image/png", std::move(place));
                    }));
         server.Get(R"(/api/renders/([^/]+)/thumbnail\.png)",
                    guarded([this](const httplib::Request& req, auto& res) {
@@ -962,29 +988,30 @@ struct HttpServer::Impl {
                                      std::move(place));
                            return;
                        }
-                       const Image image = image_or_404(id, aovs == "1");
+                       std::string exr = encode_exr(image_or_404(id, aovs == "1"));
                        // OpenEXR's own name for its type; not compressed again (ZIP
                        // inside).
-                       res.set_content(encode_exr(image), "image/x-exr");
+                       send_image(res, std::move(exr), "image/x-exr", std::move(place));
                    }));
-        server.Get(R"(/api/renders/([^/]+)/maps)",
-                   guarded([this](const httplib::Request& req, auto& res) {
-                       const std::string id = req.matches[1];
-                       const std::string kind = query(req, "kind", "spp");
-                       if (kind != "spp" && kind != "error")
-                           throw ApiError(
-                               400, "'kind' must be spp or error, got \"" + kind + "\"");
-                       const auto size = uint32_t(http_api::number_param(
-                           "size", query(req, "size", "256"), 8, 256));
-                       render_or_404(id);
-                       const Admission::Place place = admit_image(res);
-                       const Image image = image_or_404(id, true);
-                       const auto map_kind = kind == "spp" ? http_api::MapKind::Spp
-                                                           : http_api::MapKind::Error;
-                       json map = http_api::pixel_map(image, map_kind, size);
-                       map["id"] = id;
-                       send_json(res, map);
-                   }));
+        server.Get(
+            R"(/api/renders/([^/]+)/maps)",
+            guarded([this](const httplib::Request& req, auto& res) {
+                const std::string id = req.matches[1];
+                const std::string kind = query(req, "kind", "spp");
+                if (kind != "spp" && kind != "error")
+                    throw ApiError(400,
+                                   "'kind' must be spp or error, got \"" + kind + "\"");
+                const auto size = uint32_t(
+                    http_api::number_param("size", query(req, "size", "256"), 8, 256));
+                render_or_404(id);
+                Admission::Place place = admit_image(res);
+                const auto map_kind =
+                    kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error;
+                json map = http_api::pixel_map(image_or_404(id, true), map_kind, size);
+                map["id"] = id;
+                res.set_header("Cache-Control", "no-store");
+                send_image(res, json_text(map), "application/json", std::move(place));
+            }));
         server.Get(R"(/api/renders/([^/]+)/buckets)",
                    guarded([this](const httplib::Request& req, auto& res) {
                        const std::string id = req.matches[1];

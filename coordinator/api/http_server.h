@@ -38,6 +38,10 @@ struct HttpOptions {
     // Each open stream holds one of the server's threads (front.threads, 32), so 8 always
     // stay free for everything else (the API, /healthz, the dashboard's files).
     size_t max_event_streams = 16;
+    // An event stream ends after this long, so that one whose client reads nothing
+    // (whose events the sockets' buffers would take for hours) gives its place and
+    // thread back; the dashboard reconnects at once and fetches afresh.
+    std::chrono::milliseconds event_stream_life{std::chrono::minutes(15)};
     // Requests that make or send an image at once at most (preview.png, thumbnail.png
     // when made anew, maps, image.exr, together); one more is refused with 503 and
     // Retry-After. Each may hold a copy of a render's image and its encoding; a browser

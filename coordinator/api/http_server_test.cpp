@@ -1150,6 +1150,29 @@ TEST_F(HttpServerTest, AStreamWhoseClientLeftFreesItsSlot) {
     EXPECT_EQ(get_json("/healthz")["ok"], true);
 }
 
+// An event stream whose client reads nothing holds its place and thread until the
+// sockets' buffers fill, hours of events: every stream ends after event_stream_life
+// (the browser opens another), so the place comes back.
+TEST(HttpServerStreams, AStreamEndsAfterItsLifeAndItsPlaceComesBack) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    HttpOptions options = options_with_tokens();
+    options.max_event_streams = 1;
+    options.event_stream_life = std::chrono::milliseconds(0);
+    HttpServer server(coordinator, "127.0.0.1:0", options);
+    RawStream first = open_stream(server.port());
+    ASSERT_EQ(first.status, 200) << first.head;
+    EXPECT_TRUE(first.read_until("\"hello\""));
+    // The chunked body's end: the server ended the stream, not the client.
+    EXPECT_TRUE(first.read_until("\r\n0\r\n\r\n")) << first.body;
+    // The one place is free again (given back as the response ends).
+    int status = 0;
+    for (int attempt = 0; attempt < 100 && status != 200; ++attempt) {
+        status = open_stream(server.port()).status;
+        if (status != 200) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_EQ(status, 200);
+}
+
 // A coordinator that keeps its record under `dir`/data, its HTTP server, and a client
 // holding the client token.
 struct RecordedCoordinator {
@@ -1158,9 +1181,10 @@ struct RecordedCoordinator {
         co.data_dir = dir / "data";
         return co;
     }
-    explicit RecordedCoordinator(const fs::path& dir)
+    explicit RecordedCoordinator(const fs::path& dir,
+                                 HttpOptions http = options_with_tokens())
         : coordinator(options(dir)),
-          server(coordinator, "127.0.0.1:0", options_with_tokens()),
+          server(coordinator, "127.0.0.1:0", std::move(http)),
           client("127.0.0.1", server.port()) {
         client.set_read_timeout(10, 0);
         client.set_bearer_token_auth(testing::kTestTokens.client);
@@ -1271,6 +1295,115 @@ TEST(HttpServerStorage, ConcurrentExrDownloadsHoldAChunkNotTheFile) {
         }
         // Each held the file, its copy and the response's: 8 x 96 MiB, or a 503.
         EXPECT_LT(grown_kb, 24u * 1024) << "kB";
+    }
+    fs::remove_all(dir);
+}
+
+// A download read a few bytes at a time, from a socket with a small receive buffer,
+// never waiting long enough between reads for one write to time out (curl --limit-rate
+// 2k): it reads until the server cuts it or the test stops it.
+struct TrickleReader {
+    int fd = -1;
+    std::atomic<bool> stop{false};
+    std::atomic<size_t> got{0};
+    std::atomic<bool> cut{false};  // the server closed the connection
+    std::thread reader;
+
+    TrickleReader(int port, const std::string& path) {
+        fd = ::socket(AF_INET, SOCK_STREAM, 0);
+        const int small = 4096;
+        ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+        sockaddr_in addr{};
+        addr.sin_family = AF_INET;
+        addr.sin_port = htons(uint16_t(port));
+        addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) return;
+        const std::string request =
+            "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+            "\r\nAuthorization: " + kClientBearer + "\r\n\r\n";
+        if (::send(fd, request.data(), request.size(), MSG_NOSIGNAL) < 0) return;
+        reader = std::thread([this] {
+            char buffer[512];
+            while (!stop) {
+                const ssize_t n = ::recv(fd, buffer, sizeof buffer, 0);
+                if (n <= 0) {
+                    cut = !stop;
+                    return;
+                }
+                got += size_t(n);
+                std::this_thread::sleep_for(std::chrono::milliseconds(20));
+            }
+        });
+    }
+    ~TrickleReader() {
+        stop = true;
+        ::shutdown(fd, SHUT_RDWR);  // ends a recv under way
+        if (reader.joinable()) reader.join();
+        ::close(fd);
+    }
+};
+
+// Review of issue 33: 8 clients downloading an EXR with curl --limit-rate 2k held every
+// image place for about 90 minutes: the write timeout bounds one wait, and a trickle
+// keeps each wait short. A reader must now keep a pace (FrontLimits::min_read_rate after
+// read_grace): the trickling ones are cut, and the next download gets their place.
+TEST(HttpServerStorage, TrickleReadersOfAnExrAreCutAndTheNextDownloadIsServed) {
+    const fs::path dir = fs::temp_directory_path() /
+                         ("aliquot-http-exr-trickle-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    {
+        HttpOptions options = options_with_tokens();
+        options.max_image_requests = 2;
+        options.front.read_grace = std::chrono::milliseconds(100);
+        options.front.min_read_rate = 1 << 20;  // a MiB a second: the trickles keep 25 kB
+        // Only the pace may cut them: in production a wait's timeout (5 s) did not, as
+        // long as the trickle went on.
+        options.front.io_timeout = std::chrono::minutes(5);
+        RecordedCoordinator farm(dir, options);
+        const std::string id = farm.submit();
+        ASSERT_FALSE(id.empty());
+        fake_jobs(farm.coordinator, "w1");
+        for (int i = 0; i < 600 && !farm.coordinator.image_file(id); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const std::optional<fs::path> file = farm.coordinator.image_file(id);
+        ASSERT_TRUE(file);
+        // 16 MiB, far more than the sockets' buffers take.
+        std::string stored(16u << 20, '\0');
+        std::mt19937_64 random(11);
+        for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
+            const uint64_t v = random();
+            std::memcpy(&stored[i], &v, 8);
+        }
+        std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+
+        const std::string path = "/api/renders/" + id + "/image.exr?aovs=1";
+        std::vector<std::unique_ptr<TrickleReader>> trickles;
+        for (size_t i = 0; i < options.max_image_requests; ++i)
+            trickles.push_back(std::make_unique<TrickleReader>(farm.server.port(), path));
+        // Before, each held its place for 16 MiB / 25 kB/s, 11 minutes. A generous
+        // deadline against a hang, not a timing check.
+        int status = 0;
+        std::string body;
+        for (int attempt = 0; attempt < 300; ++attempt) {
+            const httplib::Result next = farm.client.Get(path.c_str());
+            status = next ? next->status : -1;
+            if (status != 503) {
+                if (next) body = next->body;
+                break;
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        }
+        EXPECT_EQ(status, 200) << body.substr(0, 200);
+        EXPECT_TRUE(body == stored) << "the download arrived whole and as stored";
+        for (const auto& t : trickles) {
+            // Its first bytes came (it held a place); its connection was closed by the
+            // server long before the whole file could have trickled in.
+            for (int i = 0; i < 300 && !t->cut; ++i)
+                std::this_thread::sleep_for(std::chrono::milliseconds(100));
+            EXPECT_TRUE(t->cut) << t->got.load();
+            EXPECT_GT(t->got.load(), 0u);
+            EXPECT_LT(t->got.load(), stored.size());
+        }
     }
     fs::remove_all(dir);
 }
