@@ -37,8 +37,7 @@ public:
         sizeof(PixelSums) + 2 * sizeof(uint64_t) + 2 * sizeof(double);
 
     Accumulator() = default;
-    // Zeroed by the kernel, not written: pages are faulted in by the first merges (or
-    // touch_pages()).
+    // Zeroed and mapped by the kernel (page_buffer.h), not written again.
     Accumulator(uint32_t width, uint32_t height);
     Accumulator(Accumulator&& other) noexcept;
     Accumulator& operator=(Accumulator&& other) noexcept;
@@ -48,7 +47,8 @@ public:
         return *this;
     }
 
-    // Faults in every page now: a copy prepared off the locks for a round end to fill.
+    // Faults in every page now, should any be out: a copy prepared off the locks for a
+    // round end to fill takes no fault.
     void touch_pages();
 
     // Becomes a copy of `other`, reusing this one's memory when the sizes match (a

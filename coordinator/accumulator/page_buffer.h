@@ -1,7 +1,7 @@
 // PageBuffer: a fixed-size array of plain values whose memory comes zeroed from the
-// kernel, with no second pass writing zeros over it. A render's sums are ~230 MB at
-// 1920x1080; std::vector's value-initialisation wrote every byte the kernel had just
-// zeroed, on top of the page faults.
+// kernel, mapped at once, with no second pass writing zeros over it. A render's sums
+// are ~230 MB at 1920x1080; std::vector's value-initialisation wrote every byte the
+// kernel had just zeroed, on top of a page fault for each 4 KiB.
 #pragma once
 
 #include <cstddef>
@@ -11,7 +11,8 @@
 namespace aliquot {
 
 namespace page_memory {
-// `bytes` of zeroed memory; large ones mapped from the kernel. Throws std::bad_alloc.
+// `bytes` of zeroed memory; large ones mapped from the kernel, every page in place.
+// Throws std::bad_alloc.
 void* allocate_zeroed(size_t bytes);
 void release(void* memory, size_t bytes);
 // Writes a zero into every page, so that later writes take no page faults (a copy
