@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "denoised_strategy.h"
+#include "farm_test_results.h"
 #include "lease_scan.h"
 #include "scene_loader.h"
 
@@ -54,27 +55,6 @@ private:
     std::shared_ptr<State> state_;
 };
 
-// What a worker returns for `job` without tracing: colour, albedo and normal that vary
-// over the image, with the first hits a render that keeps them needs.
-SampleJobResult fake_result(const SampleJob& job) {
-    SampleJobResult r;
-    r.rect = job.rect;
-    r.pixels.resize(job.rect.size());
-    if (job.aux) r.first_hits.resize(job.rect.size());
-    for (size_t i = 0; i < r.pixels.size(); ++i) {
-        const double n = double(job.counts[i]);
-        const double k = double(job.first_sample[i]);
-        r.pixels[i].samples = job.counts[i];
-        r.pixels[i].even[0] = 0.5 * n * (0.5 + 0.25 * std::sin(double(i) + k));
-        r.pixels[i].odd[0] = 0.5 * n * 0.5;
-        if (job.aux) {
-            for (int c = 0; c < 3; ++c) r.first_hits[i].albedo[c] = 0.25 * n;
-            r.first_hits[i].normal[1] = n;
-        }
-    }
-    return r;
-}
-
 RenderSpec spec_of(const char* method, uint32_t side, uint32_t spp) {
     RenderSpec spec;
     spec.scene_name = "cornell-box";
@@ -107,7 +87,7 @@ protected:
     // Merges `grant`'s result under its render's lock, as Coordinator::complete does.
     static CompleteStatus complete(RenderSlot& slot, const LeaseGrant& grant) {
         std::lock_guard render(slot.mutex);
-        return slot.session->complete(grant.lease_id, "w", fake_result(grant.job)).status;
+        return slot.session->complete(grant.lease_id, "w", made_up_result(grant)).status;
     }
     // Leases and merges `slot`'s jobs until none is to be had now.
     void merge_all_now(const SlotPtr& slot) {

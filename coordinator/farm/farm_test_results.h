@@ -23,13 +23,20 @@ inline RenderSpec small_test_spec() {
     return spec;
 }
 
-// A valid result for `grant`: its sample counts, zero radiance.
+// A valid result for `grant`: its sample counts, zero radiance; for a job that asks for
+// first hits (a render that keeps them), an albedo of 0.25 and a normal of +y a sample.
 inline SampleJobResult zero_result(const LeaseGrant& grant) {
     SampleJobResult result;
     result.rect = grant.job.rect;
     result.pixels.assign(grant.job.counts.size(), PixelSums{});
-    for (size_t i = 0; i < grant.job.counts.size(); ++i)
+    if (grant.job.aux) result.first_hits.assign(grant.job.counts.size(), FirstHitSums{});
+    for (size_t i = 0; i < grant.job.counts.size(); ++i) {
         result.pixels[i].samples = grant.job.counts[i];
+        if (!grant.job.aux) continue;
+        const double n = double(grant.job.counts[i]);
+        for (int c = 0; c < 3; ++c) result.first_hits[i].albedo[c] = 0.25 * n;
+        result.first_hits[i].normal[1] = n;
+    }
     return result;
 }
 
