@@ -5,6 +5,8 @@
 #include <string>
 #include <type_traits>
 
+#include "bands.h"
+
 namespace aliquot {
 
 namespace {
@@ -31,39 +33,48 @@ void get(std::ifstream& in, T& v) {
 
 namespace {
 
-void write_checkpoint_file(const std::filesystem::path& tmp, const Checkpoint& cp) {
+// What a file is written from: a Checkpoint's accumulator or a snapshot's copy, read in
+// place.
+struct Written {
+    uint32_t width = 0, height = 0;
+    const PixelSums* sums = nullptr;           // width x height
+    const FirstHitSums* first_hits = nullptr;  // width x height, or none
+    const nlohmann::json& strategy_state;
+    uint32_t rounds_done = 0;
+    double seconds = 0;
+    const std::vector<uint32_t>& planned_round;
+};
+
+void write_checkpoint_file(const std::filesystem::path& tmp, const Written& cp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
     out.write(kMagic, sizeof kMagic);
-    put(out, cp.merged.width());
-    put(out, cp.merged.height());
+    put(out, cp.width);
+    put(out, cp.height);
     put(out, cp.rounds_done);
     put(out, cp.seconds);
     const std::string state = cp.strategy_state.dump();
     put(out, uint64_t(state.size()));
     out.write(state.data(), std::streamsize(state.size()));
+    const size_t n = size_t(cp.width) * cp.height;
     // The pixels as they lie in memory, in one write: put() per pixel spent ~20 ns each
     // (2 M calls at 1920x1080) on the round end's cores. The same bytes.
-    if (const size_t n = cp.merged.pixel_count())
-        out.write(reinterpret_cast<const char*>(&cp.merged.at(0)),
+    if (n > 0)
+        out.write(reinterpret_cast<const char*>(cp.sums),
                   std::streamsize(n * sizeof(PixelSums)));
     put(out, uint64_t(cp.planned_round.size()));
     if (!cp.planned_round.empty())
         out.write(reinterpret_cast<const char*>(cp.planned_round.data()),
                   std::streamsize(cp.planned_round.size() * sizeof(uint32_t)));
-    const bool aux = cp.aux.kept() && cp.aux.width() == cp.merged.width() &&
-                     cp.aux.height() == cp.merged.height();
-    put(out, uint8_t(aux));
-    if (aux && cp.merged.pixel_count() > 0)
-        out.write(reinterpret_cast<const char*>(&cp.aux.at(0)),
-                  std::streamsize(cp.merged.pixel_count() * sizeof(FirstHitSums)));
+    put(out, uint8_t(cp.first_hits != nullptr));
+    if (cp.first_hits && n > 0)
+        out.write(reinterpret_cast<const char*>(cp.first_hits),
+                  std::streamsize(n * sizeof(FirstHitSums)));
     out.flush();
     if (!out) throw std::runtime_error("cannot write checkpoint " + tmp.string());
 }
 
-}  // namespace
-
-void save_checkpoint(const std::filesystem::path& path, const Checkpoint& cp) {
+void save(const std::filesystem::path& path, const Written& cp) {
     const std::filesystem::path tmp = path.string() + ".tmp";
     try {
         write_checkpoint_file(tmp, cp);
@@ -77,6 +88,50 @@ void save_checkpoint(const std::filesystem::path& path, const Checkpoint& cp) {
         std::filesystem::remove(tmp, ignored);
         throw;
     }
+}
+
+// The first-hit sums to write: a render's that keeps them, of the image's size.
+const FirstHitSums* first_hits_of(const AuxSums& aux, uint32_t width, uint32_t height) {
+    const bool kept = aux.kept() && aux.width() == width && aux.height() == height &&
+                      uint64_t(width) * height > 0;
+    return kept ? &aux.at(0) : nullptr;
+}
+
+}  // namespace
+
+void CheckpointSnapshot::copy_buffers(const Accumulator& merged, const AuxSums& kept) {
+    width = merged.width();
+    height = merged.height();
+    sums.resize(merged.pixel_count());
+    // PixelSums is trivially copyable: a band is one memcpy from the accumulator's
+    // contiguous sums.
+    for_each_band(sums.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
+        std::memcpy(&sums[begin], &merged.at(begin), (end - begin) * sizeof(PixelSums));
+    });
+    aux = kept;  // reuses the memory; empty unless kept
+}
+
+void save_checkpoint(const std::filesystem::path& path, const CheckpointSnapshot& cp) {
+    if (cp.sums.size() != size_t(cp.width) * cp.height)
+        throw std::runtime_error("checkpoint snapshot of " + std::to_string(cp.width) +
+                                 "x" + std::to_string(cp.height) + " holds " +
+                                 std::to_string(cp.sums.size()) + " pixels");
+    save(path,
+         {cp.width, cp.height, cp.sums.data(), first_hits_of(cp.aux, cp.width, cp.height),
+          cp.strategy_state, cp.rounds_done, cp.seconds, cp.planned_round});
+}
+
+void save_checkpoint(const std::filesystem::path& path, const Checkpoint& cp) {
+    const uint32_t w = cp.merged.width(), h = cp.merged.height();
+    save(path, {w, h, cp.merged.pixel_count() > 0 ? &cp.merged.at(0) : nullptr,
+                first_hits_of(cp.aux, w, h), cp.strategy_state, cp.rounds_done,
+                cp.seconds, cp.planned_round});
+}
+
+double expected_checkpoint_seconds(uint64_t pixels, bool first_hits) {
+    const double bytes = double(pixels) * double(sizeof(PixelSums) +
+                                                 (first_hits ? sizeof(FirstHitSums) : 0));
+    return bytes / kFirstCheckpointBytesPerSecond;
 }
 
 bool checkpoint_due(double since_last_seconds, double last_cost_seconds) {

@@ -112,6 +112,69 @@ TEST(Checkpoint, AFailedWriteLeavesNoTempFileAndKeepsTheLastCheckpoint) {
     std::filesystem::remove(path);
 }
 
+// Issue 33: a round end copies the sums alone (80 bytes a pixel, not the accumulator's
+// 112), and the file is the one a Checkpoint of the accumulator gives, byte for byte.
+TEST(Checkpoint, ASnapshotOfTheSumsWritesTheAccumulatorsBytes) {
+    // More pixels than a band (kBandPixels), so that several bands copy.
+    const uint32_t w = 300, h = 230;
+    Accumulator acc(w, h);
+    SampleJobResult r;
+    r.rect = {0, 0, w, h};
+    r.pixels.resize(size_t(w) * h);
+    for (size_t i = 0; i < r.pixels.size(); ++i) {
+        r.pixels[i].even[1] = 1e-3 * double(i % 977) + 1e-17;
+        r.pixels[i].odd[0] = 1.0 / 7.0 * double(i % 13);
+        r.pixels[i].sum_sq_luminance = 0.5 * double(i % 31);
+        r.pixels[i].samples = 2 + i % 5;
+        r.pixels[i].rays = 3 * (2 + i % 5);
+    }
+    acc.merge(r);
+    const nlohmann::json state = {{"done_spp", 3}};
+    const std::vector<uint32_t> planned(size_t(w) * h, 4);
+    const auto from_accumulator = temp_file("acc.bin");
+    const auto from_snapshot = temp_file("snap.bin");
+    save_checkpoint(from_accumulator, {acc, state, 5, 2.5, planned});
+    CheckpointSnapshot snapshot;
+    snapshot.copy_buffers(Accumulator(2, 2), AuxSums());  // memory of another size
+    snapshot.copy_buffers(acc, AuxSums());
+    snapshot.strategy_state = state;
+    snapshot.rounds_done = 5;
+    snapshot.seconds = 2.5;
+    snapshot.planned_round = planned;
+    save_checkpoint(from_snapshot, snapshot);
+    const auto bytes = [](const std::filesystem::path& path) {
+        std::ifstream in(path, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    EXPECT_EQ(bytes(from_snapshot), bytes(from_accumulator));
+    const auto back = load_checkpoint(from_snapshot);
+    ASSERT_TRUE(back.has_value());
+    EXPECT_EQ(back->merged.total_samples(), acc.total_samples());
+    for (size_t i = 0; i < acc.pixel_count(); i += 1009) {
+        EXPECT_EQ(back->merged.at(i), acc.at(i)) << i;
+        EXPECT_EQ(back->merged.half_difference(i), acc.half_difference(i)) << i;
+        EXPECT_EQ(back->merged.luminance_variance(i), acc.luminance_variance(i)) << i;
+    }
+    // A snapshot whose sums are not its size is refused, not written past.
+    snapshot.sums.pop_back();
+    EXPECT_THROW(save_checkpoint(from_snapshot, snapshot), std::runtime_error);
+    std::filesystem::remove(from_accumulator);
+    std::filesystem::remove(from_snapshot);
+}
+
+// Issue 33: the first checkpoint was due at a render's first round end (nothing timed
+// yet), a whole copy and write of the buffers for a round or two of work.
+TEST(Checkpoint, TheFirstIsDueOnceTheRenderRanTheShareOfWhatOneShouldCost) {
+    const double full_hd = expected_checkpoint_seconds(1920 * 1080, false);
+    EXPECT_DOUBLE_EQ(full_hd, 1920.0 * 1080 * sizeof(PixelSums) / 1e9);  // ~0.17 s
+    EXPECT_GT(expected_checkpoint_seconds(1920 * 1080, true), full_hd);
+    EXPECT_FALSE(checkpoint_due(0.1, full_hd));  // a first round end
+    EXPECT_FALSE(checkpoint_due(kCheckpointShare * full_hd - 0.01, full_hd));
+    EXPECT_TRUE(checkpoint_due(kCheckpointShare * full_hd, full_hd));
+    // A small render's is due at once, as before.
+    EXPECT_TRUE(checkpoint_due(0.01, expected_checkpoint_seconds(16, false)));
+}
+
 TEST(Checkpoint, DueWhenItsCostIsASmallShareOfTheTimeSinceTheLast) {
     EXPECT_TRUE(checkpoint_due(0.0, 0.0));  // none written yet
     EXPECT_FALSE(checkpoint_due(0.05, 0.01));

@@ -840,8 +840,19 @@ TEST_F(CoordinatorTest, TheDataDirectoryIsPrivateWhateverTheUmask) {
     const mode_t before = ::umask(0);  // as permissive as it gets
     Coordinator c(options);
     RenderSpec spec = small_spec();
-    spec.reference = Image(4, 4);
+    // Two rounds of 1024 spp: a render's last round writes no checkpoint (issue 33).
+    spec.width = spec.height = 64;
+    spec.strategy.spp = 2048;
+    spec.reference = Image(64, 64);
     const std::string id = c.submit(spec);
+    // Its first checkpoint is due once it has run 20 times what one should take (6.6 ms
+    // at 64x64, issue 33): its first job comes back a while after its lease.
+    const std::string session = c.register_worker("slow", 1).session;
+    const std::optional<LeaseGrant> grant =
+        c.lease(session, std::chrono::milliseconds(0));
+    ASSERT_TRUE(grant.has_value());
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    c.complete(session, grant->lease_id, zero_result(*grant));
     fake_render(c);
     ASSERT_TRUE(wait_for_sessions(c, 0));  // its image written
     ::umask(before);

@@ -310,20 +310,33 @@ void RenderArchive::queue_checkpoint(RenderSlot& slot, const RoundSummary& round
     const std::vector<uint32_t>* planned =
         holds ? r.strategy().round_planned_ahead() : nullptr;
     if (holds && !planned) return;
-    if (!timing.in_flight &&
-        checkpoint_due(
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - timing.ended)
-                .count(),
-            timing.cost_seconds)) {
-        // A copy of the buffers, taken here (far cheaper than writing them), is
+    // A round that reaches the samples the render plans (an upper bound: strategy.h) is
+    // its last: the render's end, queued behind this round's record, records all of it,
+    // so a copy and a write of the buffers here would protect nothing for long.
+    if (r.samples_planned() > 0 && round.samples_total >= r.samples_planned()) return;
+    // Before its first checkpoint here, a render's own seconds and what one is expected
+    // to take: none at its first round end, which protects a round or two of work for a
+    // copy and a write of the whole buffers (docs/FARM.md). A resumed render's seconds
+    // count from its start, so its first round end here checkpoints.
+    const auto now = std::chrono::steady_clock::now();
+    const bool first = timing.ended == std::chrono::steady_clock::time_point{};
+    const double since =
+        first ? round.seconds : std::chrono::duration<double>(now - timing.ended).count();
+    const double cost =
+        first ? expected_checkpoint_seconds(r.merged().pixel_count(), r.aux().kept())
+              : timing.cost_seconds;
+    if (!timing.in_flight && checkpoint_due(since, cost)) {
+        // A copy of the buffers' sums, taken here (no disk, and on every core), is
         // written by the backlog's thread after the round's record, outside the
         // lock. One copy per render waits at a time: a due checkpoint meanwhile
         // is skipped, and the next round's tries again.
         if (!slot.checkpoint_copy)
             slot.checkpoint_copy = std::make_shared<CheckpointCopy>();
         const std::shared_ptr<CheckpointCopy> copy = slot.checkpoint_copy;
-        copy->cp.merged.copy_from(r.merged());  // reuses the memory, copies in bands
-        copy->cp.aux = r.aux();                 // reuses the memory; empty unless kept
+        // The sums only (what the file holds), into the copy's memory, in bands.
+        copy->cp.copy_buffers(r.merged(), r.aux());
+        copy->copy_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - now).count();
         copy->cp.strategy_state = r.strategy().save_state();
         if (planned)
             copy->cp.planned_round.assign(planned->begin(), planned->end());
@@ -360,8 +373,10 @@ void RenderArchive::queue_checkpoint(RenderSlot& slot, const RoundSummary& round
                     std::lock_guard lock(slot->mutex);
                     slot->checkpoint.in_flight = false;
                     if (copy->saved) {
+                        // Its copy counts: it held the render's lock and took the cores.
                         slot->checkpoint.ended = copy->written;
-                        slot->checkpoint.cost_seconds = copy->write_seconds;
+                        slot->checkpoint.cost_seconds =
+                            copy->copy_seconds + copy->write_seconds;
                     }
                 }
             });

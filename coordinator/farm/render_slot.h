@@ -15,18 +15,19 @@ namespace aliquot {
 
 struct CheckpointTiming {
     std::chrono::steady_clock::time_point ended{};  // of the last checkpoint written
-    double cost_seconds = 0;                        // how long writing it took
-    bool in_flight = false;  // a copy waits for the writer: no second one meanwhile
+    double cost_seconds = 0;  // what it took: its copy and its write
+    bool in_flight = false;   // a copy waits for the writer: no second one meanwhile
 };
 
 // The copy of a render's buffers a checkpoint is written from, kept between checkpoints
 // so that taking the next copy reuses its memory: a fresh 150 MB copy at 1920x1080 was
 // mostly the kernel zeroing new pages.
 struct CheckpointCopy {
-    Checkpoint cp;
+    CheckpointSnapshot cp;
     bool saved = false;  // written to disk (a retried write does not write it again)
     std::chrono::steady_clock::time_point written{};
-    double write_seconds = 0;
+    double copy_seconds = 0;   // taking it, under the render's lock
+    double write_seconds = 0;  // writing it
 };
 
 // A bucket's place and whether it converged: a round's buckets are stored when these
