@@ -12,6 +12,7 @@
 #include <memory>
 #include <thread>
 
+#include "checkpoint.h"
 #include "denoised_strategy.h"
 #include "farm_test_results.h"
 #include "lease_scan.h"
@@ -175,6 +176,53 @@ TEST_F(DenoisedRoundEnd, OtherRendersAndItsOwnLeaseScanGoOnWhileItsPlanIsMade) {
     EXPECT_EQ(denoised->session->state(), RenderState::Done);
     EXPECT_GT(denoised->session->rounds_done(), 2u);
     EXPECT_EQ(denoised->session->merged().total_samples(), 8u * 16 * 16);
+}
+
+// A render resumed from a checkpoint plans its first round (a steered one) off the lock
+// too, from start(), which the Coordinator calls under its own lock; it ends with the
+// bytes of a render never interrupted.
+TEST_F(DenoisedRoundEnd, AResumedRenderEndsWithTheBytesOfAnUninterruptedOne) {
+    const RenderSpec spec = spec_of("denoised", 16, 8);
+    const auto session = [&] {
+        return std::make_unique<RenderSession>(
+            "denoised", spec, 0,
+            std::make_unique<DenoisedStrategy>(
+                spec.strategy, spec.width, spec.height,
+                [](const Image& in, const Image*, const Image*) { return in; }));
+    };
+    // Leases and merges until the render ends, the plans of its round ends in between.
+    const auto run_to_end = [&](const SlotPtr& slot) {
+        const auto give_up = std::chrono::steady_clock::now() + kDeadlock;
+        for (bool done = false; !done && std::chrono::steady_clock::now() < give_up;) {
+            merge_all_now(slot);
+            std::lock_guard render(slot->mutex);
+            done = slot->session->finished();
+        }
+        std::lock_guard render(slot->mutex);
+        EXPECT_EQ(slot->session->state(), RenderState::Done);
+        return slot->session->merged().image(true).rgb;
+    };
+
+    Checkpoint saved;
+    auto interrupted = std::make_shared<RenderSlot>();
+    interrupted->session = session();
+    interrupted->session->on_round = [&](RenderSession& r, const RoundSummary& round) {
+        if (round.index != 2) return;
+        saved.merged.copy_from(r.merged());
+        saved.aux = r.aux();
+        saved.strategy_state = r.strategy().save_state();
+        saved.rounds_done = r.rounds_done();
+    };
+    interrupted->session->start();
+    const std::vector<float> whole = run_to_end(interrupted);
+    ASSERT_EQ(saved.rounds_done, 3u);
+
+    auto resumed = std::make_shared<RenderSlot>();
+    resumed->session = session();
+    resumed->session->restore(std::move(saved.merged), saved.strategy_state,
+                              saved.rounds_done, 0, {}, std::move(saved.aux));
+    resumed->session->start();
+    EXPECT_EQ(run_to_end(resumed), whole);
 }
 
 }  // namespace
