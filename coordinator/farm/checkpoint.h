@@ -65,7 +65,8 @@ bool checkpoint_due(double since_last_seconds, double last_cost_seconds);
 // at kFirstCheckpointBytesPerSecond. The first is due once the render has run
 // kCheckpointShare times that (checkpoint_due with the render's seconds), not at its
 // first round end: a 1920x1080 render's first round ended ~0.1 s in, and its copy and
-// write then were a third of a 64-spp render's coordinator CPU on 16 worker cores.
+// write then were a tenth to a third of a 64-spp render's coordinator CPU on 16 worker
+// cores.
 inline constexpr double kFirstCheckpointBytesPerSecond = 1e9;
 double expected_checkpoint_seconds(uint64_t pixels, bool first_hits);
 
