@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "allocation.h"
+#include "bands.h"
 
 namespace aliquot {
 
@@ -17,6 +18,9 @@ constexpr uint64_t kDefaultMaxSamplesPerPixel = 4096;
 // The paper's norm divides by sqrt(sum_c I); a black pixel has I = 0 (and so |I - A| =
 // 0). Flooring sum_c I bounds the gain a nearly black pixel can give its error at 1e4.
 constexpr double kPaperNormFloor = 1e-8;
+
+// Leaves in one band of a pass over leaves: a few, as most are small late in a render.
+constexpr size_t kLeavesPerBand = 16;
 
 uint64_t saturating_mul(uint64_t a, uint64_t b) {
     return (a && b > std::numeric_limits<uint64_t>::max() / a)
@@ -75,49 +79,71 @@ uint64_t DammertzStrategy::planned_samples() const {
 std::vector<double> DammertzStrategy::pixel_errors(const Accumulator& merged,
                                                    const PixelRect& rect) const {
     std::vector<double> errors(rect.size());
-    for (uint32_t row = 0; row < rect.height; ++row) {
-        for (uint32_t col = 0; col < rect.width; ++col) {
-            const size_t i = size_t(rect.y + row) * width_ + rect.x + col;
-            if (!paper_norm_ && merged.half_difference(i) >= 0) {
-                // The seed's norm below, kept by the accumulator as results merge (the
-                // same operations, so the same bits): 8 bytes a pixel to read.
-                errors[size_t(row) * rect.width + col] = merged.half_difference(i);
-                continue;
-            }
-            double even[3], odd[3];
-            merged.half_means(i, even, odd);
-            double e = 0;
-            if (paper_norm_) {
-                // Paper: |I - A| over the channels, I the full mean and A the even half,
-                // normalised by sqrt(sum_c I) as a stand-in for the eye's response.
-                double full[3];
-                merged.mean(i, full);
-                double diff = 0, sum = 0;
-                for (int c = 0; c < 3; ++c) {
-                    diff += std::abs(full[c] - even[c]);
-                    sum += full[c];
+    // Each pixel's error on its own, in bands of rows on the pool's threads (bands.h);
+    // inside another pass (evaluate's, over leaves) on this thread.
+    const size_t band_rows = std::max<size_t>(1, kBandPixels / std::max(rect.width, 1u));
+    for_each_band(rect.height, band_rows, [&](size_t, size_t row0, size_t row1) {
+        for (uint32_t row = uint32_t(row0); row < row1; ++row) {
+            for (uint32_t col = 0; col < rect.width; ++col) {
+                const size_t i = size_t(rect.y + row) * width_ + rect.x + col;
+                if (!paper_norm_ && merged.half_difference(i) >= 0) {
+                    // The seed's norm below, kept by the accumulator as results merge
+                    // (the same operations, so the same bits): 8 bytes a pixel to read.
+                    errors[size_t(row) * rect.width + col] = merged.half_difference(i);
+                    continue;
                 }
-                e = diff / std::sqrt(std::max(sum, kPaperNormFloor));
-            } else {
-                // Seed: the mean absolute difference of the two half images, over RGB.
-                for (int c = 0; c < 3; ++c) e += std::abs(even[c] - odd[c]);
-                e /= 3;
+                double even[3], odd[3];
+                merged.half_means(i, even, odd);
+                double e = 0;
+                if (paper_norm_) {
+                    // Paper: |I - A| over the channels, I the full mean and A the even
+                    // half, normalised by sqrt(sum_c I) as a stand-in for the eye's
+                    // response.
+                    double full[3];
+                    merged.mean(i, full);
+                    double diff = 0, sum = 0;
+                    for (int c = 0; c < 3; ++c) {
+                        diff += std::abs(full[c] - even[c]);
+                        sum += full[c];
+                    }
+                    e = diff / std::sqrt(std::max(sum, kPaperNormFloor));
+                } else {
+                    // Seed: the mean absolute difference of the two half images, over
+                    // RGB.
+                    for (int c = 0; c < 3; ++c) e += std::abs(even[c] - odd[c]);
+                    e /= 3;
+                }
+                errors[size_t(row) * rect.width + col] = e;
             }
-            errors[size_t(row) * rect.width + col] = e;
         }
-    }
+    });
     return errors;
 }
 
 double DammertzStrategy::bucket_error(const std::vector<double>& errors) const {
-    if (errors.empty()) return 0;
     double sum = 0;
     for (double e : errors) sum += e;
-    const double mean = sum / double(errors.size());
+    return bucket_error(sum, errors.size());
+}
+
+double DammertzStrategy::bucket_error(double sum, size_t pixels) const {
+    if (pixels == 0) return 0;
+    const double mean = sum / double(pixels);
     if (!paper_norm_) return mean;
     // The paper's area factor sqrt(N_b / N): a small bucket's error weighs less, so the
     // tree does not chase noise into single pixels.
-    return mean * std::sqrt(double(errors.size()) / (double(width_) * height_));
+    return mean * std::sqrt(double(pixels) / (double(width_) * height_));
+}
+
+double DammertzStrategy::part_error(const std::vector<double>& errors,
+                                    const PixelRect& rect, const PixelRect& part) const {
+    // Row-major over the part, as bucket_error(pixel_errors(merged, part)) sums them.
+    double sum = 0;
+    for (uint32_t y = part.y; y < part.y + part.height; ++y) {
+        const double* row = &errors[size_t(y - rect.y) * rect.width + (part.x - rect.x)];
+        for (uint32_t x = 0; x < part.width; ++x) sum += row[x];
+    }
+    return bucket_error(sum, part.size());
 }
 
 std::optional<std::pair<PixelRect, PixelRect>> DammertzStrategy::split(
@@ -162,30 +188,50 @@ std::optional<std::pair<PixelRect, PixelRect>> DammertzStrategy::split(
     return std::make_pair(first, second);
 }
 
+DammertzStrategy::Judged DammertzStrategy::judge(const Accumulator& merged,
+                                                 Leaf leaf) const {
+    // The halves need a sample each before they can be compared.
+    if (leaf.state != State::active || merged.samples(top_left(leaf.rect, width_)) < 2)
+        return {leaf, std::nullopt};
+    const std::vector<double> errors = pixel_errors(merged, leaf.rect);
+    leaf.error = bucket_error(errors);
+    if (leaf.error <= max_variance_) {
+        leaf.state = State::converged;
+    } else if (leaf.error <= split_factor_ * max_variance_) {
+        if (auto halves = split(leaf.rect, errors, min_bucket_size_)) {
+            // Each half's E from the leaf's errors: the pixels' own, read once.
+            return {Leaf{halves->first, State::active,
+                         part_error(errors, leaf.rect, halves->first)},
+                    Leaf{halves->second, State::active,
+                         part_error(errors, leaf.rect, halves->second)}};
+        }
+        // Too small to split: it keeps sampling as a whole.
+    }
+    return {leaf, std::nullopt};
+}
+
 void DammertzStrategy::evaluate(const Accumulator& merged) {
+    // Each leaf is judged on its own, into its own slot, and the tree put together in
+    // the leaves' order: the same tree whatever the threads. Large leaves one after
+    // another, each in bands of rows (the first leaf is the whole image); the others in
+    // bands of leaves.
+    std::vector<Judged> judged(leaves_.size());
+    std::vector<size_t> small;
+    for (size_t l = 0; l < leaves_.size(); ++l) {
+        if (leaves_[l].rect.size() >= kBandPixels)
+            judged[l] = judge(merged, leaves_[l]);
+        else
+            small.push_back(l);
+    }
+    for_each_band(small.size(), kLeavesPerBand, [&](size_t, size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k)
+            judged[small[k]] = judge(merged, leaves_[small[k]]);
+    });
     std::vector<Leaf> next;
     next.reserve(leaves_.size() + 8);
-    for (Leaf leaf : leaves_) {
-        // The halves need a sample each before they can be compared.
-        if (leaf.state != State::active ||
-            merged.samples(top_left(leaf.rect, width_)) < 2) {
-            next.push_back(leaf);
-            continue;
-        }
-        const std::vector<double> errors = pixel_errors(merged, leaf.rect);
-        leaf.error = bucket_error(errors);
-        if (leaf.error <= max_variance_) {
-            leaf.state = State::converged;
-        } else if (leaf.error <= split_factor_ * max_variance_) {
-            if (auto halves = split(leaf.rect, errors, min_bucket_size_)) {
-                for (const PixelRect& r : {halves->first, halves->second})
-                    next.push_back(
-                        {r, State::active, bucket_error(pixel_errors(merged, r))});
-                continue;
-            }
-            // Too small to split: it keeps sampling as a whole.
-        }
-        next.push_back(leaf);
+    for (const Judged& j : judged) {
+        next.push_back(j.first);
+        if (j.second) next.push_back(*j.second);
     }
     leaves_ = std::move(next);
 }
@@ -233,11 +279,15 @@ std::optional<Round> DammertzStrategy::next_round(const Accumulator& merged) {
         for (auto& [leaf, s] : plan) s = uint32_t(std::min<uint64_t>(s, fit));
     }
     Round round{rounds_, std::vector<uint32_t>(size_t(width_) * height_, 0)};
-    for (const auto& [l, s] : plan) {
-        const PixelRect& r = leaves_[l].rect;
-        for (uint32_t y = r.y; y < r.y + r.height; ++y)
-            std::fill_n(round.spp.begin() + size_t(y) * width_ + r.x, r.width, s);
-    }
+    // The leaves do not overlap: each band of them fills its own pixels.
+    for_each_band(plan.size(), kLeavesPerBand, [&](size_t, size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) {
+            const PixelRect& r = leaves_[plan[k].first].rect;
+            for (uint32_t y = r.y; y < r.y + r.height; ++y)
+                std::fill_n(round.spp.begin() + size_t(y) * width_ + r.x, r.width,
+                            plan[k].second);
+        }
+    });
     ++rounds_;
     evaluate_pending_ = true;
     return round;

@@ -49,7 +49,18 @@ public:
         uint32_t min_size);
 
 private:
+    // A leaf after its evaluation: itself (judged, or left as it was), or its two halves.
+    struct Judged {
+        Leaf first;
+        std::optional<Leaf> second;
+    };
+    Judged judge(const Accumulator& merged, Leaf leaf) const;
     void evaluate(const Accumulator& merged);
+    // E from the sum of `pixels` pixel errors (bucket_error's arithmetic), and of `part`
+    // of `rect` from rect's pixel errors.
+    double bucket_error(double sum, size_t pixels) const;
+    double part_error(const std::vector<double>& errors, const PixelRect& rect,
+                      const PixelRect& part) const;
     std::string stop_reason() const;
 
     uint32_t width_, height_;

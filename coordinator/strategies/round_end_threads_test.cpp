@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "bands.h"
+#include "dammertz_strategy.h"
 #include "error_estimate.h"
 #include "round_cutter.h"
 #include "strategy_params.h"
@@ -107,6 +108,39 @@ TEST(RoundEndThreads, EveryOtherMethodPlansTheSameRoundsWithOneThreadOrFour) {
     StrategyParams uniform = method("uniform");
     uniform.budget *= 3;  // past its first round's 2^22 samples
     expect_same_with_one_and_four_threads(uniform);
+}
+
+// Dammertz judges its leaves in bands of leaves, and a large leaf's pixels in bands of
+// rows: the tree (each leaf's rectangle, state and E, to the bit) is the same with one,
+// two or three threads.
+std::vector<DammertzStrategy::Leaf> dammertz_tree_with_threads(unsigned threads) {
+    const unsigned before = band_threads();
+    set_band_threads(threads);
+    const SyntheticImage image = varied_image();
+    StrategyParams p = method("dammertz");
+    p.max_variance = 0.01;  // leaves split, converge and go on
+    p.split_factor = 1000;
+    p.budget *= 4;
+    p.min_bucket_size = 4;
+    DammertzStrategy strategy(p, image.width(), image.height());
+    Accumulator merged(image.width(), image.height());
+    run_synthetic(strategy, image, merged, 12);
+    set_band_threads(before);
+    return strategy.leaves();
+}
+
+TEST(RoundEndThreads, DammertzGrowsTheSameTreeWithOneTwoOrThreeThreads) {
+    const auto one = dammertz_tree_with_threads(1);
+    EXPECT_GT(one.size(), 20u);  // the tree was split
+    for (unsigned threads : {2u, 3u}) {
+        const auto more = dammertz_tree_with_threads(threads);
+        ASSERT_EQ(one.size(), more.size()) << threads << " threads";
+        for (size_t l = 0; l < one.size(); ++l) {
+            EXPECT_EQ(one[l].rect, more[l].rect) << l;
+            EXPECT_EQ(one[l].state, more[l].state) << l;
+            EXPECT_EQ(std::memcmp(&one[l].error, &more[l].error, sizeof(double)), 0) << l;
+        }
+    }
 }
 
 TEST(RoundEndThreads, BandsCoverEveryItemOnceAtFixedBoundaries) {
