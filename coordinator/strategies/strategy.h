@@ -17,13 +17,14 @@ namespace aliquot {
 
 class AuxSums;
 
-// About how many samples a round holds when a method is free to choose (uniform's
-// doubling, adaptive's delivery of its remainder). The coordinator's work at a round's
-// end grows with the image's pixels (error estimate, checkpoint copy, cutting: about 25
-// ns a pixel), so a round must hold enough samples a pixel for that to stay small beside
-// the tracing: at 2^22 a 1920x1080 round was 2 spp, a tenth of a second on a 16-core
-// farm, and its end took a third of the render (docs/PERFORMANCE.md). 2^25 is 16 spp
-// there, and still a few seconds of one two-core worker between checkpoints.
+// The least of round_samples (below), the most a round holds when a method is free to
+// choose (uniform's doubling stops there; adaptive's and oracle's deliveries are about
+// that large). The coordinator's work at a round's end grows with the image's pixels
+// (error estimate, checkpoint copy, cutting: about 25 ns a pixel), so a round must hold
+// enough samples a pixel for that to stay small beside the tracing: at 2^22 a 1920x1080
+// round was 2 spp, a tenth of a second on a 16-core farm, and its end took a third of
+// the render (docs/PERFORMANCE.md). 2^25 is 16 spp there, and a few seconds of one
+// two-core worker between checkpoints.
 constexpr uint64_t kRoundSamples = uint64_t(1) << 25;
 
 // The least a method's first round holds when it is free to choose (uniform's doubling
