@@ -81,7 +81,8 @@ std::unique_ptr<Denoiser> Denoiser::open(std::string* error) {
 }
 
 std::optional<Image> Denoiser::denoise(const Image& colour, const Image* albedo,
-                                       const Image* normal, std::string* error) const {
+                                       const Image* normal, std::string* error,
+                                       const std::atomic<bool>* stop) const {
     auto fail = [&](std::string why) -> std::optional<Image> {
         if (error) *error = std::move(why);
         return std::nullopt;
@@ -122,6 +123,13 @@ std::optional<Image> Denoiser::denoise(const Image& colour, const Image* albedo,
     api.setFilterBool(filter, "hdr", true);
     // Said, not left to the default, since the bytes depend on it.
     api.setFilterInt(filter, "quality", oidn::kQualityHigh);
+    if (stop != nullptr)
+        api.setFilterProgressMonitorFunction(
+            filter,
+            [](void* user, double) {
+                return !static_cast<const std::atomic<bool>*>(user)->load();
+            },
+            const_cast<std::atomic<bool>*>(stop));
     api.commitFilter(filter);
     if (std::string why = loaded_->take_error(); !why.empty()) {
         api.releaseFilter(filter);

@@ -4,6 +4,7 @@
 // says where it comes from.
 #pragma once
 
+#include <atomic>
 #include <memory>
 #include <optional>
 #include <string>
@@ -38,9 +39,12 @@ public:
     // alone); nullptr when the render has none. nullopt and *error on a size mismatch, a
     // normal without an albedo, or an OIDN error. The same inputs give the same bytes on
     // one machine (docs/DENOISE.md, "Determinism"). Thread-safe: calls on one Denoiser
-    // run one at a time (OIDN serialises a device's work anyway).
+    // run one at a time (OIDN serialises a device's work anyway). With `stop`, OIDN gives
+    // up soon after it turns true (between the network's steps), and the call fails:
+    // minutes of work at 8192x8192 are not waited out for a render that has ended.
     std::optional<Image> denoise(const Image& colour, const Image* albedo,
-                                 const Image* normal, std::string* error) const;
+                                 const Image* normal, std::string* error,
+                                 const std::atomic<bool>* stop = nullptr) const;
 
     // The file the library was loaded from, for logs and the EXR's attributes.
     const std::string& library_path() const;

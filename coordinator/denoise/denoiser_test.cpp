@@ -14,6 +14,8 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+
 #include "test_denoiser.h"
 
 namespace aliquot {
@@ -147,6 +149,25 @@ TEST(Denoiser, SameInputsGiveSameBytesTwiceInOneProcess) {
     const std::optional<Image> third = denoise_fixed_input(*other, &error);
     ASSERT_TRUE(third) << error;
     EXPECT_EQ(bytes_of(*first), bytes_of(*third));
+}
+
+// A render that ends while its round end denoises (issue 33's review): the denoise gives
+// up rather than run its minutes out, and the watch changes no byte when it does not.
+TEST(Denoiser, AStopTurnedOnEndsTheDenoiseAndAStopLeftOffChangesNoByte) {
+    REQUIRE_DENOISER(denoiser);
+    const Image colour = noisy_constant(64, 0.5f, 4);
+    std::string error;
+    std::atomic<bool> stop = true;
+    EXPECT_FALSE(denoiser->denoise(colour, nullptr, nullptr, &error, &stop));
+    EXPECT_FALSE(error.empty());
+    const std::optional<Image> unwatched =
+        denoiser->denoise(colour, nullptr, nullptr, &error);
+    ASSERT_TRUE(unwatched) << error;
+    stop = false;
+    const std::optional<Image> watched =
+        denoiser->denoise(colour, nullptr, nullptr, &error, &stop);
+    ASSERT_TRUE(watched) << error;
+    EXPECT_EQ(bytes_of(*watched), bytes_of(*unwatched));
 }
 
 TEST(Denoiser, SameInputsGiveSameBytesInAnotherProcess) {

@@ -102,6 +102,8 @@ bool bind_api(void* handle, Api* api, std::string* missing) {
            bind(handle, "oidnSetFilterBool", &api->setFilterBool, missing) &&
            bind(handle, "oidnSetFilterInt", &api->setFilterInt, missing) &&
            bind(handle, "oidnCommitFilter", &api->commitFilter, missing) &&
+           bind(handle, "oidnSetFilterProgressMonitorFunction",
+                &api->setFilterProgressMonitorFunction, missing) &&
            bind(handle, "oidnExecuteFilter", &api->executeFilter, missing) &&
            bind(handle, "oidnReleaseFilter", &api->releaseFilter, missing);
 }

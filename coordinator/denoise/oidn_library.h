@@ -33,6 +33,11 @@ struct Api {
     void (*setFilterBool)(Filter, const char* name, bool value);
     void (*setFilterInt)(Filter, const char* name, int value);
     void (*commitFilter)(Filter);
+    // OIDN calls `monitor` as the filter runs; it stops the filter by returning false
+    // (executeFilter then leaves a device error).
+    void (*setFilterProgressMonitorFunction)(Filter,
+                                             bool (*monitor)(void* user, double n),
+                                             void* user);
     void (*executeFilter)(Filter);
     void (*releaseFilter)(Filter);
 };

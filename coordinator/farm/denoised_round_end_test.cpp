@@ -10,6 +10,7 @@
 #include <chrono>
 #include <future>
 #include <memory>
+#include <stdexcept>
 #include <thread>
 
 #include "checkpoint.h"
@@ -23,8 +24,9 @@ namespace {
 
 constexpr auto kDeadlock = std::chrono::seconds(60);
 
-// A denoiser (the identity) whose calls wait until open() once it is shut; entered()
-// is ready once a call has begun. Opened when it goes, so no thread is left waiting.
+// A denoiser (the identity) whose calls wait until open() once it is shut, or until
+// `stop` (when given) turns true, and then throw, as OIDN's do; entered() is ready once a
+// call has begun. Opened when it goes, so no thread is left waiting.
 class GatedDenoiser {
 public:
     GatedDenoiser() : state_(std::make_shared<State>()) {
@@ -35,10 +37,12 @@ public:
     GatedDenoiser(const GatedDenoiser&) = delete;
     GatedDenoiser& operator=(const GatedDenoiser&) = delete;
 
-    DenoiseFunction function() const {
-        return [state = state_](const Image& in, const Image*, const Image*) {
+    DenoiseFunction function(std::shared_ptr<const std::atomic<bool>> stop = {}) const {
+        return [state = state_, stop](const Image& in, const Image*, const Image*) {
             if (!state->entered_once.exchange(true)) state->entered.set_value();
-            state->opened.wait();
+            while (state->opened.wait_for(std::chrono::milliseconds(1)) !=
+                   std::future_status::ready)
+                if (stop && *stop) throw std::runtime_error("denoising stopped");
             return in;
         };
     }
@@ -176,6 +180,34 @@ TEST_F(DenoisedRoundEnd, OtherRendersAndItsOwnLeaseScanGoOnWhileItsPlanIsMade) {
     EXPECT_EQ(denoised->session->state(), RenderState::Done);
     EXPECT_GT(denoised->session->rounds_done(), 2u);
     EXPECT_EQ(denoised->session->merged().total_samples(), 8u * 16 * 16);
+}
+
+// A render cancelled while its round end denoises: the denoiser is told to stop
+// (Strategy::stop_work), so the cancel, under the render's lock, does not wait out a plan
+// of minutes that no one will use.
+TEST_F(DenoisedRoundEnd, ACancelStopsThePlanItWouldOtherwiseWaitFor) {
+    const RenderSpec spec = spec_of("denoised", 16, 8);
+    GatedDenoiser gate;
+    auto stop = std::make_shared<std::atomic<bool>>(false);
+    const SlotPtr denoised = slot_of(std::make_unique<RenderSession>(
+        "denoised", spec, 0,
+        std::make_unique<DenoisedStrategy>(spec.strategy, spec.width, spec.height,
+                                           gate.function(stop), stop)));
+    struct Opener {
+        GatedDenoiser& gate;
+        ~Opener() { gate.open(); }
+    } opener{gate};
+    merge_all_now(denoised);  // the pilot; its end's plan waits at the gate
+    ASSERT_EQ(gate.entered().wait_for(kDeadlock), std::future_status::ready);
+    auto cancel = std::async(std::launch::async, [&] {
+        std::lock_guard render(denoised->mutex);
+        denoised->session->cancel();
+    });
+    const bool returned = cancel.wait_for(kDeadlock) == std::future_status::ready;
+    if (!returned) gate.open();
+    ASSERT_TRUE(returned) << "the cancel waited for the denoiser";
+    std::lock_guard render(denoised->mutex);
+    EXPECT_EQ(denoised->session->state(), RenderState::Cancelled);
 }
 
 // A render resumed from a checkpoint plans its first round (a steered one) off the lock

@@ -9,7 +9,7 @@
 
 namespace aliquot {
 
-DenoiseFunction oidn_denoise_function() {
+DenoiseFunction oidn_denoise_function(std::shared_ptr<const std::atomic<bool>> stop) {
     // One library and device for the process, opened by the first render that asks (a
     // dlopen and OIDN's device take tens of milliseconds); a failure is tried again by
     // the next, so a library installed meanwhile is found.
@@ -27,12 +27,14 @@ DenoiseFunction oidn_denoise_function() {
         }
         denoiser = opened;
     }
-    return [denoiser](const Image& colour, const Image* albedo, const Image* normal) {
-        std::string error;
-        std::optional<Image> out = denoiser->denoise(colour, albedo, normal, &error);
-        if (!out) throw std::runtime_error("denoising a half image failed: " + error);
-        return std::move(*out);
-    };
+    return
+        [denoiser, stop](const Image& colour, const Image* albedo, const Image* normal) {
+            std::string error;
+            std::optional<Image> out =
+                denoiser->denoise(colour, albedo, normal, &error, stop.get());
+            if (!out) throw std::runtime_error("denoising a half image failed: " + error);
+            return std::move(*out);
+        };
 }
 
 }  // namespace aliquot

@@ -120,13 +120,15 @@ std::vector<double> window_median(const std::vector<double>& v, uint32_t w, uint
 }  // namespace
 
 DenoisedStrategy::DenoisedStrategy(const StrategyParams& p, uint32_t width,
-                                   uint32_t height, DenoiseFunction denoise)
+                                   uint32_t height, DenoiseFunction denoise,
+                                   std::shared_ptr<std::atomic<bool>> stop)
     : width_(width),
       height_(height),
       budget_(sample_budget(p, size_t(width) * height)),
       cap_(spp_cap(p)),
       steer_rounds_(std::max<uint32_t>(p.steer_rounds, 1)),
-      denoise_(std::move(denoise)) {
+      denoise_(std::move(denoise)),
+      stop_(std::move(stop)) {
     if (!denoise_) throw std::invalid_argument("method 'denoised' needs a denoiser");
     const size_t pixels = std::max<size_t>(size_t(width) * height, 1);
     // optimal's floor tied to the budget: a share of the mean spp, never below min_spp,

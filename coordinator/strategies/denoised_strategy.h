@@ -6,8 +6,10 @@
 // reconstruction; the .cpp says why and from where).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -27,14 +29,18 @@ using DenoiseFunction =
 // Open Image Denoise through the denoise room, loaded once for the process; throws
 // std::invalid_argument, saying what was tried and how to install it, when it is not
 // there, so a render of method `denoised` is refused at once rather than failing later.
-DenoiseFunction oidn_denoise_function();
+// Once `stop` (when given) turns true, a denoise gives up soon and throws.
+DenoiseFunction oidn_denoise_function(
+    std::shared_ptr<const std::atomic<bool>> stop = nullptr);
 
 class DenoisedStrategy : public Strategy {
 public:
     // Uses budget (or spp), min_spp, floor_fraction, steer_rounds (0 is taken as 1: no
     // doubling rounds, each would need its own denoised plan) and max_spp.
+    // `stop`, when given, is what `denoise` watches: stop_work sets it.
     DenoisedStrategy(const StrategyParams& params, uint32_t width, uint32_t height,
-                     DenoiseFunction denoise);
+                     DenoiseFunction denoise,
+                     std::shared_ptr<std::atomic<bool>> stop = nullptr);
 
     std::string name() const override { return "denoised"; }
     std::optional<Round> next_round(const Accumulator& merged) override;
@@ -43,6 +49,10 @@ public:
     // `merged` (read_round_end) and returns the work that plans from the copy. The round
     // is the one next_round would plan in place, bit for bit.
     std::function<void()> take_round_end(const Accumulator& merged) override;
+    // A round end's OIDN passes give up (a render cancelled mid-plan waits for them).
+    void stop_work() override {
+        if (stop_) *stop_ = true;
+    }
     uint64_t planned_samples() const override { return budget_; }
     nlohmann::json save_state() const override;
     void restore_state(const nlohmann::json& state) override;
@@ -95,6 +105,7 @@ private:
     uint32_t min_spp_, cap_, steer_rounds_;
     uint64_t pilot_spp_;
     DenoiseFunction denoise_;
+    std::shared_ptr<std::atomic<bool>> stop_;
     const AuxSums* first_hits_ = nullptr;  // the render's, while the strategy lives
 
     uint32_t rounds_ = 0;

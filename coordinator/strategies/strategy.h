@@ -88,6 +88,9 @@ public:
     virtual std::function<void()> take_round_end(const Accumulator& /*merged*/) {
         return {};
     }
+    // The render has ended: work handed out (take_work_ahead, take_round_end) may give
+    // up early, its plan abandoned. The caller still waits for it to end.
+    virtual void stop_work() {}
     // Whether the strategy holds a round planned before the last round's results merged:
     // its state then does not follow from the merged buffers alone. A checkpoint taken
     // then holds that round's counts too (round_planned_ahead, once its work has run),

@@ -166,9 +166,12 @@ std::unique_ptr<Strategy> make_strategy(const StrategyParams& p, uint32_t width,
         return std::make_unique<AdaptiveStrategy>(p, width, height);
     if (p.method == "oracle") return std::make_unique<OracleStrategy>(p, width, height);
     if (p.method == "cycles") return std::make_unique<CyclesStrategy>(p, width, height);
-    if (p.method == "denoised")
+    if (p.method == "denoised") {
+        // Its OIDN passes give up when its render ends (Strategy::stop_work).
+        auto stop = std::make_shared<std::atomic<bool>>(false);
         return std::make_unique<DenoisedStrategy>(p, width, height,
-                                                  oidn_denoise_function());
+                                                  oidn_denoise_function(stop), stop);
+    }
     return std::make_unique<OptimalStrategy>(p, width, height,
                                              p.method == "optimal-time");
 }
