@@ -1,7 +1,10 @@
 #include "client.h"
 
+#include <grpc/support/log.h>
+
 #include <cctype>
 #include <cstdio>
+#include <mutex>
 #include <thread>
 
 #include "commands.h"
@@ -9,8 +12,44 @@
 
 namespace aliquot::cli {
 
+namespace {
+
+// gRPC core's own lines ("E1204 ... ssl_transport_security.cc:1501] Handshake failed
+// ...", once per retry) are not for the user of a client command: check() says in one
+// line what failed and what to do. The last is kept for the reason it names, which the
+// call's status often lacks.
+std::mutex grpc_line_mutex;
+std::string last_grpc_line;
+
+void keep_grpc_line(gpr_log_func_args* args) {
+    if (!args->message) return;
+    std::lock_guard lock(grpc_line_mutex);
+    last_grpc_line = args->message;
+}
+
+std::string lowercase(std::string s) {
+    for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return s;
+}
+
+// What a coordinator (or whatever answers at its address) says, as one line of bounded
+// length: no control character of its can end the line or move the terminal's cursor.
+std::string one_line(const std::string& text) {
+    constexpr size_t kLongest = 300;
+    std::string out;
+    for (const char c : text.substr(0, kLongest)) {
+        const auto u = static_cast<unsigned char>(c);
+        out += u < 0x20 || u == 0x7f ? '?' : c;
+    }
+    if (text.size() > kLongest) out += "...";
+    return out;
+}
+
+}  // namespace
+
 ClientConnection::ClientConnection(CoordinatorEndpoint endpoint)
     : endpoint_(std::move(endpoint)) {
+    gpr_set_log_function(keep_grpc_line);
     grpc::ChannelArguments args;
     // While waiting for a coordinator that is starting, try again every 100 ms at first
     // and never more than a second apart (gRPC's default backoff grows to minutes).
@@ -35,17 +74,38 @@ std::unique_ptr<grpc::ClientContext> ClientConnection::context(int seconds) cons
     return ctx;
 }
 
-// gRPC reports a failed TLS handshake as an unreachable coordinator. Whether TLS is the
-// likely cause, and what to do about it, for the one line the user reads.
-static std::string tls_hint(const grpc::Status& status, bool using_tls) {
-    std::string message = status.error_message();
-    for (char& c : message) c = char(std::tolower(static_cast<unsigned char>(c)));
-    const bool handshake = message.find("ssl") != std::string::npos ||
-                           message.find("tls") != std::string::npos ||
-                           message.find("handshake") != std::string::npos ||
-                           message.find("certificate") != std::string::npos;
-    if (using_tls && handshake)
-        return "; TLS handshake failed: is the coordinator's certificate signed by the "
+// Why the coordinator could not be reached, and what to do, from gRPC's reason (the
+// call's status and gRPC's last line): a port nobody listens on, a name that does not
+// resolve, a TLS handshake that failed and why.
+static std::string unreachable_hint(const grpc::Status& status,
+                                    const std::string& address, bool using_tls) {
+    std::string reason = lowercase(status.error_message());
+    {
+        std::lock_guard lock(grpc_line_mutex);
+        reason += " " + lowercase(last_grpc_line);
+    }
+    const auto says = [&](const char* text) {
+        return reason.find(text) != std::string::npos;
+    };
+    if (says("connection refused"))
+        return ": nothing listens there; start the coordinator (aliquot coordinator "
+               "--grpc " +
+               address +
+               ") or name the right address (--coordinator, ALIQUOT_COORDINATOR)";
+    if (says("dns") || says("name or service not known") || says("resolution"))
+        return ": its name does not resolve; check --coordinator (or "
+               "ALIQUOT_COORDINATOR)";
+    if (using_tls && (says("wrong version number") || says("packet length too long") ||
+                      says("http_request")))
+        return ": it does not serve TLS; drop --tls-ca, or start it with --tls-cert and "
+               "--tls-key";
+    if (using_tls && says("certificate"))
+        return ": its TLS certificate is not signed by the --tls-ca CA or not issued for "
+               "this address; pass the CA that signed it, and an address the certificate "
+               "names";
+    if (using_tls && (says("ssl") || says("tls") || says("handshake")))
+        return ": the TLS handshake failed; is the coordinator's certificate signed by "
+               "the "
                "--tls-ca CA and issued for this address, and does the coordinator serve "
                "TLS?";
     if (using_tls) return "";
@@ -63,14 +123,31 @@ std::string ClientConnection::waited() const {
 
 void ClientConnection::check(const grpc::Status& status, const std::string& what) const {
     if (status.ok()) return;
+    const std::string& address = endpoint_.address;
+    const std::string token_advice =
+        "; this call needs the client token: pass the client.token of the "
+        "coordinator's --data directory with --token-file or ALIQUOT_TOKEN";
     switch (status.error_code()) {
+        case grpc::StatusCode::CANCELLED:  // the coordinator stopping ends its calls
+            throw CommandError("the coordinator at " + address + " stopped answering (" +
+                               what + "); is it still running? (it ended the call)");
         case grpc::StatusCode::UNAVAILABLE:
         case grpc::StatusCode::DEADLINE_EXCEEDED:
-            throw CommandError("cannot reach coordinator at " + endpoint_.address + " (" +
-                               what + ")" + (connected_ ? "" : waited()) +
-                               tls_hint(status, !endpoint_.tls_ca_pem.empty()));
+            if (connected_)
+                throw CommandError(
+                    "the coordinator at " + address + " stopped answering (" + what +
+                    "); is it still running? (" + one_line(status.error_message()) + ")");
+            throw CommandError(
+                "cannot reach coordinator at " + address + " (" + what + ")" + waited() +
+                unreachable_hint(status, address, !endpoint_.tls_ca_pem.empty()));
+        case grpc::StatusCode::UNAUTHENTICATED:
+            throw CommandError(what + ": the coordinator at " + address +
+                               " does not accept this token" + token_advice);
+        case grpc::StatusCode::PERMISSION_DENIED:
+            throw CommandError(what + ": the coordinator at " + address +
+                               " refused the worker token" + token_advice);
         default:
-            throw CommandError(what + ": " + status.error_message());
+            throw CommandError(what + ": " + one_line(status.error_message()));
     }
 }
 

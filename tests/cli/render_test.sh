@@ -340,5 +340,70 @@ s = json.loads(sys.argv[1])
 assert s["state"] == "queued" and s["queue_position"] == 1 and s["name"] == "", s
 PY
 
+# Review of issue 33: a client command that fails says in one line what failed and what
+# to do, never gRPC core's own lines ("E1204 ... Handshake failed ...", one per retry),
+# and exits 1: a token the coordinator does not know, the worker token, TLS on one side
+# only, a CA that did not sign the certificate, a coordinator that goes away.
+for cmd in "status" "status $a" "watch $a" "logs $a" "logs $a --follow" "cancel $a" \
+    "fetch $a --out $tmp/w.exr" "submit --resolution 8x8 --spp 1" "workers" "priority $a 1" "delete $a"; do
+    # shellcheck disable=SC2086 # the command and its arguments are words
+    expect_error "$cmd with a token the coordinator does not know" 1 \
+        "the coordinator at $addr does not accept this token; this call needs the client token: pass the client.token" \
+        "$aliquot" $cmd --coordinator "$addr" --token-file "$tmp/token"
+done
+expect_error "status with the worker token" 1 "refused the worker token; this call needs the client token" \
+    "$aliquot" status --coordinator "$addr" --token-file "$tmp/farm/worker.token"
+expect_error "a coordinator nobody runs" 1 "127.0.0.1:1 (status) after waiting 0.2 s (--connect-timeout): nothing listens there; start the coordinator" \
+    "$aliquot" status --coordinator 127.0.0.1:1 --token-file "$tmp/token" --connect-timeout 0.2
+if command -v openssl >/dev/null; then
+    ca() {
+        openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 2 \
+            -subj "/CN=aliquot cli test $1" -keyout "$tmp/$1.key" -out "$tmp/$1.pem" 2>/dev/null
+    }
+    ca ca && ca other-ca &&
+        openssl req -new -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -subj "/CN=coordinator" \
+            -keyout "$tmp/server.key" -out "$tmp/server.csr" 2>/dev/null &&
+        printf '%s\n' 'subjectAltName = IP:127.0.0.1' 'extendedKeyUsage = serverAuth' >"$tmp/server.ext" &&
+        openssl x509 -req -in "$tmp/server.csr" -CA "$tmp/ca.pem" -CAkey "$tmp/ca.key" -CAcreateserial \
+            -days 2 -extfile "$tmp/server.ext" -out "$tmp/server.pem" 2>/dev/null
+    expect_error "status with --tls-ca against a plaintext coordinator" 1 \
+        "$addr (status) after waiting 1.0 s (--connect-timeout): it does not serve TLS; drop --tls-ca" \
+        "$aliquot" status "${client[@]}" --tls-ca "$tmp/ca.pem" --connect-timeout 1
+    tls_port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+    tls_addr=127.0.0.1:$tls_port
+    "$aliquot" coordinator --grpc "$tls_addr" --data "$tmp/tls-farm" --tls-cert "$tmp/server.pem" \
+        --tls-key "$tmp/server.key" >"$tmp/tls-coordinator.log" 2>&1 &
+    tls_pid=$!
+    trap 'kill $coordinator_pid $worker_pid $tls_pid 2>/dev/null; wait 2>/dev/null; rm -rf "$tmp"' EXIT
+    tls_client=(--coordinator "$tls_addr" --token-file "$tmp/tls-farm/client.token")
+    for _ in $(seq 100); do
+        "$aliquot" status "${tls_client[@]}" --tls-ca "$tmp/ca.pem" --connect-timeout 0.2 >/dev/null 2>&1 && break
+        sleep 0.1
+    done
+    expect_error "status without --tls-ca against a TLS coordinator" 1 \
+        "$tls_addr (status) after waiting 1.0 s (--connect-timeout); if the coordinator serves TLS (--tls-cert), pass --tls-ca with its CA" \
+        "$aliquot" status "${tls_client[@]}" --connect-timeout 1
+    expect_error "status trusting another CA" 1 \
+        "its TLS certificate is not signed by the --tls-ca CA or not issued for this address" \
+        "$aliquot" status "${tls_client[@]}" --tls-ca "$tmp/other-ca.pem" --connect-timeout 1
+    # A coordinator that goes away under `logs --follow` (a queued render: no worker here).
+    queued=$("$aliquot" submit "${tls_client[@]}" --tls-ca "$tmp/ca.pem" --resolution 8x8 --spp 1)
+    timeout 60 "$aliquot" logs "$queued" --follow "${tls_client[@]}" --tls-ca "$tmp/ca.pem" \
+        >"$tmp/follow.out" 2>"$tmp/follow.err" &
+    follow_pid=$!
+    for _ in $(seq 100); do grep -q submitted "$tmp/follow.out" && break; sleep 0.1; done
+    kill $tls_pid
+    wait $tls_pid 2>/dev/null
+    wait $follow_pid
+    status=$?
+    err=$(cat "$tmp/follow.err")
+    [[ $status -eq 1 && $(wc -l <"$tmp/follow.err") -eq 1 &&
+        $err == *"the coordinator at $tls_addr stopped answering (logs $queued); is it still running?"* ]] &&
+        pass "logs --follow says in one line that its coordinator stopped answering" ||
+        fail "logs --follow says in one line that its coordinator stopped answering (status $status: $err)"
+else
+    fail "openssl is needed for the TLS cases (scripts/install-deps.sh)"
+fi
+
 echo "$passed passed, $failed failed"
 [[ $failed -eq 0 ]]

@@ -149,8 +149,8 @@ refused() {
 }
 refused "a client without --tls-ca is refused, told to pass it" "pass --tls-ca" \
     --token-file "$DATA/client.token"
-refused "a client trusting another CA is refused, told the handshake failed" \
-    "TLS handshake failed" --token-file "$DATA/client.token" --tls-ca "$TMP/other-ca.pem"
+refused "a client trusting another CA is refused, told the CA did not sign the certificate" \
+    "not signed by the --tls-ca CA" --token-file "$DATA/client.token" --tls-ca "$TMP/other-ca.pem"
 refused "a client with the CA but the worker token is refused" "needs the client token" \
     --token-file "$DATA/worker.token" --tls-ca "$TMP/ca.pem"
 
