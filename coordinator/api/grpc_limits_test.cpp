@@ -401,10 +401,12 @@ TEST_F(GrpcFetchImage, ConcurrentFetchesOfALargeStoredImageHoldNoCopyOfIt) {
     const auto file = coordinator_->image_file(id);
     ASSERT_TRUE(file);
     {
-        // In its place a 2048x2048 image with both AOV layers: 80 MB as floats.
+        // In its place a 2048x2048 image with both AOV layers: 80 MB as floats, a
+        // megabyte or two on disk (all zero: RLE, issue 33, makes runs of zeros, where a
+        // constant 1.0f took 18 MB, which the fetches below would hold whole as clients).
         Image big(2048, 2048);
         for (const char* name : {"sampleCount.Y", "variance.Y"})
-            big.extra.push_back({name, std::vector<float>(big.pixel_count(), 1.0f)});
+            big.extra.push_back({name, std::vector<float>(big.pixel_count(), 0.0f)});
         write_exr(*file, big);
     }
     const testing::PeakMemory peak;
