@@ -117,23 +117,6 @@ void AdaptiveStrategy::plan_remainder() {
     deliveries_ = uint32_t(std::max<uint64_t>(1, (given + round - 1) / round));
 }
 
-void AdaptiveStrategy::start_deliveries() {
-    const size_t pixels = extra_.size();
-    const uint64_t k = deliveries_, r = delivered_;
-    whole_.resize(pixels);
-    part_.resize(pixels);
-    carried_.resize(pixels);
-    if (k == 0) return;  // nothing is delivered
-    for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-            whole_[i] = uint32_t(extra_[i] / k);
-            part_[i] = uint32_t(extra_[i] % k);
-            carried_[i] = uint32_t(uint64_t(part_[i]) * r % k);  // deliveries made
-        }
-    });
-    std::vector<uint32_t>().swap(extra_);  // all it says is in the three
-}
-
 std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {
     const size_t pixels = size_t(width_) * height_;
     if (phase_ == Phase::initial) {
@@ -155,23 +138,25 @@ std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {
         const uint64_t spent = merged.total_samples();
         remainder_ = budget_ > spent ? budget_ - spent : 0;
         plan_remainder();
-        start_deliveries();
         phase_ = Phase::deliver;
     }
     if (phase_ == Phase::deliver && delivered_ < deliveries_) {
         // Delivery r of K gives floor(a (r+1) / K) - floor(a r / K): the parts add up to
-        // a. With a = whole K + part that is whole, and one more when the remainder
-        // carried, part r mod K, reaches K with part added: no division a pixel (the
-        // quotients were most of this round end at 1920x1080). In bands.
+        // a.
         Round round{rounds_, std::vector<uint32_t>(pixels)};
-        const uint64_t k = deliveries_;
+        const uint64_t r = delivered_, k = deliveries_;
+        // In bands, and without a 64-bit division a pixel (most of this pass's time at
+        // 1920x1080): the quotient from floating point, then corrected to the exact one.
+        const auto quotient = [k, kd = double(k)](uint64_t x) {
+            uint64_t q = uint64_t(double(x) / kd);
+            while (q * k > x) --q;
+            while ((q + 1) * k <= x) ++q;
+            return q;
+        };
         for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
-            for (size_t i = begin; i < end; ++i) {
-                const uint64_t carry = uint64_t(carried_[i]) + part_[i];
-                const uint64_t more = carry >= k;
-                carried_[i] = uint32_t(carry - more * k);
-                round.spp[i] = whole_[i] + uint32_t(more);
-            }
+            for (size_t i = begin; i < end; ++i)
+                round.spp[i] = uint32_t(quotient(uint64_t(extra_[i]) * (r + 1)) -
+                                        quotient(uint64_t(extra_[i]) * r));
         });
         ++delivered_;
         if (round.total() > 0) {
@@ -225,7 +210,6 @@ void AdaptiveStrategy::restore_state(const nlohmann::json& state) {
     if (planned) plan_remainder();
     deliveries_ = state.at("deliveries").get<uint32_t>();
     delivered_ = state.at("delivered").get<uint32_t>();
-    if (planned) start_deliveries();
 }
 
 }  // namespace aliquot

@@ -37,8 +37,6 @@ private:
     enum class Phase { initial, allocate, deliver, done };
     std::vector<PixelRect> grid() const;
     void plan_remainder();
-    // whole_, part_ and carried_ from extra_, deliveries_ and delivered_.
-    void start_deliveries();
 
     uint32_t width_, height_;
     uint64_t budget_;
@@ -50,10 +48,6 @@ private:
     uint64_t remainder_ = 0, unspent_ = 0;
     uint32_t deliveries_ = 0, delivered_ = 0, rounds_ = 0;
     std::vector<uint32_t> extra_;  // per pixel, derived from weights_ (not saved)
-    // Each pixel's extra a = whole_ * deliveries_ + part_, and part_ * delivered_ mod
-    // deliveries_ (carried_): what each delivery gives follows from these without a
-    // division (not saved; extra_ is emptied once they are made).
-    std::vector<uint32_t> whole_, part_, carried_;
 };
 
 }  // namespace aliquot

@@ -220,37 +220,3 @@ TEST(Adaptive, ALargeRemainderIsDeliveredInEighthsOfTheBudget) {
 
 }  // namespace
 }  // namespace aliquot
-
-namespace aliquot {
-namespace {
-
-TEST(Adaptive, DeliveryRGivesEachPixelItsShareOfTheRemainderRoundedAsFloors) {
-    // A pixel's extra a over K deliveries: delivery r gives floor(a (r+1) / K) -
-    // floor(a r / K), so the parts differ by at most one and add up to a; counted
-    // without a division a pixel, the same counts. Noise that varies by bucket, so the
-    // extras are not multiples of K.
-    SyntheticImage image(64, 64, 3);
-    for (uint32_t y = 0; y < 64; ++y)
-        for (uint32_t x = 0; x < 64; ++x)
-            image.at(x, y) = {0.5, 0.01 * (1 + x / 16 + y / 8)};
-    StrategyParams p = adaptive(23 * kRoundSamples + 12345, 0.5, 1.5);
-    p.initial_spp = 4;
-    AdaptiveStrategy strategy(p, 64, 64);
-    Accumulator merged(64, 64);
-    run_synthetic(strategy, image, merged, 1);  // the initial pass
-    std::vector<std::vector<uint32_t>> deliveries;
-    while (const auto round = strategy.next_round(merged))
-        deliveries.push_back(round->spp);
-    const uint64_t k = deliveries.size();
-    ASSERT_GE(k, 3u);
-    for (size_t i = 0; i < 64 * 64; ++i) {
-        uint64_t a = 0;
-        for (const auto& d : deliveries) a += d[i];
-        for (uint64_t r = 0; r < k; ++r)
-            ASSERT_EQ(deliveries[r][i], a * (r + 1) / k - a * r / k)
-                << "pixel " << i << ", delivery " << r << " of " << k << ", a " << a;
-    }
-}
-
-}  // namespace
-}  // namespace aliquot
