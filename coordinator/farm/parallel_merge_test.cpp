@@ -38,6 +38,17 @@ uint64_t samples_of(const LeaseGrant& grant) {
     return n;
 }
 
+// The samples an image's "sampleCount.Y" layer shows.
+uint64_t samples_shown(const Image& image) {
+    for (const Image::Channel& ch : image.extra)
+        if (ch.name == "sampleCount.Y") {
+            double shown = 0;
+            for (const float v : ch.values) shown += v;
+            return uint64_t(shown);
+        }
+    return 0;
+}
+
 // Holds the first merge that reaches its add until released.
 struct HeldAdd {
     std::promise<void> reached, release;
@@ -115,14 +126,76 @@ TEST(ParallelMerges, ACancelDuringAMergeWaitsForItsAdd) {
     EXPECT_EQ(merge.get(), CompleteStatus::Merged);
     EXPECT_EQ(ended->samples_done, samples_of(*ga));
     // The image holds exactly the samples the ended render counts.
-    const Image image = *c.image(id, true);
-    const auto spp =
-        std::find_if(image.extra.begin(), image.extra.end(),
-                     [](const Image::Channel& ch) { return ch.name == "sampleCount.Y"; });
-    ASSERT_NE(spp, image.extra.end());
-    double shown = 0;
-    for (const float v : spp->values) shown += v;
-    EXPECT_EQ(uint64_t(shown), samples_of(*ga));
+    EXPECT_EQ(samples_shown(*c.image(id, true)), samples_of(*ga));
+}
+
+// An image read while a merge is mid-add waits for the add: a preview never shows half
+// a result, nor a render's samples without the sums they came with.
+TEST(ParallelMerges, AnImageReadDuringAMergeWaitsForItsAdd) {
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(spec_of("uniform", 64, 4));
+    const std::string a = c.register_worker("a", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    ASSERT_TRUE(ga);
+    HeldAdd held;
+    c.set_while_adding_for_test(id, held.hook());
+    auto merge = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    held.reached.get_future().wait();
+    auto read = std::async(std::launch::async, [&] { return *c.image(id, true); });
+    read.wait_for(milliseconds(300));  // as in the cancel's test
+    held.release.set_value();
+    EXPECT_EQ(samples_shown(read.get()), samples_of(*ga));
+    EXPECT_EQ(merge.get(), CompleteStatus::Merged);
+}
+
+// A result refused off the lock while another merge of the render is mid-add: rejected,
+// nothing of it added, its job traced again; the render ends as one worker alone.
+TEST(ParallelMerges, AResultRefusedBesideAnotherMergeIsTracedAgain) {
+    const RenderSpec spec = spec_of("uniform", 64, 4);
+    Image alone;
+    {
+        Coordinator c(CoordinatorOptions{});
+        const std::string id = c.submit(spec);
+        const std::string session = c.register_worker("alone", 1).session;
+        while (!is_terminal(c.info(id)->state))
+            if (auto grant = c.lease(session, milliseconds(20)))
+                c.complete(session, grant->lease_id, made_up_result(*grant));
+        alone = *c.image(id, true);
+    }
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(spec);
+    const std::string a = c.register_worker("a", 8).session;
+    const std::string b = c.register_worker("b", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    const std::optional<LeaseGrant> gb = c.lease(b, milliseconds(0));
+    ASSERT_TRUE(ga && gb);
+    HeldAdd held;
+    c.set_while_adding_for_test(id, held.hook());
+    auto first = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    held.reached.get_future().wait();
+    SampleJobResult bad = made_up_result(*gb);
+    bad.pixels.back().samples += 1;  // not what its job asked for
+    const CompleteOutcome refused = c.complete(b, gb->lease_id, std::move(bad));
+    EXPECT_EQ(refused.status, CompleteStatus::Rejected);
+    EXPECT_NE(refused.message.find("job asked for"), std::string::npos)
+        << refused.message;
+    held.release.set_value();
+    EXPECT_EQ(first.get(), CompleteStatus::Merged);
+    EXPECT_EQ(c.info(id)->samples_done, samples_of(*ga));
+    const std::string w = c.register_worker("w", 1).session;
+    while (!is_terminal(c.info(id)->state))
+        if (auto grant = c.lease(w, milliseconds(20)))
+            c.complete(w, grant->lease_id, made_up_result(*grant));
+    ASSERT_EQ(c.info(id)->state, RenderState::Done);
+    const Image together = *c.image(id, true);
+    EXPECT_EQ(together.rgb, alone.rgb);
+    ASSERT_EQ(together.extra.size(), alone.extra.size());
+    for (size_t e = 0; e < alone.extra.size(); ++e)
+        EXPECT_EQ(together.extra[e].values, alone.extra[e].values);
 }
 
 // Many workers merging one render's jobs at once, rounds planned ahead and results held
