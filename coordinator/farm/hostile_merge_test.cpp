@@ -1,0 +1,173 @@
+// Issue 33 review: merges added off the render's lock meet leases that expire, results
+// refused after their lease ended, abandons and readers, and still add each job once.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <future>
+#include <mutex>
+#include <random>
+#include <set>
+#include <thread>
+#include <utility>
+
+#include "coordinator.h"
+#include "farm_test_results.h"
+#include "scene_loader.h"
+
+namespace aliquot {
+namespace {
+
+using std::chrono::milliseconds;
+
+RenderSpec hostile_spec(const char* method, uint32_t side, uint32_t spp) {
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = side;
+    spec.seed = 7;
+    spec.strategy.method = method;
+    if (spec.strategy.method == "uniform") {
+        spec.strategy.spp = spp;
+    } else {
+        spec.strategy.spp = 0;
+        spec.strategy.budget = uint64_t(side) * side * spp;
+    }
+    return spec;
+}
+
+Image rendered_alone(const RenderSpec& spec) {
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(spec);
+    const std::string session = c.register_worker("alone", 1).session;
+    while (!is_terminal(c.info(id)->state))
+        if (auto grant = c.lease(session, milliseconds(20)))
+            c.complete(session, grant->lease_id, made_up_result(*grant));
+    EXPECT_EQ(c.info(id)->state, RenderState::Done);
+    return *c.image(id, true);
+}
+
+void expect_same_image(const Image& a, const Image& b, const std::string& what) {
+    EXPECT_EQ(a.rgb, b.rgb) << what;
+    ASSERT_EQ(a.extra.size(), b.extra.size()) << what;
+    for (size_t e = 0; e < a.extra.size(); ++e)
+        EXPECT_EQ(a.extra[e].values, b.extra[e].values) << what << " " << a.extra[e].name;
+}
+
+// A lease whose deadline passes while its result is being added (off the render's
+// lock) is not expired and issued again: its job's pixels are added once, by its holder.
+TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
+    CoordinatorOptions options;
+    options.lease_time = milliseconds(1);
+    Coordinator c(options);
+    const RenderSpec spec = hostile_spec("uniform", 64, 4);  // one round of 16 jobs
+    const std::string id = c.submit(spec);
+    const std::string a = c.register_worker("a", 8).session;
+    const std::string b = c.register_worker("b", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    ASSERT_TRUE(ga);
+    std::promise<void> reached, release;
+    std::shared_future<void> released = release.get_future().share();
+    std::atomic<bool> first{true};
+    c.set_while_adding_for_test(id, [&](size_t) {
+        if (!first.exchange(false)) return;
+        reached.set_value();
+        released.wait();
+    });
+    auto merge = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    reached.get_future().wait();
+    // Past its deadline (sleeping longer only makes sure), and swept.
+    std::this_thread::sleep_for(milliseconds(20));
+    c.tick();
+    uint64_t samples = 0;
+    for (const uint32_t n : ga->job.counts) samples += n;
+    while (const std::optional<LeaseGrant> gb = c.lease(b, milliseconds(0))) {
+        EXPECT_FALSE(gb->job.rect == ga->job.rect) << "a job mid-merge was issued again";
+        for (const uint32_t n : gb->job.counts) samples += n;
+        EXPECT_EQ(c.complete(b, gb->lease_id, made_up_result(*gb)).status,
+                  CompleteStatus::Merged);
+    }
+    release.set_value();
+    EXPECT_EQ(merge.get(), CompleteStatus::Merged);
+    ASSERT_EQ(c.info(id)->state, RenderState::Done);
+    EXPECT_EQ(samples, uint64_t(64) * 64 * 4);
+    EXPECT_EQ(c.info(id)->samples_done, samples);
+    expect_same_image(*c.image(id, true), rendered_alone(spec), "uniform");
+}
+
+// Six workers on one render, rounds planned ahead and results held for them, while a
+// tick expires leases: some results come unlike their jobs (refused after their lease
+// ended, off the lock), some come after their lease expired and was issued again, some
+// leases are given back, and two workers read the image as they go. Each job is added
+// once, in round order: the render's bytes are those of one worker alone.
+TEST(HostileMerges, RefusedExpiredAndAbandonedResultsEndAsOneWorkerAlone) {
+    for (const auto& [method, spp] : std::vector<std::pair<const char*, uint32_t>>{
+             {"uniform", 8192}, {"optimal", 16}, {"adaptive", 8192}, {"dammertz", 256}}) {
+        const RenderSpec spec = hostile_spec(method, 64, spp);
+        CoordinatorOptions options;
+        options.lease_time = milliseconds(50);
+        options.failure_policy.blocklist_after = 1000;  // refusals here are the test's
+        options.failure_policy.max_job_failures = 1000;
+        Coordinator c(options);
+        const std::string id = c.submit(spec);
+        std::mutex seen_mutex;
+        std::set<std::pair<uint64_t, uint64_t>> seen;  // a job's corner, first sample
+        std::atomic<bool> done{false};
+        std::thread ticker([&] {
+            while (!done) {
+                c.tick();
+                std::this_thread::sleep_for(milliseconds(2));
+            }
+        });
+        std::vector<std::thread> threads;
+        for (int w = 0; w < 6; ++w)
+            threads.emplace_back([&, w] {
+                std::mt19937 rng(w);
+                std::string name = "w";  // appended: GCC 12 warns falsely on "w" + ...
+                name += std::to_string(w);
+                const std::string session = c.register_worker(name, 2).session;
+                while (!is_terminal(c.info(id)->state)) {
+                    const std::optional<LeaseGrant> grant =
+                        c.lease(session, milliseconds(5));
+                    if (!grant) continue;
+                    SampleJobResult result = made_up_result(*grant);
+                    const std::pair<uint64_t, uint64_t> job{
+                        uint64_t(grant->job.rect.x) << 32 | grant->job.rect.y,
+                        grant->job.first_sample.empty() ? 0 : grant->job.first_sample[0]};
+                    bool first;
+                    {
+                        std::lock_guard lock(seen_mutex);
+                        first = seen.insert(job).second;
+                    }
+                    const uint32_t roll = rng() % 20;
+                    if (first && roll < 6) {
+                        result.pixels[0].samples += 1;  // unlike its job: refused
+                    } else if (roll == 6) {
+                        std::this_thread::sleep_for(milliseconds(60));  // expires
+                    } else if (roll == 7) {
+                        c.abandon(session, grant->lease_id);
+                        continue;
+                    }
+                    if (w % 2)
+                        c.complete(session, grant->lease_id, std::move(result));
+                    else
+                        c.complete(session, grant->lease_id,
+                                   static_cast<const SampleJobResult&>(result));
+                    if (w == 0) (void)c.image(id, true);
+                    if (w == 1)
+                        c.read_sums(id, [](const Accumulator& a) { (void)a.at(0); });
+                }
+            });
+        for (std::thread& t : threads) t.join();
+        done = true;
+        ticker.join();
+        ASSERT_EQ(c.info(id)->state, RenderState::Done)
+            << method << ": " << c.info(id)->error;
+        expect_same_image(*c.image(id, true), rendered_alone(spec), method);
+    }
+}
+
+}  // namespace
+}  // namespace aliquot
