@@ -3,9 +3,13 @@
 // whichever worker or thread returns them.
 #pragma once
 
+#include <gtest/gtest.h>
+
+#include <chrono>
 #include <cmath>
 #include <cstddef>
 
+#include "coordinator.h"
 #include "lease.h"
 #include "render_spec.h"
 #include "scene_loader.h"
@@ -60,6 +64,37 @@ inline SampleJobResult made_up_result(const LeaseGrant& grant) {
             p.rays = 3 * grant.job.counts[i];
         }
     return result;
+}
+
+// side x side pixels of the Cornell box by `method`, `spp` samples a pixel (uniform) or
+// as budget (the others).
+inline RenderSpec square_test_spec(const char* method, uint32_t side, uint32_t spp) {
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = side;
+    spec.seed = 7;
+    spec.strategy.method = method;
+    if (spec.strategy.method == "uniform") {
+        spec.strategy.spp = spp;
+    } else {
+        spec.strategy.spp = 0;
+        spec.strategy.budget = uint64_t(side) * side * spp;
+    }
+    return spec;
+}
+
+// `spec` rendered by one worker alone (made_up_result), to the end: what any farm of
+// workers must give, byte for byte.
+inline Image rendered_alone(const RenderSpec& spec) {
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(spec);
+    const std::string session = c.register_worker("alone", 1).session;
+    while (!is_terminal(c.info(id)->state))
+        if (auto grant = c.lease(session, std::chrono::milliseconds(20)))
+            c.complete(session, grant->lease_id, made_up_result(*grant));
+    EXPECT_EQ(c.info(id)->state, RenderState::Done);
+    return *c.image(id, true);
 }
 
 }  // namespace aliquot

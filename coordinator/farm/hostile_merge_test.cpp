@@ -20,33 +20,6 @@ namespace {
 
 using std::chrono::milliseconds;
 
-RenderSpec hostile_spec(const char* method, uint32_t side, uint32_t spp) {
-    RenderSpec spec;
-    spec.scene_name = "cornell-box";
-    spec.scene_json = self_contained_scene_json("cornell-box");
-    spec.width = spec.height = side;
-    spec.seed = 7;
-    spec.strategy.method = method;
-    if (spec.strategy.method == "uniform") {
-        spec.strategy.spp = spp;
-    } else {
-        spec.strategy.spp = 0;
-        spec.strategy.budget = uint64_t(side) * side * spp;
-    }
-    return spec;
-}
-
-Image rendered_alone(const RenderSpec& spec) {
-    Coordinator c(CoordinatorOptions{});
-    const std::string id = c.submit(spec);
-    const std::string session = c.register_worker("alone", 1).session;
-    while (!is_terminal(c.info(id)->state))
-        if (auto grant = c.lease(session, milliseconds(20)))
-            c.complete(session, grant->lease_id, made_up_result(*grant));
-    EXPECT_EQ(c.info(id)->state, RenderState::Done);
-    return *c.image(id, true);
-}
-
 void expect_same_image(const Image& a, const Image& b, const std::string& what) {
     EXPECT_EQ(a.rgb, b.rgb) << what;
     ASSERT_EQ(a.extra.size(), b.extra.size()) << what;
@@ -60,7 +33,7 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
     CoordinatorOptions options;
     options.lease_time = milliseconds(1);
     Coordinator c(options);
-    const RenderSpec spec = hostile_spec("uniform", 64, 4);  // one round of 16 jobs
+    const RenderSpec spec = square_test_spec("uniform", 64, 4);  // one round of 16 jobs
     const std::string id = c.submit(spec);
     const std::string a = c.register_worker("a", 8).session;
     const std::string b = c.register_worker("b", 8).session;
@@ -105,7 +78,7 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
 TEST(HostileMerges, RefusedExpiredAndAbandonedResultsEndAsOneWorkerAlone) {
     for (const auto& [method, spp] : std::vector<std::pair<const char*, uint32_t>>{
              {"uniform", 8192}, {"optimal", 16}, {"adaptive", 8192}, {"dammertz", 256}}) {
-        const RenderSpec spec = hostile_spec(method, 64, spp);
+        const RenderSpec spec = square_test_spec(method, 64, spp);
         CoordinatorOptions options;
         options.lease_time = milliseconds(50);
         options.failure_policy.blocklist_after = 1000;  // refusals here are the test's

@@ -16,22 +16,6 @@ namespace {
 
 using std::chrono::milliseconds;
 
-RenderSpec spec_of(const char* method, uint32_t side, uint32_t spp) {
-    RenderSpec spec;
-    spec.scene_name = "cornell-box";
-    spec.scene_json = self_contained_scene_json("cornell-box");
-    spec.width = spec.height = side;
-    spec.seed = 7;
-    spec.strategy.method = method;
-    if (spec.strategy.method == "uniform") {
-        spec.strategy.spp = spp;
-    } else {
-        spec.strategy.spp = 0;
-        spec.strategy.budget = uint64_t(side) * side * spp;
-    }
-    return spec;
-}
-
 uint64_t samples_of(const LeaseGrant& grant) {
     uint64_t n = 0;
     for (const uint32_t c : grant.job.counts) n += c;
@@ -64,12 +48,38 @@ struct HeldAdd {
     }
 };
 
+// A render of 64x64 uniform pixels with one merge of its first job held mid-add.
+struct OneMergeHeld {
+    Coordinator c{CoordinatorOptions{}};
+    std::string id = c.submit(square_test_spec("uniform", 64, 4));
+    std::string a = c.register_worker("a", 8).session;
+    std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    HeldAdd held;
+    std::future<CompleteStatus> merge;
+
+    // Starts the merge and returns once it is held.
+    void start() {
+        c.set_while_adding_for_test(id, held.hook());
+        merge = std::async(std::launch::async, [this] {
+            return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+        });
+        held.reached.get_future().wait();
+    }
+    // Lets the merge go once `call` has ended or a moment has passed (with adds waited
+    // for, the call cannot end first: a moment too short only makes a test weaker).
+    template <class T>
+    void release_after(std::future<T>& call) {
+        call.wait_for(milliseconds(300));
+        held.release.set_value();
+    }
+};
+
 // Two merges of one render at once: one held mid-merge (between its check and its add)
 // while a second job of the same round completes and is counted. With the add under
 // the render's lock, the second waited for the first.
 TEST(ParallelMerges, TwoMergesOfOneRenderProceedAtOnce) {
     Coordinator c(CoordinatorOptions{});
-    const std::string id = c.submit(spec_of("uniform", 64, 4));
+    const std::string id = c.submit(square_test_spec("uniform", 64, 4));
     const std::string a = c.register_worker("a", 8).session;
     const std::string b = c.register_worker("b", 8).session;
     const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
@@ -104,66 +114,37 @@ TEST(ParallelMerges, TwoMergesOfOneRenderProceedAtOnce) {
 // cancel waits for the add, so the render's end (its samples, the image written from its
 // buffers) does not change after it.
 TEST(ParallelMerges, ACancelDuringAMergeWaitsForItsAdd) {
-    Coordinator c(CoordinatorOptions{});
-    const std::string id = c.submit(spec_of("uniform", 64, 4));
-    const std::string a = c.register_worker("a", 8).session;
-    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
-    ASSERT_TRUE(ga);
-    HeldAdd held;
-    c.set_while_adding_for_test(id, held.hook());
-    auto merge = std::async(std::launch::async, [&] {
-        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
-    });
-    held.reached.get_future().wait();
-    auto cancel = std::async(std::launch::async, [&] { return c.cancel(id); });
-    // Without the wait the cancel ends meanwhile, before the add (a wait too short only
-    // makes this test weaker, never wrong).
-    cancel.wait_for(milliseconds(300));
-    held.release.set_value();
+    OneMergeHeld m;
+    ASSERT_TRUE(m.ga);
+    m.start();
+    auto cancel = std::async(std::launch::async, [&] { return m.c.cancel(m.id); });
+    m.release_after(cancel);
     const std::optional<RenderInfo> ended = cancel.get();
     ASSERT_TRUE(ended);
     EXPECT_EQ(ended->state, RenderState::Cancelled);
-    EXPECT_EQ(merge.get(), CompleteStatus::Merged);
-    EXPECT_EQ(ended->samples_done, samples_of(*ga));
+    EXPECT_EQ(m.merge.get(), CompleteStatus::Merged);
+    EXPECT_EQ(ended->samples_done, samples_of(*m.ga));
     // The image holds exactly the samples the ended render counts.
-    EXPECT_EQ(samples_shown(*c.image(id, true)), samples_of(*ga));
+    EXPECT_EQ(samples_shown(*m.c.image(m.id, true)), samples_of(*m.ga));
 }
 
 // An image read while a merge is mid-add waits for the add: a preview never shows half
 // a result, nor a render's samples without the sums they came with.
 TEST(ParallelMerges, AnImageReadDuringAMergeWaitsForItsAdd) {
-    Coordinator c(CoordinatorOptions{});
-    const std::string id = c.submit(spec_of("uniform", 64, 4));
-    const std::string a = c.register_worker("a", 8).session;
-    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
-    ASSERT_TRUE(ga);
-    HeldAdd held;
-    c.set_while_adding_for_test(id, held.hook());
-    auto merge = std::async(std::launch::async, [&] {
-        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
-    });
-    held.reached.get_future().wait();
-    auto read = std::async(std::launch::async, [&] { return *c.image(id, true); });
-    read.wait_for(milliseconds(300));  // as in the cancel's test
-    held.release.set_value();
-    EXPECT_EQ(samples_shown(read.get()), samples_of(*ga));
-    EXPECT_EQ(merge.get(), CompleteStatus::Merged);
+    OneMergeHeld m;
+    ASSERT_TRUE(m.ga);
+    m.start();
+    auto read = std::async(std::launch::async, [&] { return *m.c.image(m.id, true); });
+    m.release_after(read);
+    EXPECT_EQ(samples_shown(read.get()), samples_of(*m.ga));
+    EXPECT_EQ(m.merge.get(), CompleteStatus::Merged);
 }
 
 // A result refused off the lock while another merge of the render is mid-add: rejected,
 // nothing of it added, its job traced again; the render ends as one worker alone.
 TEST(ParallelMerges, AResultRefusedBesideAnotherMergeIsTracedAgain) {
-    const RenderSpec spec = spec_of("uniform", 64, 4);
-    Image alone;
-    {
-        Coordinator c(CoordinatorOptions{});
-        const std::string id = c.submit(spec);
-        const std::string session = c.register_worker("alone", 1).session;
-        while (!is_terminal(c.info(id)->state))
-            if (auto grant = c.lease(session, milliseconds(20)))
-                c.complete(session, grant->lease_id, made_up_result(*grant));
-        alone = *c.image(id, true);
-    }
+    const RenderSpec spec = square_test_spec("uniform", 64, 4);
+    const Image alone = rendered_alone(spec);
     Coordinator c(CoordinatorOptions{});
     const std::string id = c.submit(spec);
     const std::string a = c.register_worker("a", 8).session;
@@ -202,18 +183,8 @@ TEST(ParallelMerges, AResultRefusedBesideAnotherMergeIsTracedAgain) {
 // for the round after included: the render's bytes are those of one worker alone.
 TEST(ParallelMerges, ManyWorkersOnOneRenderEndAsOneWorkerAlone) {
     for (const char* method : {"uniform", "optimal", "adaptive"}) {
-        const RenderSpec spec = spec_of(method, 96, 16);
-        Image alone;
-        {
-            Coordinator c(CoordinatorOptions{});
-            const std::string id = c.submit(spec);
-            const std::string session = c.register_worker("alone", 1).session;
-            while (!is_terminal(c.info(id)->state))
-                if (auto grant = c.lease(session, milliseconds(20)))
-                    c.complete(session, grant->lease_id, made_up_result(*grant));
-            ASSERT_EQ(c.info(id)->state, RenderState::Done) << method;
-            alone = *c.image(id, true);
-        }
+        const RenderSpec spec = square_test_spec(method, 96, 16);
+        const Image alone = rendered_alone(spec);
         Coordinator c(CoordinatorOptions{});
         const std::string id = c.submit(spec);
         std::vector<std::thread> threads;
