@@ -1198,6 +1198,29 @@ struct RecordedCoordinator {
         EXPECT_TRUE(created) << (res ? res->body : "no answer");
         return created ? json::parse(res->body)["id"].get<std::string>() : "";
     }
+    // A finished render whose stored EXR is replaced by `bytes` random bytes, which do
+    // not compress (the routes send the file as it is): its id (empty on failure) and
+    // those bytes.
+    std::pair<std::string, std::string> finished_render_storing(size_t bytes,
+                                                                uint64_t seed) {
+        const std::string id = submit();
+        if (id.empty()) return {};
+        fake_jobs(coordinator, "w1");
+        // The backlog's thread writes the image: a generous deadline, not a timing check.
+        for (int i = 0; i < 600 && !coordinator.image_file(id); ++i)
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        const std::optional<fs::path> file = coordinator.image_file(id);
+        EXPECT_TRUE(file);
+        if (!file) return {};
+        std::string stored(bytes, '\0');
+        std::mt19937_64 random(seed);
+        for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
+            const uint64_t v = random();
+            std::memcpy(&stored[i], &v, 8);
+        }
+        std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+        return {id, stored};
+    }
     Coordinator coordinator;
     HttpServer server;
     httplib::Client client;
@@ -1250,21 +1273,8 @@ TEST(HttpServerStorage, ConcurrentExrDownloadsHoldAChunkNotTheFile) {
     fs::remove_all(dir);
     {
         RecordedCoordinator farm(dir);
-        const std::string id = farm.submit();
+        const auto [id, stored] = farm.finished_render_storing(32u << 20, 7);
         ASSERT_FALSE(id.empty());
-        fake_jobs(farm.coordinator, "w1");
-        for (int i = 0; i < 600 && !farm.coordinator.image_file(id); ++i)
-            std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        const std::optional<fs::path> file = farm.coordinator.image_file(id);
-        ASSERT_TRUE(file);
-        // In its place 32 MiB that do not compress: the route sends the file as it is.
-        std::string stored(32u << 20, '\0');
-        std::mt19937_64 random(7);
-        for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
-            const uint64_t v = random();
-            std::memcpy(&stored[i], &v, 8);
-        }
-        std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
 
         const testing::PeakMemory peak;
         std::vector<std::thread> downloads;
@@ -1360,21 +1370,9 @@ TEST(HttpServerStorage, TrickleReadersOfAnExrAreCutAndTheNextDownloadIsServed) {
         // long as the trickle went on.
         options.front.io_timeout = std::chrono::minutes(5);
         RecordedCoordinator farm(dir, options);
-        const std::string id = farm.submit();
-        ASSERT_FALSE(id.empty());
-        fake_jobs(farm.coordinator, "w1");
-        for (int i = 0; i < 600 && !farm.coordinator.image_file(id); ++i)
-            std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        const std::optional<fs::path> file = farm.coordinator.image_file(id);
-        ASSERT_TRUE(file);
         // 16 MiB, far more than the sockets' buffers take.
-        std::string stored(16u << 20, '\0');
-        std::mt19937_64 random(11);
-        for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
-            const uint64_t v = random();
-            std::memcpy(&stored[i], &v, 8);
-        }
-        std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+        const auto [id, stored] = farm.finished_render_storing(16u << 20, 11);
+        ASSERT_FALSE(id.empty());
 
         const std::string path = "/api/renders/" + id + "/image.exr?aovs=1";
         std::vector<std::unique_ptr<TrickleReader>> trickles;
