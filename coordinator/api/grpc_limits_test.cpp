@@ -11,8 +11,10 @@
 #include <unistd.h>
 
 #include <grpc/health/v1/health.grpc.pb.h>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <thread>
 
@@ -416,6 +418,69 @@ TEST_F(GrpcFetchImage, ConcurrentFetchesOfALargeStoredImageHoldNoCopyOfIt) {
     for (std::thread& t : fetches) t.join();
     // Each used to hold the decoded image (80 MB) and its encoding.
     EXPECT_LT(peak.grown_kb(), 64u * 1024) << "kB";
+}
+
+// Review (hostile clients): a client that stops reading a FetchImage held its call (a
+// server thread, one of the 16 places) for as long as its gRPC answered keepalive pings:
+// the server's Write waits for room in the stream's window. Its writes must now keep a
+// pace (GrpcLimits::stream_min_rate after stream_grace, shortened here), or the call is
+// cut and the next fetch gets its place. Before, every later fetch was
+// RESOURCE_EXHAUSTED.
+TEST_F(GrpcFetchImage, AClientThatStopsReadingIsCutAndTheNextFetchGetsItsPlace) {
+    const std::string id = finished_render(*coordinator_, 8);
+    const auto file = coordinator_->image_file(id);
+    ASSERT_TRUE(file);
+    // Random bytes, sent as they are stored: far more than the sockets' buffers and the
+    // stream's window take of a client that reads nothing.
+    std::string stored(size_t(32) << 20, '\0');
+    std::mt19937_64 random(7);
+    for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
+        const uint64_t v = random();
+        std::memcpy(&stored[i], &v, 8);
+    }
+    std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+    server_.reset();
+    server_ = std::make_unique<GrpcServer>(
+        *coordinator_, "127.0.0.1:0", testing::test_security(), GrpcOptions{},
+        limits([](GrpcLimits& l) {
+            l.max_fetches = 1;
+            l.stream_grace = std::chrono::milliseconds(500);
+            l.stream_min_rate = 16 << 20;
+        }));
+    stub_ = v1::ClientService::NewStub(testing::loopback_channel(server_->port()));
+    v1::FetchImageRequest req;
+    req.set_id(id);
+    req.set_aovs(true);
+
+    // The stalled client: a connection of its own, whose window does not grow.
+    grpc::ChannelArguments args;
+    args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+    args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+    auto stalled_stub = v1::ClientService::NewStub(
+        grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(server_->port()),
+                                  grpc::InsecureChannelCredentials(), args));
+    testing::TokenContext stalled_ctx(Role::Client);
+    auto stalled = stalled_stub->FetchImage(&stalled_ctx, req);
+    v1::FileChunk chunk;
+    ASSERT_TRUE(stalled->Read(&chunk));  // it holds the one place, and reads no more
+    size_t stalled_bytes = chunk.data().size();
+
+    // Refused while the stalled client holds the place; served once it is cut (a reader
+    // that takes the whole file at once). A generous number of tries, not a timing check.
+    bool served = false;
+    for (int attempt = 0; attempt < 200 && !served; ++attempt) {
+        testing::TokenContext ctx(Role::Client);
+        auto reader = stub_->FetchImage(&ctx, req);
+        std::string bytes;
+        while (reader->Read(&chunk)) bytes += chunk.data();
+        served = reader->Finish().ok() && bytes == stored;
+        if (!served) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_TRUE(served);
+    // The stalled stream was cut short, with an error.
+    while (stalled->Read(&chunk)) stalled_bytes += chunk.data().size();
+    EXPECT_FALSE(stalled->Finish().ok());
+    EXPECT_LT(stalled_bytes, stored.size());
 }
 
 }  // namespace

@@ -24,6 +24,7 @@
 #include "scene_loader.h"
 #include "shown_id.h"
 #include "stored_image.h"
+#include "stream_watchdog.h"
 #include "wire.h"
 
 namespace aliquot {
@@ -50,12 +51,11 @@ Status admit(const ServerContext* ctx, const Tokens& tokens, Role role) {
             access_message(access, role)};
 }
 
-// At most kMaxStreams Watch calls at once; one more is refused rather than given a
-// thread. FetchImage has caps of its own (GrpcLimits).
-constexpr int kMaxStreams = 32;
+// A place among `max` calls of a kind (GrpcLimits' max_watches, max_fetches); one more
+// is refused rather than given a thread.
 class StreamSlot {
 public:
-    explicit StreamSlot(std::atomic<int>& open, int max = kMaxStreams) : open_(open) {
+    StreamSlot(std::atomic<int>& open, int max) : open_(open) {
         taken_ = open_.fetch_add(1) < max;
     }
     ~StreamSlot() { open_.fetch_sub(1); }
@@ -76,7 +76,10 @@ Status too_many(const std::string& calls) {
 class ClientServiceImpl final : public v1::ClientService::Service {
 public:
     ClientServiceImpl(Coordinator& c, const Tokens& tokens, const GrpcLimits& limits)
-        : c_(c), tokens_(tokens), limits_(limits) {}
+        : c_(c),
+          tokens_(tokens),
+          limits_(limits),
+          watchdog_(limits.stream_grace, limits.stream_min_rate) {}
 
     Status Submit(ServerContext* ctx, const v1::SubmitRequest* req,
                   v1::RenderInfo* reply) override {
@@ -149,19 +152,27 @@ public:
                  grpc::ServerWriter<v1::RenderInfo>* writer) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         // Each open stream holds one of the server's threads while it waits.
-        StreamSlot slot(open_streams_);
+        StreamSlot slot(open_streams_, limits_.max_watches);
         if (!slot.taken()) return too_many("Watch");
+        // Then it ends, OK, and its client opens another (GrpcLimits::watch_life).
+        const auto end = std::chrono::steady_clock::now() + limits_.watch_life;
         uint64_t seen = 0;
         while (!ctx->IsCancelled()) {
             const auto info = c_.info(req->id());
             if (!info) return {StatusCode::NOT_FOUND, "no render " + shown_id(req->id())};
             v1::RenderInfo msg;
             to_proto(*info, msg);
-            if (!writer->Write(msg)) return Status::OK;
+            if (!paced_write(*ctx, *writer, msg,
+                             StreamWatchdog::Clock::time_point::max()))
+                return Status::OK;
             if (is_terminal(info->state)) return Status::OK;
             // At most a few updates a second, however fast jobs merge.
             std::this_thread::sleep_for(std::chrono::milliseconds(250));
-            seen = c_.wait_for_change(seen, std::chrono::seconds(1));
+            const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                end - std::chrono::steady_clock::now());
+            if (left.count() <= 0) return Status::OK;
+            seen = c_.wait_for_change(
+                seen, std::min<std::chrono::milliseconds>(left, std::chrono::seconds(1)));
         }
         return Status::OK;
     }
@@ -212,17 +223,21 @@ public:
         try {
             // A finished render's stored file is sent as it is read.
             if (const auto file = c_.image_file(req->id())) {
-                std::ifstream in(stored_image(*file, req->aovs()), std::ios::binary);
+                std::ifstream in(stored_image(*file, req->aovs()),
+                                 std::ios::binary | std::ios::ate);
                 // Open, it stays readable even if the render is deleted meanwhile.
                 if (!in)
                     return {StatusCode::NOT_FOUND,
                             "no image for render " + shown_id(req->id())};
+                const auto whole = watchdog_.due(size_t(std::max<std::streamoff>(
+                    std::streamoff(in.tellg()), std::streamoff(0))));
+                in.seekg(0);
                 std::string buffer(kChunk, '\0');
                 while (in.read(buffer.data(), std::streamsize(buffer.size())) ||
                        in.gcount() > 0) {
                     v1::FileChunk chunk;
                     chunk.set_data(buffer.data(), size_t(in.gcount()));
-                    if (!writer->Write(chunk)) break;
+                    if (!paced_write(*ctx, *writer, chunk, whole)) break;
                 }
                 return Status::OK;
             }
@@ -239,10 +254,11 @@ public:
                             "no image for render " + shown_id(req->id())};
                 bytes = encode_exr(*image);
             }
+            const auto whole = watchdog_.due(bytes.size());
             for (size_t off = 0; off < bytes.size(); off += kChunk) {
                 v1::FileChunk chunk;
                 chunk.set_data(bytes.data() + off, std::min(kChunk, bytes.size() - off));
-                if (!writer->Write(chunk)) break;
+                if (!paced_write(*ctx, *writer, chunk, whole)) break;
             }
             return Status::OK;
         } catch (const ImageFileError& e) {
@@ -289,10 +305,23 @@ public:
     }
 
 private:
+    // Writes `message` to a stream, cancelling the call if the write has not ended within
+    // the pace (GrpcLimits::stream_min_rate after stream_grace) or by `whole`, when all
+    // the stream must have been taken; false once the stream is broken or cut.
+    template <typename Message>
+    bool paced_write(ServerContext& ctx, grpc::ServerWriter<Message>& writer,
+                     const Message& message, StreamWatchdog::Clock::time_point whole) {
+        const StreamWatchdog::WatchedWrite watched(
+            watchdog_, ctx, std::min(whole, watchdog_.due(message.ByteSizeLong())));
+        return writer.Write(message);
+    }
+
     static constexpr size_t kChunk = 1 << 20;
     Coordinator& c_;
     const Tokens& tokens_;
     const GrpcLimits& limits_;
+    // Its thread ends with the service, after the server has stopped every call.
+    StreamWatchdog watchdog_;
     std::atomic<int> open_streams_{0};
     std::atomic<int> open_fetches_{0}, memory_fetches_{0};
 };

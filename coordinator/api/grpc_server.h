@@ -50,6 +50,19 @@ struct GrpcLimits {
     // encoded in memory.
     int max_fetches = 16;
     int max_fetches_from_memory = 2;
+    // Watch streams at once.
+    int max_watches = 32;
+    // A FetchImage or Watch stream must be taken at stream_min_rate at least after a
+    // grace, as the HTTP image routes are: each write within stream_grace + its bytes /
+    // stream_min_rate, and a FetchImage whole within stream_grace + its size /
+    // stream_min_rate. Else the call is cancelled (StreamWatchdog), freeing its thread
+    // and place: gRPC's Write waits for as long as the client reads nothing.
+    std::chrono::milliseconds stream_grace{30000};
+    size_t stream_min_rate = 64 * 1024;  // bytes a second
+    // A Watch stream ends (OK) after this long, so that one whose client reads nothing
+    // (whose few updates the buffers would take for hours) gives its place back; the
+    // client (`aliquot watch`) opens another.
+    std::chrono::milliseconds watch_life{std::chrono::minutes(15)};
     // Every `watchdog_period` a new connection to the server's own port checks that it
     // is accepted (accepts_connections); after `watchdog_failures` failures in a row the
     // server is started again, and if it cannot be, the process exits

@@ -642,6 +642,53 @@ TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
     }
 }
 
+// Review (hostile clients): a Watch whose client reads nothing held its place for as long
+// as the client's gRPC answered pings (its few updates fill the buffers only after
+// hours). A stream now ends, OK, after its life (GrpcLimits::watch_life, shortened here),
+// and its place serves the next Watch; the client's `aliquot watch` opens another.
+TEST(GrpcStreams, AWatchEndsAfterItsLifeAndItsPlaceComesBack) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcLimits limits;
+    limits.max_watches = 1;
+    limits.watch_life = std::chrono::milliseconds(300);
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security(), GrpcOptions{},
+                      limits);
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.width = spec.height = 8;
+    spec.strategy.spp = 1;
+    v1::GetRenderRequest req;
+    req.set_id(coordinator.submit(spec));  // no worker: it stays running
+
+    testing::TokenContext idle_ctx(Role::Client);
+    // Ends the test rather than hang it, were the stream never to end.
+    idle_ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+    auto idle = stub->Watch(&idle_ctx, req);
+    v1::RenderInfo info;
+    ASSERT_TRUE(idle->Read(&info));  // it holds the one place, and reads no more
+
+    // A generous number of tries, not a timing check.
+    bool served = false;
+    for (int attempt = 0; attempt < 200 && !served; ++attempt) {
+        testing::TokenContext ctx(Role::Client);
+        ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+        auto reader = stub->Watch(&ctx, req);
+        served = reader->Read(&info);
+        ctx.TryCancel();
+        reader->Finish();
+        if (!served) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    EXPECT_TRUE(served);
+    // The idle stream ended by itself, OK, while its render still runs.
+    while (idle->Read(&info)) {
+    }
+    EXPECT_TRUE(idle->Finish().ok());
+    EXPECT_TRUE(info.state() == v1::RENDER_STATE_QUEUED ||
+                info.state() == v1::RENDER_STATE_RUNNING);
+}
+
 // Review of issue 32: GetEvents sent a hostile id of 1 MB back whole in its error, as
 // every call did that names a render. Each error now shows 64 bytes of it at most, and
 // its length.
