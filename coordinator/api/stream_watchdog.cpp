@@ -29,11 +29,14 @@ StreamWatchdog::WatchedWrite::WatchedWrite(StreamWatchdog& watchdog,
                                            grpc::ServerContext& call,
                                            Clock::time_point deadline)
     : watchdog_(watchdog), call_(call) {
+    bool first;
     {
         std::lock_guard lock(watchdog_.mutex_);
         entry_ = watchdog_.writes_.emplace(deadline, this);
+        first = entry_ == watchdog_.writes_.begin();
     }
-    watchdog_.wake_.notify_all();
+    // Only a write due before every other changes how long the watchdog sleeps.
+    if (first) watchdog_.wake_.notify_all();
 }
 
 StreamWatchdog::WatchedWrite::~WatchedWrite() {
@@ -51,9 +54,11 @@ void StreamWatchdog::run() {
             continue;
         }
         const auto first = writes_.begin();
-        if (Clock::now() < first->first) {
+        // A copy: the write may end, and its entry go, while this waits.
+        const Clock::time_point due = first->first;
+        if (Clock::now() < due) {
             // Woken early by a new write (perhaps due sooner) or by stopping.
-            wake_.wait_until(lock, first->first);
+            wake_.wait_until(lock, due);
             continue;
         }
         // Overdue: its client takes less than the pace. Cancelling fails the blocked
