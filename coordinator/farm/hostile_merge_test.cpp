@@ -70,6 +70,61 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
     expect_same_image(*c.image(id, true), rendered_alone(spec), "uniform");
 }
 
+// A job of the round ahead, cut while a result of the round out is being added, counts
+// that result's samples as to come: its cut waits for the add (issue). Cut before it, it
+// would start its pixels' samples where the round out's job starts them, and trace
+// them again.
+TEST(HostileMerges, AJobOfTheRoundAheadCutDuringAnAddStartsAfterItsSamples) {
+    Coordinator c(CoordinatorOptions{});
+    const RenderSpec spec =
+        square_test_spec("uniform", 64, 2048);  // two rounds of 1024 spp
+    const std::string id = c.submit(spec);
+    const std::string a = c.register_worker("a", 8).session;
+    const std::string b = c.register_worker("b", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    ASSERT_TRUE(ga);
+    std::promise<void> reached, release;
+    std::shared_future<void> released = release.get_future().share();
+    std::atomic<bool> first{true};
+    c.set_while_adding_for_test(id, [&](size_t) {
+        if (!first.exchange(false)) return;
+        reached.set_value();
+        released.wait();
+    });
+    auto merge = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    reached.get_future().wait();
+    // b takes the round out's other jobs, then one of the round ahead over a's pixels.
+    const PixelRect& ra = ga->job.rect;
+    const auto overlaps = [&](const PixelRect& r) {
+        return r.x < ra.x + ra.width && ra.x < r.x + r.width && r.y < ra.y + ra.height &&
+               ra.y < r.y + r.height;
+    };
+    auto ahead = std::async(std::launch::async, [&]() -> std::optional<LeaseGrant> {
+        for (int tries = 0; tries < 1000; ++tries) {
+            std::optional<LeaseGrant> g = c.lease(b, milliseconds(20));
+            if (!g) continue;
+            if (overlaps(g->job.rect)) return g;
+            c.complete(b, g->lease_id, made_up_result(*g));
+        }
+        return std::nullopt;
+    });
+    // Without the wait for the add it is cut meanwhile (a wait too short only makes this
+    // test weaker, never wrong).
+    ahead.wait_for(milliseconds(300));
+    release.set_value();
+    EXPECT_EQ(merge.get(), CompleteStatus::Merged);
+    const std::optional<LeaseGrant> gb = ahead.get();
+    ASSERT_TRUE(gb);
+    c.complete(b, gb->lease_id, made_up_result(*gb));
+    while (!is_terminal(c.info(id)->state))
+        if (auto g = c.lease(b, milliseconds(20)))
+            c.complete(b, g->lease_id, made_up_result(*g));
+    ASSERT_EQ(c.info(id)->state, RenderState::Done);
+    expect_same_image(*c.image(id, true), rendered_alone(spec), "uniform");
+}
+
 // Six workers on one render, rounds planned ahead and results held for them, while a
 // tick expires leases: some results come unlike their jobs (refused after their lease
 // ended, off the lock), some come after their lease expired and was issued again, some
