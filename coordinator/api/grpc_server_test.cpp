@@ -596,19 +596,42 @@ TEST(GrpcTokens, AServerRefusesMissingOrEqualTokens) {
     EXPECT_THROW(GrpcServer(coordinator, "127.0.0.1:0", same), std::invalid_argument);
 }
 
-// Found in review of issue 13: every Watch held a server thread for as long as its client
-// kept it open, without limit.
-TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
-    Coordinator coordinator{CoordinatorOptions{}};
-    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
-    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
+// A Watch request of a small render that stays running (it has no worker).
+v1::GetRenderRequest running_render(Coordinator& coordinator) {
     RenderSpec spec;
     spec.scene_name = "cornell-box";
     spec.scene_json = self_contained_scene_json("cornell-box");
     spec.width = spec.height = 8;
     spec.strategy.spp = 1;
     v1::GetRenderRequest req;
-    req.set_id(coordinator.submit(spec));  // no worker: it stays running
+    req.set_id(coordinator.submit(spec));
+    return req;
+}
+
+// Whether a new Watch of `req` gets its first update, tried again while the streams'
+// places are all held: a generous number of tries, not a timing check.
+bool a_watch_is_served(v1::ClientService::Stub& stub, const v1::GetRenderRequest& req) {
+    for (int attempt = 0; attempt < 200; ++attempt) {
+        testing::TokenContext ctx(Role::Client);
+        ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
+        auto reader = stub.Watch(&ctx, req);
+        v1::RenderInfo info;
+        const bool served = reader->Read(&info);
+        ctx.TryCancel();
+        reader->Finish();
+        if (served) return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return false;
+}
+
+// Found in review of issue 13: every Watch held a server thread for as long as its client
+// kept it open, without limit.
+TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
+    Coordinator coordinator{CoordinatorOptions{}};
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
+    const v1::GetRenderRequest req = running_render(coordinator);
 
     std::vector<std::unique_ptr<testing::TokenContext>> contexts;
     std::vector<std::unique_ptr<grpc::ClientReader<v1::RenderInfo>>> readers;
@@ -626,16 +649,7 @@ TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
     // A closed stream gives its place back.
     contexts.front()->TryCancel();
     readers.front()->Finish();
-    bool reopened = false;
-    for (int attempt = 0; attempt < 100 && !reopened; ++attempt) {
-        testing::TokenContext again(Role::Client);
-        auto reader = stub->Watch(&again, req);
-        reopened = reader->Read(&info);
-        again.TryCancel();
-        reader->Finish();
-        if (!reopened) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    EXPECT_TRUE(reopened);
+    EXPECT_TRUE(a_watch_is_served(*stub, req));
     for (size_t i = 1; i < readers.size(); ++i) {
         contexts[i]->TryCancel();
         readers[i]->Finish();
@@ -654,13 +668,7 @@ TEST(GrpcStreams, AWatchEndsAfterItsLifeAndItsPlaceComesBack) {
     GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security(), GrpcOptions{},
                       limits);
     auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
-    RenderSpec spec;
-    spec.scene_name = "cornell-box";
-    spec.scene_json = self_contained_scene_json("cornell-box");
-    spec.width = spec.height = 8;
-    spec.strategy.spp = 1;
-    v1::GetRenderRequest req;
-    req.set_id(coordinator.submit(spec));  // no worker: it stays running
+    const v1::GetRenderRequest req = running_render(coordinator);
 
     testing::TokenContext idle_ctx(Role::Client);
     // Ends the test rather than hang it, were the stream never to end.
@@ -669,18 +677,7 @@ TEST(GrpcStreams, AWatchEndsAfterItsLifeAndItsPlaceComesBack) {
     v1::RenderInfo info;
     ASSERT_TRUE(idle->Read(&info));  // it holds the one place, and reads no more
 
-    // A generous number of tries, not a timing check.
-    bool served = false;
-    for (int attempt = 0; attempt < 200 && !served; ++attempt) {
-        testing::TokenContext ctx(Role::Client);
-        ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(5));
-        auto reader = stub->Watch(&ctx, req);
-        served = reader->Read(&info);
-        ctx.TryCancel();
-        reader->Finish();
-        if (!served) std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
-    EXPECT_TRUE(served);
+    EXPECT_TRUE(a_watch_is_served(*stub, req));
     // The idle stream ended by itself, OK, while its render still runs.
     while (idle->Read(&info)) {
     }
