@@ -125,6 +125,32 @@ TEST(HostileMerges, AJobOfTheRoundAheadCutDuringAnAddStartsAfterItsSamples) {
     expect_same_image(*c.image(id, true), rendered_alone(spec), "uniform");
 }
 
+// An add that ends in anything but a refusal (here a test's hook throws what is no
+// std::exception; in the farm, no memory left for a refusal's reason) still ends: the
+// result is rejected and its job traced again. An add left open would hold up every
+// wait for adds for good: the render's cancel, its images, and the tick behind them.
+TEST(HostileMerges, AnAddEndingInAnyExceptionEndsAndItsJobIsTracedAgain) {
+    Coordinator c(CoordinatorOptions{});
+    const std::string id = c.submit(square_test_spec("uniform", 64, 4));
+    const std::string a = c.register_worker("a", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    ASSERT_TRUE(ga);
+    std::atomic<bool> first{true};
+    c.set_while_adding_for_test(id, [&](size_t) {
+        if (first.exchange(false)) throw 33;
+    });
+    auto merge = std::async(std::launch::async, [&] {
+        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
+    });
+    // Not a time limit on anything: only so the regression fails rather than hangs.
+    ASSERT_EQ(merge.wait_for(std::chrono::seconds(20)), std::future_status::ready);
+    EXPECT_NO_THROW(EXPECT_EQ(merge.get(), CompleteStatus::Rejected));
+    auto cancel = std::async(std::launch::async, [&] { return c.cancel(id); });
+    ASSERT_EQ(cancel.wait_for(std::chrono::seconds(20)), std::future_status::ready)
+        << "the cancel waits for an add that never ends";
+    EXPECT_EQ(cancel.get()->state, RenderState::Cancelled);
+}
+
 // Six workers on one render, rounds planned ahead and results held for them, while a
 // tick expires leases: some results come unlike their jobs (refused after their lease
 // ended, off the lock), some come after their lease expired and was issued again, some

@@ -413,8 +413,19 @@ void RenderSession::add_merge(Merge& merge, const SampleJobResult& result) {
         if (while_adding) while_adding(merge.job);
         add_with_aux(merged_, aux_, result, merge.totals);
         merge.added = true;
-    } catch (const std::exception& e) {  // MergeError; a test's hook: none leaves it open
-        merge.refused = e.what();
+    } catch (...) {
+        // MergeError's reason; anything else refuses the result too (no memory left for
+        // a reason, a test's hook): an add that never ended would hold up every wait for
+        // adds for good (a cancel, an image, the tick behind them).
+        try {
+            throw;
+        } catch (const std::exception& e) {
+            try {
+                merge.refused = e.what();
+            } catch (...) {
+            }
+        } catch (...) {
+        }
     }
     {
         std::lock_guard adds(adds_mutex_);
