@@ -5,9 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstddef>
+#include <functional>
+#include <future>
 
 #include "coordinator.h"
 #include "lease.h"
@@ -96,5 +99,21 @@ inline Image rendered_alone(const RenderSpec& spec) {
     EXPECT_EQ(c.info(id)->state, RenderState::Done);
     return *c.image(id, true);
 }
+
+// Holds the first merge that reaches its add (Coordinator::set_while_adding_for_test)
+// until released.
+struct HeldAdd {
+    std::promise<void> reached, release;
+    std::shared_future<void> released = release.get_future().share();
+    std::atomic<bool> first{true};
+
+    std::function<void(size_t)> hook() {
+        return [this](size_t) {
+            if (!first.exchange(false)) return;
+            reached.set_value();
+            released.wait();
+        };
+    }
+};
 
 }  // namespace aliquot

@@ -39,18 +39,12 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
     const std::string b = c.register_worker("b", 8).session;
     const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
     ASSERT_TRUE(ga);
-    std::promise<void> reached, release;
-    std::shared_future<void> released = release.get_future().share();
-    std::atomic<bool> first{true};
-    c.set_while_adding_for_test(id, [&](size_t) {
-        if (!first.exchange(false)) return;
-        reached.set_value();
-        released.wait();
-    });
+    HeldAdd held;
+    c.set_while_adding_for_test(id, held.hook());
     auto merge = std::async(std::launch::async, [&] {
         return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
     });
-    reached.get_future().wait();
+    held.reached.get_future().wait();
     // Past its deadline (sleeping longer only makes sure), and swept.
     std::this_thread::sleep_for(milliseconds(20));
     c.tick();
@@ -62,7 +56,7 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
         EXPECT_EQ(c.complete(b, gb->lease_id, made_up_result(*gb)).status,
                   CompleteStatus::Merged);
     }
-    release.set_value();
+    held.release.set_value();
     EXPECT_EQ(merge.get(), CompleteStatus::Merged);
     ASSERT_EQ(c.info(id)->state, RenderState::Done);
     EXPECT_EQ(samples, uint64_t(64) * 64 * 4);
@@ -83,18 +77,12 @@ TEST(HostileMerges, AJobOfTheRoundAheadCutDuringAnAddStartsAfterItsSamples) {
     const std::string b = c.register_worker("b", 8).session;
     const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
     ASSERT_TRUE(ga);
-    std::promise<void> reached, release;
-    std::shared_future<void> released = release.get_future().share();
-    std::atomic<bool> first{true};
-    c.set_while_adding_for_test(id, [&](size_t) {
-        if (!first.exchange(false)) return;
-        reached.set_value();
-        released.wait();
-    });
+    HeldAdd held;
+    c.set_while_adding_for_test(id, held.hook());
     auto merge = std::async(std::launch::async, [&] {
         return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
     });
-    reached.get_future().wait();
+    held.reached.get_future().wait();
     // b takes the round out's other jobs, then one of the round ahead over a's pixels.
     const PixelRect& ra = ga->job.rect;
     const auto overlaps = [&](const PixelRect& r) {
@@ -113,7 +101,7 @@ TEST(HostileMerges, AJobOfTheRoundAheadCutDuringAnAddStartsAfterItsSamples) {
     // Without the wait for the add it is cut meanwhile (a wait too short only makes this
     // test weaker, never wrong).
     ahead.wait_for(milliseconds(300));
-    release.set_value();
+    held.release.set_value();
     EXPECT_EQ(merge.get(), CompleteStatus::Merged);
     const std::optional<LeaseGrant> gb = ahead.get();
     ASSERT_TRUE(gb);

@@ -33,21 +33,6 @@ uint64_t samples_shown(const Image& image) {
     return 0;
 }
 
-// Holds the first merge that reaches its add until released.
-struct HeldAdd {
-    std::promise<void> reached, release;
-    std::shared_future<void> released = release.get_future().share();
-    std::atomic<bool> first{true};
-
-    std::function<void(size_t)> hook() {
-        return [this](size_t) {
-            if (!first.exchange(false)) return;
-            reached.set_value();
-            released.wait();
-        };
-    }
-};
-
 // A render of 64x64 uniform pixels with one merge of its first job held mid-add.
 struct OneMergeHeld {
     Coordinator c{CoordinatorOptions{}};
