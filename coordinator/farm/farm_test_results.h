@@ -116,4 +116,18 @@ struct HeldAdd {
     }
 };
 
+// Starts merging `grant`'s made-up result on a thread of its own and returns once its add
+// is held by `held` (hooked on render `id`); the future gives the merge's status.
+inline std::future<CompleteStatus> merge_held(Coordinator& c, const std::string& id,
+                                              const std::string& session,
+                                              const LeaseGrant& grant, HeldAdd& held) {
+    c.set_while_adding_for_test(id, held.hook());
+    std::future<CompleteStatus> merge =
+        std::async(std::launch::async, [&c, &session, &grant] {
+            return c.complete(session, grant.lease_id, made_up_result(grant)).status;
+        });
+    held.reached.get_future().wait();
+    return merge;
+}
+
 }  // namespace aliquot

@@ -40,11 +40,7 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
     const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
     ASSERT_TRUE(ga);
     HeldAdd held;
-    c.set_while_adding_for_test(id, held.hook());
-    auto merge = std::async(std::launch::async, [&] {
-        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
-    });
-    held.reached.get_future().wait();
+    auto merge = merge_held(c, id, a, *ga, held);
     // Past its deadline (sleeping longer only makes sure), and swept.
     std::this_thread::sleep_for(milliseconds(20));
     c.tick();
@@ -78,11 +74,7 @@ TEST(HostileMerges, AJobOfTheRoundAheadCutDuringAnAddStartsAfterItsSamples) {
     const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
     ASSERT_TRUE(ga);
     HeldAdd held;
-    c.set_while_adding_for_test(id, held.hook());
-    auto merge = std::async(std::launch::async, [&] {
-        return c.complete(a, ga->lease_id, made_up_result(*ga)).status;
-    });
-    held.reached.get_future().wait();
+    auto merge = merge_held(c, id, a, *ga, held);
     // b takes the round out's other jobs, then one of the round ahead over a's pixels.
     const PixelRect& ra = ga->job.rect;
     const auto overlaps = [&](const PixelRect& r) {
