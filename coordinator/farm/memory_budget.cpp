@@ -47,7 +47,8 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
     const uint64_t pixels = uint64_t(width) * height;
     uint64_t per_pixel =
         Accumulator::kBytesPerPixel      // the accumulator
-        + Accumulator::kBytesPerPixel    // the copy a checkpoint is written from,
+        + sizeof(PixelSums)              // the copy a checkpoint is written from (its
+                                         // sums alone: CheckpointSnapshot),
         + 4                              // with the counts of a round planned ahead
         + 12                             // a round's jobs: counts, first indices
         + 16                             // the round's spp; a strategy's per pixel
