@@ -179,14 +179,17 @@ void check_scene_name(const std::string& scene) {
 }
 
 void check_fits_in_memory(const RenderOptions& o) {
-    const uint64_t needed =
-        render_memory_estimate(o.width, o.height, !o.reference.empty());
+    const uint64_t needed = method_memory_estimate(
+        o.width, o.height, !o.reference.empty(), o.albedo_normal, o.strategy.method);
     const uint64_t limit = default_memory_limit();
     if (needed <= limit) return;
     const auto mib = [](uint64_t bytes) { return std::to_string(bytes >> 20) + " MiB"; };
+    const std::string note =
+        render_memory_note(o.width, o.height, o.strategy.method == "denoised");
     throw CommandError("--resolution " + std::to_string(o.width) + "x" +
                        std::to_string(o.height) + ": the render would hold about " +
-                       mib(needed) + " in memory, more than the " + mib(limit) +
+                       mib(needed) + (note.empty() ? "" : " (" + note + ")") +
+                       " in memory, more than the " + mib(limit) +
                        " (half of this machine's memory) a render may use; choose a "
                        "smaller --resolution");
 }

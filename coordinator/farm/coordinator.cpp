@@ -14,12 +14,10 @@ namespace aliquot {
 
 namespace {
 
+// So a render counts the same at submission and eviction.
 uint64_t memory_of(const RenderSpec& spec) {
-    // `denoised` keeps first-hit sums whether or not the spec asked (RenderSession turns
-    // them on), so a render counts the same at submission and eviction.
-    const bool denoises = spec.strategy.method == "denoised";
-    return render_memory_estimate(spec.width, spec.height, spec.reference.has_value(),
-                                  spec.aux || denoises, denoises);
+    return method_memory_estimate(spec.width, spec.height, spec.reference.has_value(),
+                                  spec.aux, spec.strategy.method);
 }
 
 }  // namespace

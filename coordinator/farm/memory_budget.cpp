@@ -68,6 +68,13 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
            (denoises ? DenoisedStrategy::round_end_memory(pixels) : 0);
 }
 
+uint64_t method_memory_estimate(uint32_t width, uint32_t height, bool has_reference,
+                                bool aux, const std::string& method) {
+    const bool denoises = method == "denoised";
+    return render_memory_estimate(width, height, has_reference, aux || denoises,
+                                  denoises);
+}
+
 std::string render_memory_note(uint32_t width, uint32_t height, bool denoises) {
     if (!denoises) return "";
     return mib(DenoisedStrategy::round_end_memory(uint64_t(width) * height)) +

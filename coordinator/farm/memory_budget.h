@@ -25,6 +25,14 @@ uint64_t default_memory_limit();
 // docs/FARM.md has the measured numbers.
 uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_reference,
                                 bool first_hits = false, bool denoises = false);
+// render_memory_estimate for a render of `method` that asked for first-hit sums or not
+// (`aux`): `denoised` keeps them whether or not it was asked (RenderSession turns them
+// on) and denoises its round ends. The coordinator counts a submission with it, and the
+// CLI checks an embedded render with it before it starts, so both count the same. (A
+// name of its own: a method's name as a string literal would convert to the bool of an
+// overload.)
+uint64_t method_memory_estimate(uint32_t width, uint32_t height, bool has_reference,
+                                bool aux, const std::string& method);
 // What a refusal says of the largest part of that estimate, when one part dwarfs the
 // rest: "" but for denoises, then what denoising the round ends takes.
 std::string render_memory_note(uint32_t width, uint32_t height, bool denoises);

@@ -28,6 +28,18 @@ TEST(MemoryBudgetEstimate, ADenoisedRenderCountsWhatItsRoundEndsDenoiseWith) {
     EXPECT_LE(large, pixels * 200 + (uint64_t(3100) << 20));
 }
 
+TEST(MemoryBudgetEstimate, AMethodsEstimateCountsWhatItKeepsWhetherOrNotItWasAsked) {
+    // What the coordinator counts a submission at and the CLI checks an embedded render
+    // with: `denoised` keeps first-hit sums and denoises even when the spec did not ask
+    // for them (the CLI's check used to count neither).
+    EXPECT_EQ(method_memory_estimate(640, 480, false, false, "denoised"),
+              render_memory_estimate(640, 480, false, true, true));
+    EXPECT_EQ(method_memory_estimate(640, 480, true, true, "uniform"),
+              render_memory_estimate(640, 480, true, true, false));
+    EXPECT_EQ(method_memory_estimate(640, 480, false, false, "optimal"),
+              render_memory_estimate(640, 480, false));
+}
+
 TEST(MemoryBudgetEstimate,
      ADenoisedRenderPastTheBudgetIsRefusedSayingWhatDenoisingTakes) {
     RenderSpec spec = small_test_spec();
