@@ -2,15 +2,18 @@
 // recorded and checkpointed as in production) fed by N simulated workers, threads of this
 // process that lease a job, make a valid synthetic result at once (synthetic_result.h)
 // and complete it. Nothing is traced, so the coordinator is the only thing that can be
-// slow. For each method and worker count, until the render ends or the time is up:
-// pixel-samples merged per second, leases per second, and the Lease and Complete
-// latencies (median and 99th percentile) of the calls that got a job; round_end_share is
-// the seconds the coordinator spent ending rounds (Coordinator::round_end_seconds) ÷ the
-// render's; round_end_ms and round_end_cpu_ms are one round end's wall and CPU time (the
-// CPU time is what it costs however loaded the machine is); round_end_wait_share and
-// round_end_wait_ms count only the round ends the workers waited through, those after
-// which the next round had not been opened ahead (docs/FARM.md, "Two rounds out"). One
-// JSON object per line.
+// slow. A result goes through the wire as a worker's does: the simulated worker encodes
+// it (wire.h's to_proto, serialized: the worker's cost, not counted below) and the
+// coordinator's side parses those bytes and decodes them (from_proto) as the gRPC
+// server's Complete does, which is counted: only gRPC's transport is left out. For each
+// method and worker count, until the render ends or the time is up: pixel-samples merged
+// per second, leases per second, and the Lease and Complete latencies (median and 99th
+// percentile) of the calls that got a job; round_end_share is the seconds the coordinator
+// spent ending rounds (Coordinator::round_end_seconds) ÷ the render's; round_end_ms and
+// round_end_cpu_ms are one round end's wall and CPU time (the CPU time is what it costs
+// however loaded the machine is); round_end_wait_share and round_end_wait_ms count only
+// the round ends the workers waited through, those after which the next round had not
+// been opened ahead (docs/FARM.md, "Two rounds out"). One JSON object per line.
 //
 // With a RATE (samples a second), each simulated worker takes as long as a worker core
 // that traces at that rate would (it sleeps out the rest of samples ÷ RATE after making
@@ -28,11 +31,11 @@
 //
 // coordinator_cpu_s_per_g_samples is the coordinator's CPU seconds for each 10^9
 // pixel-samples merged, whatever the machine's cores or load: the process's CPU time
-// (getrusage) over the render, less what the simulated workers spent making their
-// synthetic results and what this bench's own polling thread spent (each thread's clock).
-// So it holds leases, merges and round ends on every thread (the calls' threads, the
-// band pool, plans made ahead, the record writer). worker_cores_per_coordinator_core is
-// then how many worker cores tracing RATE samples a second (2 M without one, about
+// (getrusage) over the render, less what the simulated workers spent making and encoding
+// their synthetic results and what this bench's own polling thread spent (each thread's
+// clock). So it holds leases, merges and round ends on every thread (the calls' threads,
+// the band pool, plans made ahead, the record writer). worker_cores_per_coordinator_core
+// is then how many worker cores tracing RATE samples a second (2 M without one, about
 // today's worker core) one coordinator core keeps fed: 10^9 ÷ (that × RATE).
 //
 // The budget is SPP samples a pixel on average (uniform: SPP a pixel); issue 33 asks for
@@ -66,6 +69,7 @@
 #include "resolution.h"
 #include "scene_loader.h"
 #include "synthetic_result.h"
+#include "wire.h"
 
 using namespace aliquot;
 using Clock = std::chrono::steady_clock;
@@ -174,6 +178,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
 
         std::atomic<bool> stop{false};
         double synthetic_cpu = 0;  // the simulated workers' own work, under `mutex`
+        std::string broken;        // why a result did not come through, under `mutex`
         std::mutex mutex;
         const auto start = Clock::now();
         std::vector<std::thread> threads;
@@ -189,9 +194,18 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                         coordinator.lease(session, std::chrono::milliseconds(100));
                     if (!grant) continue;
                     const auto granted = Clock::now();
+                    // What a worker's Complete puts on the wire: making and encoding
+                    // it (and freeing all of it but the bytes) is the worker's work.
                     const double making = thread_cpu();
-                    SampleJobResult result = bench::synthetic_result(*grant);
-                    const uint64_t samples = result.total_samples();  // the bench's own
+                    std::string bytes;
+                    uint64_t samples = 0;  // the bench's own
+                    {
+                        const SampleJobResult result = bench::synthetic_result(*grant);
+                        samples = result.total_samples();
+                        v1::SampleJobResult message;
+                        to_proto(result, message);
+                        bytes = message.SerializeAsString();
+                    }
                     made += thread_cpu() - making;
                     if (rate > 0)
                         std::this_thread::sleep_until(
@@ -199,7 +213,22 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                             std::chrono::duration_cast<Clock::duration>(
                                 std::chrono::duration<double>(double(samples) / rate)));
                     const auto sent = Clock::now();
-                    coordinator.complete(session, grant->lease_id, std::move(result));
+                    // As the gRPC server's Complete: parsed, decoded, moved in. A result
+                    // that does not come through is this bench's bug: the run stops.
+                    try {
+                        v1::SampleJobResult received;
+                        if (!received.ParseFromString(bytes))
+                            throw WireError("the result's bytes do not parse");
+                        coordinator.complete(session, grant->lease_id,
+                                             from_proto(received));
+                    } catch (const std::exception& e) {
+                        std::lock_guard lock(mutex);
+                        broken = e.what();
+                        stop = true;
+                    }
+                    const double freeing = thread_cpu();  // the worker's bytes
+                    std::string().swap(bytes);
+                    made += thread_cpu() - freeing;
                     const auto done = Clock::now();
                     leases.push_back(
                         std::chrono::duration<double, std::milli>(granted - asked)
@@ -257,6 +286,8 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
         stop = true;
         coordinator.stop();
         for (std::thread& t : threads) t.join();
+        if (!broken.empty())
+            throw std::runtime_error("a simulated worker's result: " + broken);
         // After the joins: every synthetic result counted. What the workers did between
         // the render's end and `stop` is a few empty leases.
         out.coordinator_cpu_seconds =
