@@ -27,7 +27,12 @@
 // counters every 2 ms, as bench/round_end_share.sh does every 20), and farm_efficiency
 // the samples merged a second ÷ (N × RATE): what the farm traced of what it could have,
 // every idle moment counted (round ends, a round planned ahead that is late, a round's
-// last jobs, and this process's own CPU for the synthetic results).
+// last jobs, and this process's own CPU for the synthetic results). worker_wait_share
+// splits it: the workers' seconds in Lease (no job to trace: round ends, late plans, a
+// round's last jobs, the cap on the round ahead) ÷ (N × the render's seconds), the farm's
+// own idling; what farm_efficiency loses beyond it is each job's time past its pace
+// (making and encoding its result when that outlasts the pace, Complete, a late wake on
+// this machine's cores), which a worker's courier (worker/courier.h) mostly hides.
 //
 // coordinator_cpu_s_per_g_samples is the coordinator's CPU seconds for each 10^9
 // pixel-samples merged, whatever the machine's cores or load: the process's CPU time
@@ -117,6 +122,7 @@ struct Run {
     std::vector<double> lease_ms, complete_ms;
     double largest_round_wait_share = 0;
     double coordinator_cpu_seconds = 0;  // see the top of this file
+    double worker_wait_seconds = 0;      // the workers' seconds in Lease, all summed
 };
 
 // "optimal:K/P": the method, steer_rounds K and plan_ahead P, each optional.
@@ -187,13 +193,15 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                 const std::string session =
                     coordinator.register_worker("sim-" + std::to_string(w), 1).session;
                 std::vector<double> leases, completes;
-                double made = 0;  // CPU seconds making synthetic results
+                double made = 0;     // CPU seconds making synthetic results
+                double waiting = 0;  // seconds in Lease: no job to trace
                 while (!stop) {
                     const auto asked = Clock::now();
                     auto grant =
                         coordinator.lease(session, std::chrono::milliseconds(100));
-                    if (!grant) continue;
                     const auto granted = Clock::now();
+                    waiting += std::chrono::duration<double>(granted - asked).count();
+                    if (!grant) continue;
                     // What a worker's Complete puts on the wire: making and encoding
                     // it (and freeing all of it but the bytes) is the worker's work.
                     const double making = thread_cpu();
@@ -238,6 +246,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                 }
                 std::lock_guard lock(mutex);
                 synthetic_cpu += made;
+                out.worker_wait_seconds += waiting;
                 out.lease_ms.insert(out.lease_ms.end(), leases.begin(), leases.end());
                 out.complete_ms.insert(out.complete_ms.end(), completes.begin(),
                                        completes.end());
@@ -344,7 +353,8 @@ int main(int argc, char** argv) try {
                 "\"round_end_wait_ms\": %.1f, \"plan_wait_share\": %.4f, "
                 "\"largest_round_wait_share\": %.4f, \"farm_efficiency\": %.3f, "
                 "\"coordinator_cpu_s_per_g_samples\": %.2f, "
-                "\"worker_cores_per_coordinator_core\": %.0f}\n",
+                "\"worker_cores_per_coordinator_core\": %.0f, \"worker_wait_share\": "
+                "%.4f}\n",
                 size.width, size.height, spp, renders, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
@@ -356,7 +366,8 @@ int main(int argc, char** argv) try {
                 r.rounds ? 1e3 * r.round_end_wait_seconds / r.rounds : 0.0,
                 r.plan_wait_seconds / r.seconds, r.largest_round_wait_share,
                 rate > 0 ? double(r.samples) / r.seconds / (workers * rate) : 0.0, per_g,
-                per_g > 0 ? 1e9 / (per_g * (rate > 0 ? rate : 2e6)) : 0.0);
+                per_g > 0 ? 1e9 / (per_g * (rate > 0 ? rate : 2e6)) : 0.0,
+                r.worker_wait_seconds / (r.seconds * workers));
             std::fflush(stdout);
         }
 } catch (const std::exception& e) {
