@@ -54,13 +54,13 @@ uint64_t render_memory_estimate(uint32_t width, uint32_t height, bool has_refere
         + 16                             // the round's spp; a strategy's per pixel
         + 72                             // optimal's planning, the round ahead
         + 8                              // optimal's weights kept
-        + (sizeof(PixelSums) + 12) / 4   // a round opened ahead: held results, jobs
+        + (sizeof(PixelSums) + 12) / 2   // a round opened ahead: held results, jobs
         + 20;                            // the final image: RGB, spp, variance
     if (has_reference) per_pixel += 24;  // the reference, and the image compared to it
     if (first_hits)
         per_pixel += AuxSums::kBytesPerPixel    // the sums
                      + AuxSums::kBytesPerPixel  // their copy a checkpoint is written from
-                     + sizeof(FirstHitSums) / 4  // a round opened ahead: held results'
+                     + sizeof(FirstHitSums) / 2  // a round opened ahead: held results'
                      + 24;                       // the image's albedo and normal layers
     // and a megabyte for the rest; `denoised`'s round ends: the copies they plan from,
     // their plans' buffers and Open Image Denoise's working memory, ~764 bytes a pixel.

@@ -285,7 +285,7 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
         if (pick == next_pending_.end()) return std::nullopt;
         // What the round after holds is bounded (render_session.h).
         const size_t size = jobs_[*pick].job.rect.size();
-        if (next_pixels_ > 0 && next_pixels_ + size > merged_.pixel_count() / 4)
+        if (next_pixels_ > 0 && next_pixels_ + size > merged_.pixel_count() / 2)
             return std::nullopt;
         next_pixels_ += size;
     }

@@ -284,7 +284,11 @@ private:
     // round out's in jobs_ (from current_jobs_ on), and their results are held until the
     // round out has merged and ended, so every pixel's sums add up in round order and a
     // render's bytes do not depend on when a round opened. What is held is bounded:
-    // results of at most a quarter of the image (next_pixels_, leased or held).
+    // results of at most half the image (next_pixels_, leased or held). Half, not a
+    // quarter: a round is cut into at least two jobs a live worker core, so through the
+    // round out's last jobs every core that finishes finds one of the round after; with a
+    // quarter, at 64 worker cores and 1080p tiles of 128x128 (32 of them a quarter), half
+    // the cores waited there (docs/FARM.md, "Two rounds out").
     size_t current_jobs_ = 0;
     const std::vector<uint32_t>* next_spp_ = nullptr;
     const uint32_t* next_data_ = nullptr;  // its buffer, which next_round hands over
