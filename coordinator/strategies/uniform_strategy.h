@@ -26,8 +26,11 @@ public:
         return ahead_.empty() ? nullptr : &ahead_;
     }
 
-    // Samples per pixel of the next round after `done` of `spp`: rounds double from
-    // about kFirstRoundSamples up to about round_samples(spp x pixels) samples.
+    // How much the render's samples so far grow a round after the first.
+    static constexpr uint32_t kRoundGrowth = 8;
+    // Samples per pixel of the next round after `done` of `spp`: a first round of about
+    // kFirstRoundSamples, then rounds of (kRoundGrowth - 1) x done, up to about
+    // round_samples(spp x pixels) samples.
     static uint32_t round_spp(uint32_t done, uint32_t spp, size_t pixels);
 
 private:

@@ -41,12 +41,14 @@ TEST(Uniform, ProgressiveRoundsAddUpToSpp) {
     EXPECT_EQ(rounds, 1u);  // a small image's first round holds kFirstRoundSamples
 }
 
-TEST(Uniform, RoundsDoubleFromAboutKFirstRoundSamples) {
+TEST(Uniform, RoundsGrowEightfoldFromAboutKFirstRoundSamples) {
     const size_t pixels = 1 << 16;
     const uint32_t first = uint32_t(kFirstRoundSamples / pixels);
-    EXPECT_EQ(UniformStrategy::round_spp(0, 4096, pixels), first);
-    EXPECT_EQ(UniformStrategy::round_spp(first, 4096, pixels), first);
-    EXPECT_EQ(UniformStrategy::round_spp(2 * first, 4096, pixels), 2 * first);
+    // A budget whose cap (an eighth: 8192 spp) does not bind: the render so far grows
+    // eightfold a round.
+    EXPECT_EQ(UniformStrategy::round_spp(0, 65536, pixels), first);
+    EXPECT_EQ(UniformStrategy::round_spp(first, 65536, pixels), 7 * first);
+    EXPECT_EQ(UniformStrategy::round_spp(8 * first, 65536, pixels), 56 * first);
     EXPECT_EQ(UniformStrategy::round_spp(0, 4096, 4096 * 4096), 1u);  // never below 1
 }
 
@@ -67,8 +69,8 @@ TEST(Uniform, RoundsGrowWithTheBudget) {
     EXPECT_EQ(round_samples(kRoundSamples), kRoundSamples);
     EXPECT_EQ(round_samples(8 * kRoundSamples), kRoundSamples);
     EXPECT_EQ(round_samples(64 * kRoundSamples), 8 * kRoundSamples);
-    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1920 * 1080),
-              100u);  // still doubling
+    EXPECT_EQ(UniformStrategy::round_spp(2, 1000, 1920 * 1080), 14u);     // still growing
+    EXPECT_EQ(UniformStrategy::round_spp(100, 1000, 1920 * 1080), 125u);  // an eighth
     EXPECT_EQ(UniformStrategy::round_spp(256, 1024, 1920 * 1080), 128u);  // an eighth
     EXPECT_EQ(UniformStrategy::round_spp(512, 4096, 4096 * 4096), 512u);
 }
@@ -82,12 +84,14 @@ std::vector<uint32_t> schedule(uint32_t spp, size_t pixels) {
     return rounds;
 }
 
-TEST(Uniform, A1080pRenderOf1024SppIsMergedFourteenTimes) {
-    // 2, 2, 4, ... 128 spp, then six more of 128: 14 rounds where rounds of at most
-    // kRoundSamples (16 spp here) were 67.
+TEST(Uniform, A1080pRenderOf1024SppIsMergedTenTimes) {
+    // 2, 14, 112 spp, then seven of 128: 10 rounds where doubling rounds were 14 and
+    // rounds of at most kRoundSamples (16 spp here) 67.
     const std::vector<uint32_t> rounds = schedule(1024, 1920 * 1080);
-    EXPECT_EQ(rounds, (std::vector<uint32_t>{2, 2, 4, 8, 16, 32, 64, 128, 128, 128, 128,
-                                             128, 128, 128}));
+    EXPECT_EQ(rounds,
+              (std::vector<uint32_t>{2, 14, 112, 128, 128, 128, 128, 128, 128, 128}));
+    // 2, 14, then three of 16 at 64 spp, where doubling rounds were 7.
+    EXPECT_EQ(schedule(64, 1920 * 1080), (std::vector<uint32_t>{2, 14, 16, 16, 16}));
     // At most log2(spp) + 7 rounds for every budget, at every size; the rounds add up to
     // the spp.
     for (const size_t pixels :
@@ -106,13 +110,13 @@ TEST(Uniform, ARenderOf1024SppRestoredMidWayGoesOnInTheSameRounds) {
     const uint32_t w = 1920, h = 1080;
     UniformStrategy whole(w, h, 1024), first(w, h, 1024);
     Accumulator merged(1, 1);      // uniform reads nothing merged
-    for (int k = 0; k < 9; ++k) {  // past the doubling, into the rounds of 128 spp
+    for (int k = 0; k < 5; ++k) {  // past the growth, into the rounds of 128 spp
         ASSERT_TRUE(whole.next_round(merged));
         ASSERT_TRUE(first.next_round(merged));
     }
     UniformStrategy resumed(w, h, 1024);
     resumed.restore_state(nlohmann::json::parse(first.save_state().dump()));
-    uint32_t rounds = 9;
+    uint32_t rounds = 5;
     uint64_t samples = 0;
     for (auto a = whole.next_round(merged), b = resumed.next_round(merged); a || b;
          a = whole.next_round(merged), b = resumed.next_round(merged)) {
@@ -122,8 +126,8 @@ TEST(Uniform, ARenderOf1024SppRestoredMidWayGoesOnInTheSameRounds) {
         EXPECT_EQ(b->spp, a->spp);
         samples += b->total();
     }
-    EXPECT_EQ(rounds, 14u);
-    EXPECT_EQ(samples, uint64_t(w) * h * (1024 - 256 - 128));
+    EXPECT_EQ(rounds, 10u);
+    EXPECT_EQ(samples, uint64_t(w) * h * (1024 - 128 - 2 * 128));
 }
 
 TEST(Uniform, RestoredStateContinuesWhereItStopped) {
