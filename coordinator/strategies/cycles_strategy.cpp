@@ -55,14 +55,19 @@ uint64_t CyclesStrategy::planned_samples() const {
 }
 
 double CyclesStrategy::pixel_error(const Accumulator& merged, size_t i) {
-    if (merged.samples(i) < 2) return std::numeric_limits<double>::infinity();
-    double full[3], even[3], odd[3];
-    merged.mean(i, full);
-    merged.half_means(i, even, odd);
+    const PixelSums& p = merged.at(i);
+    if (p.samples < 2) return std::numeric_limits<double>::infinity();
+    // Accumulator::mean's and half_means' arithmetic, the same operations in the same
+    // order (so the same bits), on the sums read once, and without the odd half's
+    // divisions, which the error does not use: the judgement of every pixel that got
+    // samples is most of a round end's own work, and its divisions most of that.
+    const double inv = 1.0 / double(p.samples);
+    const double n_even = double((p.samples + 1) / 2);
     double difference = 0, intensity = 0;
     for (int c = 0; c < 3; ++c) {
-        difference += std::abs(full[c] - even[c]);
-        intensity += full[c];
+        const double full = (p.even[c] + p.odd[c]) * inv;
+        difference += std::abs(full - p.even[c] / n_even);
+        intensity += full;
     }
     return difference / (kIntensityEpsilon + std::sqrt(std::max(intensity, 0.0)));
 }
@@ -81,8 +86,16 @@ std::vector<bool> CyclesStrategy::dilate_unconverged(const std::vector<bool>& co
 }
 
 void CyclesStrategy::dilate_row(const char* below, char* rows, uint32_t w) {
-    for (uint32_t x = 0; x < w; ++x)
-        rows[x] = below[x] && (x == 0 || below[x - 1]) && (x + 1 == w || below[x + 1]);
+    if (w == 0) return;
+    if (w == 1) {
+        rows[0] = below[0];
+        return;
+    }
+    // Bytes of 0 or 1, and'ed without a branch a pixel (the pass vectorises); the edges,
+    // with one neighbour in the row, apart.
+    rows[0] = below[0] & below[1];
+    for (uint32_t x = 1; x + 1 < w; ++x) rows[x] = below[x - 1] & below[x] & below[x + 1];
+    rows[w - 1] = below[w - 2] & below[w - 1];
 }
 
 bool CyclesStrategy::dilated(const std::vector<char>& rows, uint32_t x, uint32_t y,
@@ -130,20 +143,34 @@ std::optional<Round> CyclesStrategy::next_round(const Accumulator& merged) {
         // whole numbers, added in any order.
         const size_t band_rows = rows_per_band(width_);
         const size_t bands = band_count(height_, band_rows);
+        // have / step_ without a 64-bit division a pixel (have < max_spp_, a uint32_t):
+        // the quotient from floating point, then corrected to the exact one.
+        const auto steps = [step = uint64_t(step_),
+                            inv = 1.0 / double(step_)](uint64_t have) {
+            uint64_t q = uint64_t(double(have) * inv);
+            while (q * step > have) --q;
+            while ((q + 1) * step <= have) ++q;
+            return q;
+        };
         std::vector<size_t> band_done(bands, 0), band_capped(bands, 0);
         for_each_band(height_, band_rows, [&](size_t band, size_t row0, size_t row1) {
             for (uint32_t y = uint32_t(row0); y < row1; ++y) {
+                // dilated(), a row at a time: a missing neighbour row (the image's edge)
+                // is the row itself.
+                const char* here = &rows_[size_t(y) * width_];
+                const char* up = y > 0 ? here - width_ : here;
+                const char* down = y + 1 < height_ ? here + width_ : here;
                 for (uint32_t x = 0; x < width_; ++x) {
                     const size_t i = size_t(y) * width_ + x;
                     const uint64_t have = merged.samples(i);
-                    if (dilated(rows_, x, y, width_, height_)) {
+                    if (up[x] & here[x] & down[x]) {
                         ++band_done[band];
                     } else if (have >= max_spp_) {
                         ++band_capped[band];
                     } else {
                         // The first check falls on a multiple of the step, as Cycles
                         // aligns it.
-                        const uint64_t next = (have / step_ + 1) * uint64_t(step_);
+                        const uint64_t next = (steps(have) + 1) * uint64_t(step_);
                         round.spp[i] =
                             uint32_t(std::min<uint64_t>(next, max_spp_) - have);
                     }
