@@ -54,10 +54,14 @@ struct Shares {
 // `keep(i)` says which items are considered.
 template <typename Keep, typename Cost>
 Shares proportional_shares(const std::vector<double>& weights, double total,
-                           const Keep& keep, const Cost& cost) {
+                           const Keep& keep, const Cost& cost, const double* kept_total) {
     const size_t n = weights.size();
     Shares shares;
     shares.weights = &weights;
+    if (kept_total) {  // summed by the caller, as below
+        shares.first = *kept_total > 0 ? total / *kept_total : 0.0;
+        return shares;
+    }
     std::vector<double> band_all(band_count(n, kBandPixels), 0.0);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         double all = 0;
@@ -270,7 +274,7 @@ size_t give_to_first(Tied tied, size_t wanted, const RemainderOrder& order,
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
                                 const std::vector<uint32_t>& caps,
                                 const std::vector<double>& costs,
-                                ApportionScratch* scratch) {
+                                ApportionScratch* scratch, const double* kept_total) {
     const bool unit = costs.empty();
     auto cost = [&](size_t i) { return unit ? 1.0 : costs[i]; };
     if (unit) total = std::floor(total);
@@ -287,7 +291,7 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     // item is stored but the counts (and the shares when a cap binds): fractions, hashes
     // and bucket numbers are computed again where they are needed, which at 1920x1080 is
     // cheaper than the ~100 MB of fresh pages that keys, orders and shares took.
-    Shares share = proportional_shares(weights, total, keep, cost);
+    Shares share = proportional_shares(weights, total, keep, cost, kept_total);
     const RemainderOrder order{share};
 
     // Floors, and how many items' fractions fall in each bucket (fraction_bucket), by

@@ -29,10 +29,15 @@ struct ApportionScratch {
     std::vector<RemainderKey> keys;
     std::vector<std::vector<uint32_t>> histogram;  // each band's fraction buckets
 };
+// With `kept_total`, the caller's own pass has summed costs[i] * weights[i] (weights[i]
+// alone without costs) over the items of weight > 0 and cap > 0, in bands of kBandPixels
+// items (bands.h), each in item order and the bands' sums in band order: the sum the
+// shares are scaled by, bit for bit, without apportion's pass over every item for it.
 std::vector<uint32_t> apportion(const std::vector<double>& weights, double total,
                                 const std::vector<uint32_t>& caps,
                                 const std::vector<double>& costs = {},
-                                ApportionScratch* scratch = nullptr);
+                                ApportionScratch* scratch = nullptr,
+                                const double* kept_total = nullptr);
 
 // The samples a budgeted method may spend: `budget`, or spp * pixels when only spp is
 // given, and never more than `max_samples` when that is set. Assumes validate() passed.

@@ -241,12 +241,16 @@ void OptimalStrategy::read_merged(const Accumulator& merged, bool costs,
     b.cost.resize(costs ? n : 0);
     // Each band's largest finite variance; max is exact in any order.
     std::vector<double> band_largest(band_count(n, kBandPixels), 0.0);
+    std::vector<char> band_nonfinite(band_largest.size(), 0);
     for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
         double largest = 0;
+        bool nonfinite = false;
         for (size_t i = begin; i < end; ++i) {
             const double v = merged.luminance_variance(i);
             b.variance[i] = v;
-            if (std::isfinite(v)) largest = std::max(largest, v);
+            const bool finite = std::isfinite(v);
+            if (finite) largest = std::max(largest, v);
+            nonfinite = nonfinite | !finite;
             const uint64_t samples = merged.samples(i);
             b.samples[i] = samples;
             if (costs) {
@@ -256,9 +260,12 @@ void OptimalStrategy::read_merged(const Accumulator& merged, bool costs,
             }
         }
         band_largest[band] = largest;
+        band_nonfinite[band] = nonfinite;
     });
     b.largest = 0;
     for (double l : band_largest) b.largest = std::max(b.largest, l);
+    b.nonfinite = std::find(band_nonfinite.begin(), band_nonfinite.end(), 1) !=
+                  band_nonfinite.end();
     b.spent = costs ? double(merged.total_rays()) : double(merged.total_samples());
     b.in_flight = in_flight;
 }
@@ -268,11 +275,12 @@ void OptimalStrategy::estimate_sigma(Planning& b, uint32_t width, uint32_t heigh
     std::vector<double>& var = b.variance;
     std::vector<double>& sigma = b.sigma;
     const size_t n = var.size();
-    // Sums that overflowed say "very noisy", not NaN.
-    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i)
-            if (!std::isfinite(var[i])) var[i] = b.largest;
-    });
+    // Sums that overflowed say "very noisy", not NaN (a pass only when there are any).
+    if (b.nonfinite)
+        for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
+            for (size_t i = begin; i < end; ++i)
+                if (!std::isfinite(var[i])) var[i] = b.largest;
+        });
     const double median = median_value(var, b.median_counts, b.median_candidates);
     const auto each_pixel = [&](auto&& f) {
         for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
@@ -313,15 +321,21 @@ void OptimalStrategy::estimate_sigma(Planning& b, uint32_t width, uint32_t heigh
 std::vector<double> OptimalStrategy::optimal_counts(const std::vector<double>& weights,
                                                     const std::vector<double>& costs,
                                                     double total, double lo, double hi) {
-    std::vector<double> counts;
-    optimal_counts(weights, costs, total, lo, hi, counts);
+    const Targets target = optimal_targets(weights, costs, total, lo, hi);
+    std::vector<double> counts(weights.size());
+    for_each_band(weights.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) counts[i] = target(weights[i]);
+    });
     return counts;
 }
 
-void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
-                                     const std::vector<double>& costs, double total,
-                                     double lo, double hi, std::vector<double>& counts) {
+OptimalStrategy::Targets OptimalStrategy::optimal_targets(
+    const std::vector<double>& weights, const std::vector<double>& costs, double total,
+    double lo, double hi) {
     const size_t n = weights.size();
+    Targets target;
+    target.lo = lo;
+    target.hi = hi;
     auto cost = [&](size_t i) { return costs.empty() ? 1.0 : costs[i]; };
     // Every sum here is summed in pixel order within bands of fixed size and the bands'
     // sums added in band order: the same bits with one thread or many.
@@ -353,13 +367,13 @@ void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
     }
     const double floor_cost = all.floor, cap_cost = all.cap;
     if (total <= floor_cost) {
-        const double scale = floor_cost > 0 ? total / floor_cost : 0.0;
-        counts.assign(n, lo * scale);
-        return;
+        target.kind = Targets::kScaledFloors;
+        target.factor = floor_cost > 0 ? total / floor_cost : 0.0;
+        return target;
     }
     if (total >= cap_cost) {
-        counts.assign(n, hi);
-        return;
+        target.kind = Targets::kAllCapped;
+        return target;
     }
 
     // f(mu) = sum_i c_i clamp(mu w_i, lo, hi) is continuous, piecewise linear and rising,
@@ -430,11 +444,8 @@ void OptimalStrategy::optimal_counts(const std::vector<double>& weights,
         if (!(middle > below && middle < above)) break;  // no double left between them
         mu = middle;
     }
-    counts.resize(n);
-    for_each_band(n, kBandPixels, [&](size_t, size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i)
-            counts[i] = weights[i] > 0 ? std::clamp(mu * weights[i], lo, hi) : lo;
-    });
+    target.factor = mu;
+    return target;
 }
 
 // Planning ahead. A round end holds up the farm: no job is out until the next round is
@@ -516,15 +527,16 @@ std::optional<Round> OptimalStrategy::next_round(const Accumulator& merged) {
 
 void OptimalStrategy::prepare_buffers() {
     const size_t pixels = size_t(width_) * height_;
-    weight_.assign(pixels, 0.0);
     Planning& b = planning_;
     b.variance.resize(pixels);
     b.cost.resize(cost_aware_ ? pixels : 0);
     b.samples.resize(pixels);
     b.sigma.resize(pixels);
-    b.gap.resize(pixels);
     b.room.resize(pixels);
-    b.apportion.keys.resize(pixels);
+    // The remainder's keys are sorted only when a pixel's cost is not 1 or a cap binds
+    // (apportion): optimal's round ends leave them untouched, 32 MB at 1920x1080.
+    if (cost_aware_) b.apportion.keys.resize(pixels);
+    prepared_ = true;
 }
 
 std::function<void()> OptimalStrategy::take_work_ahead() {
@@ -595,55 +607,66 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
     }
 
     estimate_sigma(b, width_, height_, sigma_radius_, sigma_prior_);
-    const std::vector<double>& sigma = b.sigma;
-    if (weight_.size() != pixels) prepare_buffers();
+    if (!prepared_) prepare_buffers();
+    // sigma becomes each pixel's weight in place: w_i = r_i^(2/3) = cbrt(r_i^2), r_i =
+    // sigma_i (optimal-time: sigma_i / c_i). The squares of a chunk are taken first, so
+    // that the loops over it, without branches, are the ones the compiler vectorises
+    // (cube_root.h) and write over the sigma they were taken from.
+    std::vector<double>& weight = b.sigma;
     std::vector<char> band_any(band_count(pixels, kBandPixels), 0);
-    // w_i = r_i^(2/3) = cbrt(r_i^2), r_i = sigma_i (optimal-time: sigma_i / c_i), in
-    // loops without branches, which the compiler vectorises (cube_root.h).
     for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
-        const auto weigh = [&](const auto& square) {
-            for (size_t i = begin; i < end; ++i)
-                weight_[i] = inverse_cube_root_guess(square(i));
-            for (size_t i = begin; i < end; ++i)
-                weight_[i] = cube_root_from_guess(square(i), weight_[i]);
-            long odd = 0;
-            for (size_t i = begin; i < end; ++i)
-                odd |= long(!cube_root_steps_hold(square(i)));
-            if (odd)  // 0, a subnormal, infinity or NaN
-                for (size_t i = begin; i < end; ++i)
-                    if (!cube_root_steps_hold(square(i)))
-                        weight_[i] = std::cbrt(square(i));
-        };
-        if (cost_aware_)
-            weigh([&](size_t i) { return (sigma[i] / cost[i]) * (sigma[i] / cost[i]); });
-        else
-            weigh([&](size_t i) { return sigma[i] * sigma[i]; });
+        constexpr size_t kChunk = 512;
+        double square[kChunk];
         long any = 0;
-        for (size_t i = begin; i < end; ++i) any |= long(weight_[i] > 0);
+        for (size_t first = begin; first < end; first += kChunk) {
+            const size_t m = std::min(kChunk, end - first);
+            double* const w = weight.data() + first;
+            if (cost_aware_)
+                for (size_t j = 0; j < m; ++j)
+                    square[j] = (w[j] / cost[first + j]) * (w[j] / cost[first + j]);
+            else
+                for (size_t j = 0; j < m; ++j) square[j] = w[j] * w[j];
+            for (size_t j = 0; j < m; ++j) w[j] = inverse_cube_root_guess(square[j]);
+            for (size_t j = 0; j < m; ++j) w[j] = cube_root_from_guess(square[j], w[j]);
+            long odd = 0;
+            for (size_t j = 0; j < m; ++j) odd |= long(!cube_root_steps_hold(square[j]));
+            if (odd)  // 0, a subnormal, infinity or NaN
+                for (size_t j = 0; j < m; ++j)
+                    if (!cube_root_steps_hold(square[j])) w[j] = std::cbrt(square[j]);
+            for (size_t j = 0; j < m; ++j) any |= long(w[j] > 0);
+        }
         band_any[band] = char(any);
     });
     const bool noise_seen =
         std::find(band_any.begin(), band_any.end(), 1) != band_any.end();
-
-    // The round closes the gap between what each pixel has and its target; pixels already
-    // past their target get nothing, so the gaps are scaled to the share.
     // With no noise seen anywhere every pixel weighs the same.
-    std::vector<double>& gap = b.gap;
-    // In place: `noise_seen ? weight_ : std::vector(...)` copied the weights every plan
-    // (a conditional of an lvalue and a temporary is a temporary), 16 MB at 1920x1080.
-    if (!noise_seen) std::fill(weight_.begin(), weight_.end(), 1.0);
-    optimal_counts(weight_, cost, spent + share, double(min_spp_), double(cap_), gap);
+    if (!noise_seen) std::fill(weight.begin(), weight.end(), 1.0);
+
+    // The round closes the gap between each pixel's target and what it has; pixels
+    // already past their target get nothing, so the gaps are scaled to the share. The
+    // targets are not kept: each is the gap's, in place of the weight it follows from.
+    const Targets target =
+        optimal_targets(weight, cost, spent + share, double(min_spp_), double(cap_));
+    std::vector<double>& gap = weight;
+    // The same pass sums what apportion scales the gaps by (its kept_total).
     std::vector<uint32_t>& room = b.room;
     room.resize(pixels);
-    for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
+    std::vector<double> band_kept(band_count(pixels, kBandPixels), 0.0);
+    for_each_band(pixels, kBandPixels, [&](size_t band, size_t begin, size_t end) {
+        double kept = 0;
         for (size_t i = begin; i < end; ++i) {
             const uint64_t have =
                 b.samples[i] + (b.in_flight.empty() ? 0 : b.in_flight[i]);
-            gap[i] = std::max(0.0, gap[i] - double(have));  // the target, then the gap
+            gap[i] = std::max(0.0, target(weight[i]) - double(have));
             room[i] = have < cap_ ? uint32_t(cap_ - have) : 0;
+            if (gap[i] > 0 && room[i] > 0) kept += (cost_aware_ ? cost[i] : 1.0) * gap[i];
         }
+        band_kept[band] = kept;
     });
-    return {apportion(gap, share, room, cost, &b.apportion), share, share >= remaining};
+    double kept_total = 0;
+    for (double kept : band_kept) kept_total += kept;
+    return {apportion(gap, share, room, cost, &b.apportion, &kept_total), share,
+            share >= remaining};
 }
 
 void OptimalStrategy::restore_planned_round(std::vector<uint32_t> spp) {

@@ -4,6 +4,7 @@
 // sample, minimising the error for a fixed time (rays) instead of a fixed sample count.
 #pragma once
 
+#include <algorithm>
 #include <functional>
 #include <optional>
 
@@ -64,11 +65,15 @@ private:
         std::vector<double> variance, cost;
         std::vector<uint64_t> samples;
         std::vector<uint32_t> in_flight;
-        double largest = 0;    // the largest finite variance
-        double spent = 0;      // samples (optimal-time: rays) merged
-        double mean_cost = 1;  // rays per sample merged
-        // Worked in by the plan.
-        std::vector<double> sigma, gap;
+        double largest = 0;      // the largest finite variance
+        bool nonfinite = false;  // some variance is not finite (an overflowed sum)
+        double spent = 0;        // samples (optimal-time: rays) merged
+        double mean_cost = 1;    // rays per sample merged
+        // Worked in by the plan. Each pixel's sigma, then in place its weight (sigma_i /
+        // c_i)^(2/3), then the gap between its target and what it has: one buffer that
+        // each pass reads and writes pixel by pixel, 16 MB at 1920x1080 where three were
+        // 48 MB of pages to fault in and stream.
+        std::vector<double> sigma;
         std::vector<uint32_t> room;
         ApportionScratch apportion;
         // The image median's per-band histograms and the values of its bucket (8 MB of
@@ -91,12 +96,27 @@ private:
     // b.sigma from b.variance (and b.samples, for the prior); see sigma_estimates.
     static void estimate_sigma(Planning& b, uint32_t width, uint32_t height,
                                uint32_t radius, uint32_t prior);
-    // As above, into `counts`.
-    static void optimal_counts(const std::vector<double>& weights,
-                               const std::vector<double>& costs, double total, double lo,
-                               double hi, std::vector<double>& counts);
+    // What optimal_counts finds: each pixel's target as a function of its weight alone.
+    struct Targets {
+        enum { kScaledFloors, kAllCapped, kClamped } kind = kClamped;
+        double factor = 1;  // the floors' scale, or the multiplier mu
+        double lo = 0, hi = 0;
+        double operator()(double w) const {
+            switch (kind) {
+                case kScaledFloors:
+                    return lo * factor;
+                case kAllCapped:
+                    return hi;
+                default:
+                    return w > 0 ? std::clamp(factor * w, lo, hi) : lo;
+            }
+        }
+    };
+    static Targets optimal_targets(const std::vector<double>& weights,
+                                   const std::vector<double>& costs, double total,
+                                   double lo, double hi);
 
-    // Sizes (and so touches) the weights kept and the planning buffers.
+    // Sizes (and so touches) the planning buffers.
     void prepare_buffers();
     // The first round: min_spp everywhere, the estimates' foundation; its first half
     // when the pilot is split (split_pilot_), the second then held in ahead_.
@@ -124,11 +144,8 @@ private:
     bool piloted_ = false;
     bool finished_ = false;
 
-    // Each pixel's weight (sigma_i / c_i)^(2/3), written by each plan: kept only so that
-    // its 16 MB at 1920x1080 are not taken fresh every round end.
-    std::vector<double> weight_;
-
     Planning planning_;
+    bool prepared_ = false;  // planning_'s buffers are sized
 
     // Planning ahead (docs/STRATEGIES.md): the plan of the next round, to be made by
     // work_ahead_ (or by whoever took it) and then kept in ahead_ until next_round hands
