@@ -13,6 +13,7 @@
 
 #include "coordinator.h"
 #include "farm_test_results.h"
+#include "render_session.h"
 #include "scene_loader.h"
 
 namespace aliquot {
@@ -25,6 +26,88 @@ void expect_same_image(const Image& a, const Image& b, const std::string& what) 
     ASSERT_EQ(a.extra.size(), b.extra.size()) << what;
     for (size_t e = 0; e < a.extra.size(); ++e)
         EXPECT_EQ(a.extra[e].values, b.extra[e].values) << what << " " << a.extra[e].name;
+}
+
+// What a session's merges are handed: a worker's result for `job`, made from it alone.
+SampleJobResult result_for(const SampleJob& job) {
+    LeaseGrant grant;
+    grant.job = job;
+    return made_up_result(grant);
+}
+
+bool overlap(const PixelRect& a, const PixelRect& b) {
+    return a.x < b.x + b.width && b.x < a.x + a.width && a.y < b.y + b.height &&
+           b.y < a.y + a.height;
+}
+
+// The next job `s` issues under lease ++lease: it waits (no time is asserted)
+// through a plan being made, and is nullopt only once the render has ended.
+std::optional<SampleJob> next_job(RenderSession& s, uint64_t& lease) {
+    const auto far = RenderSession::Clock::now() + std::chrono::hours(1);
+    // A bound only so that a session that never issues again fails rather than hangs.
+    for (int tries = 0; tries < 10000 && !s.finished(); ++tries) {
+        if (std::optional<SampleJob> job = s.issue(++lease, "w", far)) return job;
+        std::this_thread::sleep_for(milliseconds(1));
+    }
+    return std::nullopt;
+}
+
+// Merges every job `s` issues, to its end: what one worker alone does.
+void merge_to_the_end(RenderSession& s, uint64_t& lease) {
+    while (const std::optional<SampleJob> job = next_job(s, lease))
+        EXPECT_NE(s.complete(lease, "w", result_for(*job)).status,
+                  CompleteStatus::Ignored);
+    EXPECT_EQ(s.state(), RenderState::Done) << s.error();
+}
+
+// A result of the round out refused by its add (off the render's lock) leaves its job
+// unmerged, and in no queue until its end_merge, under the lock again, puts it back. A
+// job of the round ahead cut in between over its pixels counts its samples as to come
+// (unmerged_jobs), so it starts its pixels' samples after them, and the job traced again
+// does not trace them twice.
+TEST(HostileMerges, AJobOfTheRoundAheadCutBeforeARefusalIsCountedStartsAfterItsSamples) {
+    const RenderSpec spec = square_test_spec("uniform", 64, 2048);  // two rounds of 1024
+    RenderSession s("r", spec, 0);
+    s.start();
+    uint64_t lease = 0;
+    const std::optional<SampleJob> out = next_job(s, lease);
+    ASSERT_TRUE(out);
+    const uint64_t out_lease = lease;
+    SampleJobResult unlike = result_for(*out);
+    unlike.pixels[0].samples += 1;  // unlike its job: its add refuses it
+    RenderSession::Merge refused = s.begin_merge(out_lease, "w", unlike, nullptr);
+    ASSERT_FALSE(refused.outcome);
+    s.add_merge(refused, unlike);
+    ASSERT_FALSE(refused.added);
+    // Before its end_merge: the rest of the round out, then the round ahead up to a job
+    // over the refused one's pixels.
+    std::optional<SampleJob> over;
+    while (!over) {
+        std::optional<SampleJob> job = next_job(s, lease);
+        ASSERT_TRUE(job);
+        if (overlap(job->rect, out->rect))
+            over = std::move(job);
+        else
+            EXPECT_EQ(s.complete(lease, "w", result_for(*job)).status,
+                      CompleteStatus::Merged);
+    }
+    const uint64_t over_lease = lease;
+    for (uint32_t y = 0; y < over->rect.height; ++y)
+        for (uint32_t x = 0; x < over->rect.width; ++x) {
+            const uint32_t px = over->rect.x + x, py = over->rect.y + y;
+            if (!overlap({px, py, 1, 1}, out->rect)) continue;
+            const size_t o =
+                size_t(py - out->rect.y) * out->rect.width + (px - out->rect.x);
+            ASSERT_EQ(over->first_sample[size_t(y) * over->rect.width + x],
+                      out->first_sample[o] + out->counts[o])
+                << "pixel " << px << "," << py
+                << ": the refused job's samples are traced twice";
+        }
+    EXPECT_EQ(s.end_merge(refused).status, CompleteStatus::Rejected);
+    EXPECT_EQ(s.complete(over_lease, "w", result_for(*over)).status,
+              CompleteStatus::Merged);
+    merge_to_the_end(s, lease);
+    expect_same_image(s.image(true), rendered_alone(spec), "uniform");
 }
 
 // A lease whose deadline passes while its result is being added (off the render's
