@@ -6,6 +6,7 @@
 #include <chrono>
 #include <future>
 #include <mutex>
+#include <new>
 #include <random>
 #include <set>
 #include <thread>
@@ -108,6 +109,55 @@ TEST(HostileMerges, AJobOfTheRoundAheadCutBeforeARefusalIsCountedStartsAfterItsS
               CompleteStatus::Merged);
     merge_to_the_end(s, lease);
     expect_same_image(s.image(true), rendered_alone(spec), "uniform");
+}
+
+// A merge keeps what it needs, its add recorded in flight (a job of the round out) or a
+// copy of its result held (the round ahead's), before its lease ends: when that fails
+// (std::bad_alloc, thrown here by a test hook) the job is still the render's and is
+// issued again at once. Kept after the lease ended, it would be in no queue, and the
+// render would wait for it for good.
+TEST(HostileMerges, AMergeThatCannotKeepWhatItNeedsGivesItsJobBack) {
+    for (const bool ahead : {false, true}) {
+        const RenderSpec spec = square_test_spec("uniform", 64, 2048);  // two rounds
+        RenderSession s("r", spec, 0);
+        s.start();
+        bool fail = false;
+        s.while_keeping = [&](size_t) {
+            if (std::exchange(fail, false)) throw std::bad_alloc();
+        };
+        uint64_t lease = 0;
+        // The round out's first job stays out, so that the round ahead's results are
+        // held.
+        const std::optional<SampleJob> first = next_job(s, lease);
+        ASSERT_TRUE(first);
+        const uint64_t first_lease = lease;
+        std::optional<SampleJob> job = first;
+        uint64_t job_lease = first_lease;
+        if (ahead) {
+            // The round ahead's jobs start past the round out's samples.
+            while ((job = next_job(s, lease)) && job->first_sample[0] == 0)
+                EXPECT_EQ(s.complete(lease, "w", result_for(*job)).status,
+                          CompleteStatus::Merged);
+            ASSERT_TRUE(job);
+            job_lease = lease;
+        }
+        fail = true;
+        EXPECT_THROW(s.complete(job_lease, "w", result_for(*job)), std::bad_alloc);
+        EXPECT_FALSE(s.holds(job_lease));
+        const std::optional<SampleJob> again = next_job(s, lease);
+        ASSERT_TRUE(again) << (ahead ? "the round ahead's job" : "the round out's job")
+                           << " is lost";
+        EXPECT_TRUE(again->rect == job->rect);
+        EXPECT_EQ(again->first_sample, job->first_sample);
+        EXPECT_EQ(s.complete(lease, "w", result_for(*again)).status,
+                  CompleteStatus::Merged);
+        if (ahead) {
+            EXPECT_EQ(s.complete(first_lease, "w", result_for(*first)).status,
+                      CompleteStatus::Merged);
+        }
+        merge_to_the_end(s, lease);
+        expect_same_image(s.image(true), rendered_alone(spec), ahead ? "ahead" : "out");
+    }
 }
 
 // A lease whose deadline passes while its result is being added (off the render's

@@ -154,20 +154,20 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     }
     // The results held for this round merge now, after the round before's: each
     // pixel's sums add up in round order.
-    for (size_t j = 0; j < current_jobs_ && state_ == RenderState::Running; ++j) {
-        JobSlot& slot = jobs_[j];
-        if (!slot.held) continue;
+    std::vector<std::optional<SampleJobResult>> held = merges_.take_held();
+    for (size_t j = 0; j < held.size() && state_ == RenderState::Running; ++j) {
+        if (!held[j]) continue;
         std::string why;  // checked when it came; the merge may still refuse it
         try {
-            merge_with_aux(merged_, aux_, *slot.held);
+            merge_with_aux(merged_, aux_, *held[j]);
         } catch (const MergeError& e) {
             why = e.what();
         }
-        slot.held.reset();
+        held[j].reset();
         if (why.empty())
             ++merged_jobs_;
         else
-            count_failure(j, slot.worker, "result rejected: " + why, alive, policy);
+            count_failure(j, jobs_[j].worker, "result rejected: " + why, alive, policy);
     }
 }
 
@@ -189,6 +189,7 @@ void RenderSession::open_next_round() {
             : std::vector<PixelRect>{};
     end_plan_wait(!rects.empty());
     if (rects.empty()) return;
+    merges_.open_round_ahead(rects.size());
     next_spp_ = spp;
     next_data_ = spp->data();
     for (const PixelRect& rect : rects) {
@@ -218,10 +219,18 @@ std::vector<const SampleJob*> RenderSession::unmerged_jobs() const {
     for (size_t j : pending_) out.push_back(&jobs_[j].job);
     // A result refused off the lock leaves its job unmerged; its end_merge has not put
     // it back in pending_ yet (issue waits for adds in flight before it asks).
-    std::lock_guard adds(adds_mutex_);
-    for (const Adding& a : adding_)
-        if (a.refused) out.push_back(&jobs_[a.job].job);
+    for (size_t j : merges_.refused()) out.push_back(&jobs_[j].job);
     return out;
+}
+
+void RenderSession::give_back(uint64_t lease_id, size_t j) noexcept {
+    if (finished() || !lease_to_job_.count(lease_id)) return;
+    try {
+        requeue(j);  // all or nothing (a deque's push_front)
+    } catch (...) {
+        return;
+    }
+    lease_to_job_.erase(lease_id);
 }
 
 void RenderSession::requeue(size_t j) {
@@ -372,8 +381,7 @@ RenderSession::Merge RenderSession::begin_merge(uint64_t lease_id,
         merge.outcome = {CompleteStatus::Ignored, "not your lease"};
         return merge;
     }
-    lease_to_job_.erase(it);
-    const size_t j = size_t(&slot - jobs_.data());
+    const size_t j = it->second;
     const bool ahead = j >= current_jobs_;  // the round after's: held, merged later
     std::string why = check_shape(slot, result);
     if (why.empty() && ahead) {
@@ -385,66 +393,37 @@ RenderSession::Merge RenderSession::begin_merge(uint64_t lease_id,
             why = e.what();
         }
     }
-    if (!why.empty()) {
-        // Nothing was merged; the job is traced again, preferably by another worker.
-        count_failure(j, worker, "result rejected: " + why, alive, policy);
-        merge.outcome = {CompleteStatus::Rejected, why};
-        return merge;
-    }
-    if (ahead) {
-        if (movable)
-            slot.held = std::move(*movable);
-        else
-            slot.held = result;
-        merge.outcome = {CompleteStatus::Merged, {}};
-        return merge;
-    }
-    merge.job = j;
-    merge.counts = slot.job.counts.data();  // cut at its lease, kept until the round ends
-    std::lock_guard adds(adds_mutex_);
-    adding_.push_back({j});
-    return merge;
-}
-
-void RenderSession::add_merge(Merge& merge, const SampleJobResult& result) {
+    // The lease ends last, once nothing is left that can fail: a merge that cannot keep
+    // what it needs (no memory) gives its job back instead of losing it. Once its lease
+    // has ended, a job merging is no longer issued, even when that lease's time runs out.
     try {
-        // Refuses, whole, a result unlike its job or sums that would stop being finite.
-        merge.totals = check_with_aux(merged_, aux_, result, merge.counts);
-        if (while_adding) while_adding(merge.job);
-        add_with_aux(merged_, aux_, result, merge.totals);
-        merge.added = true;
-    } catch (...) {
-        // MergeError's reason; anything else refuses the result too (no memory left for
-        // a reason, a test's hook): an add that never ended would hold up every wait for
-        // adds for good (a cancel, an image, the tick behind them).
-        try {
-            throw;
-        } catch (const std::exception& e) {
-            try {
-                merge.refused = e.what();
-            } catch (...) {
-            }
-        } catch (...) {
+        if (!why.empty()) {
+            // Nothing was merged; the job is traced again, preferably by another worker.
+            count_failure(j, worker, "result rejected: " + why, alive, policy);
+            merge.outcome = {CompleteStatus::Rejected, why};
+        } else if (ahead) {
+            if (while_keeping) while_keeping(j);
+            merges_.hold(j - current_jobs_,
+                         movable ? std::move(*movable) : SampleJobResult(result));
+            merge.outcome = {CompleteStatus::Merged, {}};
+        } else {
+            if (while_keeping) while_keeping(j);
+            merges_.begin_add(j);
+            merge.job = j;
+            merge.counts =
+                slot.job.counts.data();  // cut at its lease, kept to the round's end
         }
+    } catch (...) {
+        give_back(lease_id, j);
+        throw;
     }
-    {
-        std::lock_guard adds(adds_mutex_);
-        for (Adding& a : adding_)
-            if (a.job == merge.job) {
-                a.over = true;
-                a.refused = !merge.added;
-            }
-    }
-    adds_over_.notify_all();
+    lease_to_job_.erase(lease_id);
+    return merge;
 }
 
 CompleteOutcome RenderSession::end_merge(Merge& merge, const std::set<std::string>& alive,
                                          const FailurePolicy& policy) {
-    {
-        std::lock_guard adds(adds_mutex_);
-        adding_.erase(std::find_if(adding_.begin(), adding_.end(),
-                                   [&](const Adding& a) { return a.job == merge.job; }));
-    }
+    merges_.count(merge.job);
     if (!merge.added) {
         // The render ended meanwhile: its job no longer matters.
         if (state_ != RenderState::Running)
@@ -458,14 +437,6 @@ CompleteOutcome RenderSession::end_merge(Merge& merge, const std::set<std::strin
     if (state_ != RenderState::Running) return {CompleteStatus::Merged, {}};
     if (++merged_jobs_ == current_jobs_) end_rounds(alive, policy);
     return {CompleteStatus::Merged, {}};
-}
-
-void RenderSession::wait_for_adds() const {
-    std::unique_lock adds(adds_mutex_);
-    adds_over_.wait(adds, [&] {
-        return std::all_of(adding_.begin(), adding_.end(),
-                           [](const Adding& a) { return a.over; });
-    });
 }
 
 void RenderSession::end_rounds(const std::set<std::string>& alive,
@@ -689,7 +660,7 @@ void RenderSession::finish(RenderState state) {
     next_pending_.clear();
     next_spp_ = nullptr;
     lease_to_job_.clear();
-    for (JobSlot& slot : jobs_) slot.held.reset();
+    merges_.drop_held();
     if (on_finished) on_finished(*this);
 }
 

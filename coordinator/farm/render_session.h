@@ -5,13 +5,11 @@
 #pragma once
 
 #include <chrono>
-#include <condition_variable>
 #include <deque>
 #include <functional>
 #include <future>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -21,6 +19,7 @@
 #include "accumulator.h"
 #include "aux_sums.h"
 #include "lease.h"
+#include "merges_in_flight.h"
 #include "render_spec.h"
 #include "render_state.h"
 #include "round_cutter.h"
@@ -107,29 +106,27 @@ public:
     // ahead are held (moved from `movable` when given, copied otherwise) in begin_merge
     // and added at the round end, under the lock. Readers of the buffers' pixels
     // (image, wait_for_adds) and the render's end wait for adds in flight.
-    struct Merge {
-        // Set: decided in begin_merge (ignored, rejected or held); add and end nothing.
-        std::optional<CompleteOutcome> outcome;
-        ResultTotals totals;  // what the result adds (when merged or held)
-        size_t job = 0;
-        const uint32_t* counts = nullptr;  // the job's, stable while it merges
-        std::string refused;               // add_merge's reason, when it refused
-        bool added = false;
-    };
+    using Merge = MergesInFlight::Merge;
     Merge begin_merge(uint64_t lease_id, const std::string& worker,
                       const SampleJobResult& result, SampleJobResult* movable,
                       const std::set<std::string>& alive = {},
                       const FailurePolicy& policy = {});
     // Checks `result` against its job and the buffers, then adds it, or refuses it
-    // whole. Takes no lock but the adds' own; never throws.
-    void add_merge(Merge& merge, const SampleJobResult& result);
+    // whole (MergesInFlight::add). Takes no lock but the adds' own; never throws.
+    void add_merge(Merge& merge, const SampleJobResult& result) {
+        merges_.add(merge, result, merged_, aux_, while_adding);
+    }
     CompleteOutcome end_merge(Merge& merge, const std::set<std::string>& alive = {},
                               const FailurePolicy& policy = {});
     // Waits (under the render's lock) until no add is in flight: the buffers' pixels
     // are then what the merges counted so far made them.
-    void wait_for_adds() const;
+    void wait_for_adds() const { merges_.wait_for_adds(); }
     // Tests: called in add_merge between its check and its add, off the render's lock.
     std::function<void(size_t job)> while_adding;
+    // Tests: called in begin_merge where a merge keeps what it needs (its add recorded
+    // in flight, a held result's copy), before the lease ends; a test throws
+    // std::bad_alloc there.
+    std::function<void(size_t job)> while_keeping;
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
     // `worker` could not trace its lease, for `reason`: the failure counts against the
@@ -215,7 +212,6 @@ private:
         std::vector<std::string> failed_on;  // distinct workers it failed on, this round
         uint32_t failures = 0;               // failures in all
         bool cut = false;  // job holds its counts and first samples, not only its rect
-        std::optional<SampleJobResult> held;  // the round after's, until it merges
     };
 
     // Ends the round out when its last job merged, and the round after it too when that
@@ -229,6 +225,9 @@ private:
     void open_next_round();
     // A job no longer leased and not done goes back to the front of its round's queue.
     void requeue(size_t j);
+    // A merge of lease `lease_id` (job `j`) failed to begin (no memory): its job goes
+    // back to its queue now, or, should that fail too, when its lease expires.
+    void give_back(uint64_t lease_id, size_t j) noexcept;
     // The round out's jobs not merged yet, for cutting the round after's.
     std::vector<const SampleJob*> unmerged_jobs() const;
     // Waits for the strategy's work ahead (take_work_ahead) to end; rethrows what it
@@ -299,16 +298,8 @@ private:
     bool opened_ahead_ = false;
     std::unordered_map<uint64_t, size_t> lease_to_job_;
     size_t merged_jobs_ = 0;
-    // Jobs between begin_merge and end_merge, and whether each add is over (true) and
-    // refused (the job still unmerged, for unmerged_jobs()). Under adds_mutex_, which
-    // add_merge takes without the render's lock; the lock order: the render's, then it.
-    struct Adding {
-        size_t job;
-        bool over = false, refused = false;
-    };
-    mutable std::mutex adds_mutex_;
-    mutable std::condition_variable adds_over_;
-    std::vector<Adding> adding_;
+    // Jobs between begin_merge and end_merge, and the round ahead's held results.
+    MergesInFlight merges_;
     std::map<std::string, uint32_t> worker_failures_;  // the blocklist's counts
     uint32_t rounds_done_ = 0;
     RoundSummary last_round_;

@@ -1,0 +1,84 @@
+// MergesInFlight: one render's results between the end of their lease and the count of
+// their merge (RenderSession::begin_merge to end_merge). A result of the round out adds
+// its sums off the render's lock: this records which adds are in flight, lets what reads
+// the buffers' pixels wait for them, and names those refused, whose jobs are unmerged
+// until their end_merge puts them back. A result of the round ahead is held here until
+// the round out has ended (docs/FARM.md, "Locks").
+//
+// Called under the render's lock, but for end_add, which an add calls off it, and the
+// waits; the adds' own mutex is taken after the render's lock, never before it.
+#pragma once
+
+#include <condition_variable>
+#include <cstddef>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accumulator.h"
+#include "aux_sums.h"
+#include "lease.h"
+#include "sample_job.h"
+
+namespace aliquot {
+
+class MergesInFlight {
+public:
+    // One result's merge, from begin_merge to end_merge.
+    struct Merge {
+        // Set: decided in begin_merge (ignored, rejected or held); add and end nothing.
+        std::optional<CompleteOutcome> outcome;
+        ResultTotals totals;  // what the result adds (when merged or held)
+        size_t job = 0;
+        const uint32_t* counts = nullptr;  // the job's, stable while it merges
+        std::string refused;               // add's reason, when it refused
+        bool added = false;
+    };
+
+    // The add of job `job` begins: it is in flight until counted. Called before the job's
+    // lease ends, so that a failure here (no memory) leaves the job leased, not lost.
+    void begin_add(size_t job);
+    // Off the render's lock: checks `result` against its job and the buffers, then adds
+    // it, or refuses it whole; the add is then over, the job unmerged until counted when
+    // refused. Never throws: an add that never ended would hold up every wait for adds
+    // for good (a cancel, an image, the tick behind them). `while_adding` (tests) is
+    // called between the check and the add.
+    void add(Merge& merge, const SampleJobResult& result, Accumulator& merged,
+             AuxSums& aux, const std::function<void(size_t job)>& while_adding);
+    // Under the render's lock again: `job`'s merge is counted (or its refusal, the job
+    // back in its queue), and no longer in flight.
+    void count(size_t job);
+    // Waits until every add in flight is over: the buffers' pixels are then what the
+    // merges counted so far, and the refused, made them.
+    void wait_for_adds() const;
+    // Jobs whose add was refused and whose refusal is not counted yet.
+    std::vector<size_t> refused() const;
+
+    // The round ahead opens with `jobs` jobs: a place for each one's held result, made
+    // now, so that holding one cannot fail once its lease has ended.
+    void open_round_ahead(size_t jobs);
+    // Holds the result of the round ahead's job `place` (its index in that round) until
+    // that round is the one out.
+    void hold(size_t place, SampleJobResult&& result) noexcept;
+    // The round ahead is now the round out: its held results, by the job's index in it.
+    std::vector<std::optional<SampleJobResult>> take_held() noexcept;
+    // The render has ended: what was held will never merge.
+    void drop_held() noexcept;
+
+private:
+    // `job`'s add is over, its sums added or the result refused.
+    void end_add(size_t job, bool added);
+
+    struct Add {
+        size_t job;
+        bool over = false, refused = false;
+    };
+    mutable std::mutex mutex_;
+    mutable std::condition_variable over_;
+    std::vector<Add> adds_;
+    std::vector<std::optional<SampleJobResult>> held_;  // the round ahead's, by place
+};
+
+}  // namespace aliquot
