@@ -242,23 +242,6 @@ void RenderSession::requeue(size_t j) {
     }
 }
 
-bool RenderSession::blocklisted(const std::string& worker,
-                                const FailurePolicy& policy) const {
-    const auto it = worker_failures_.find(worker);
-    return it != worker_failures_.end() && it->second >= policy.blocklist_after;
-}
-
-bool RenderSession::another_could_take(const JobSlot& slot, const std::string& worker,
-                                       const std::set<std::string>& alive,
-                                       const FailurePolicy& policy) const {
-    for (const std::string& other : alive)
-        if (other != worker && !blocklisted(other, policy) &&
-            std::find(slot.failed_on.begin(), slot.failed_on.end(), other) ==
-                slot.failed_on.end())
-            return true;
-    return false;
-}
-
 std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
                                               const std::string& worker,
                                               Clock::time_point deadline,
@@ -273,18 +256,11 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
             plan_wait_since_ = Clock::now();
         return std::nullopt;
     }
-    if (blocklisted(worker, policy) &&
-        std::any_of(alive.begin(), alive.end(), [&](const std::string& other) {
-            return other != worker && !blocklisted(other, policy);
-        }))
-        return std::nullopt;  // kept off this render while someone else can trace it
+    if (failures_.kept_off(worker, alive, policy)) return std::nullopt;
     // The first pending job this worker may take, the round out's first: one it failed
     // on waits for another.
     const auto may_take = [&](size_t j) {
-        const JobSlot& slot = jobs_[j];
-        const bool failed_here = std::find(slot.failed_on.begin(), slot.failed_on.end(),
-                                           worker) != slot.failed_on.end();
-        return !failed_here || !another_could_take(slot, worker, alive, policy);
+        return failures_.may_take(jobs_[j].failures, worker, alive, policy);
     };
     std::deque<size_t>* queue = &pending_;
     auto pick = std::find_if(pending_.begin(), pending_.end(), may_take);
@@ -539,28 +515,6 @@ bool RenderSession::abandon(uint64_t lease_id, const std::string& worker) {
     return true;
 }
 
-namespace {
-
-// A worker's reason as one bounded line: it ends up in the render's error.
-std::string one_line(const std::string& text) {
-    constexpr size_t kMax = 500;
-    std::string out;
-    for (char c : text) {
-        if (out.size() >= kMax) {
-            out += "...";
-            break;
-        }
-        // ASCII only: a worker's bytes reach proto strings and JSON, which need UTF-8,
-        // and a cut at kMax could split a character.
-        const auto u = static_cast<unsigned char>(c);
-        out += (u < 0x20 || u >= 0x7f) ? (u == '\n' || u == '\r' || u == '\t' ? ' ' : '?')
-                                       : c;
-    }
-    return out.empty() ? "no reason given" : out;
-}
-
-}  // namespace
-
 bool RenderSession::fail_job(uint64_t lease_id, const std::string& worker,
                              const std::string& reason,
                              const std::set<std::string>& alive,
@@ -578,39 +532,11 @@ void RenderSession::count_failure(size_t j, const std::string& worker,
                                   const std::set<std::string>& alive,
                                   const FailurePolicy& policy) {
     JobSlot& slot = jobs_[j];
-    ++slot.failures;
-    if (std::find(slot.failed_on.begin(), slot.failed_on.end(), worker) ==
-        slot.failed_on.end())
-        slot.failed_on.push_back(worker);
-    ++worker_failures_[worker];
-    const size_t distinct = slot.failed_on.size();
-    if (distinct >= policy.max_job_failures ||
-        (slot.failures >= policy.max_job_failures && policy.fail_on_fewer_hosts &&
-         !another_could_take(slot, "", alive, policy))) {
-        const PixelRect& r = slot.job.rect;
-        // Appended piece by piece: GCC 12 warns (falsely, -Wrestrict) on `"literal" +
-        // std::to_string(...)`, which inserts at the front of a temporary.
-        std::string why = "job ";
-        why += std::to_string(r.x) + "," + std::to_string(r.y) + " ";
-        why += std::to_string(r.width) + "x" + std::to_string(r.height) + " failed";
-        if (slot.failures != distinct) {
-            why += " ";
-            why += std::to_string(slot.failures) + " times";
-        }
-        why += " on ";
-        why += std::to_string(distinct);
-        why += distinct == 1 ? " worker: " : " workers: ";
-        why += one_line(reason);
-        fail(why);
-        return;
-    }
+    const std::string why =
+        failures_.count(slot.failures, slot.job.rect, worker, reason, alive, policy);
+    if (!why.empty()) return fail(why);
     // Back to the front: the next worker that may take it does.
     requeue(j);
-}
-
-uint32_t RenderSession::failures_of(const std::string& worker) const {
-    const auto it = worker_failures_.find(worker);
-    return it == worker_failures_.end() ? 0 : it->second;
 }
 
 std::vector<uint64_t> RenderSession::expire(Clock::time_point now) {

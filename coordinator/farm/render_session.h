@@ -18,6 +18,7 @@
 
 #include "accumulator.h"
 #include "aux_sums.h"
+#include "job_failures.h"
 #include "lease.h"
 #include "merges_in_flight.h"
 #include "render_spec.h"
@@ -34,25 +35,6 @@ struct RoundSummary {
     double seconds = 0;              // wall time since the render started
     double error_estimate = -1;      // see error_estimate.h
     double error_vs_reference = -1;  // the seed's E against the reference, if any
-};
-
-// How a render treats jobs its workers cannot trace (docs/FARM.md, "A job no worker can
-// trace"): soft-fail, then another worker, then fail the render with the reason.
-struct FailurePolicy {
-    // A job that failed on this many distinct workers fails its render; so does a job
-    // that failed this many times in all when no live worker it has not failed on is
-    // left.
-    uint32_t max_job_failures = 3;
-    // A worker with this many failures on one render gets no more of its jobs while a
-    // live worker with fewer can take them.
-    uint32_t blocklist_after = 2;
-    // Whether a job that failed max_job_failures times fails its render when fewer hosts
-    // than that failed it and no other live host could take it (a farm on fewer machines
-    // than max_job_failures). Off, only max_job_failures distinct hosts fail a render, so
-    // that no single holder of the worker token can fail one alone; such a job is then
-    // retried until the render is cancelled. The workers named here are hosts
-    // (Coordinator: the address a worker's connection came from).
-    bool fail_on_fewer_hosts = true;
 };
 
 class RenderSession {
@@ -142,7 +124,7 @@ public:
     // Whether `lease_id` is out now (issued, not yet merged, expired or given back).
     bool holds(uint64_t lease_id) const { return lease_to_job_.count(lease_id) > 0; }
     // Failures of `worker` on this render's jobs.
-    uint32_t failures_of(const std::string& worker) const;
+    uint32_t failures_of(const std::string& worker) const { return failures_.of(worker); }
     // Returns leases whose deadline passed to the pending queue; which they were.
     std::vector<uint64_t> expire(Clock::time_point now);
     void cancel();
@@ -209,8 +191,7 @@ private:
         SampleJob job;
         std::string worker;
         Clock::time_point deadline;
-        std::vector<std::string> failed_on;  // distinct workers it failed on, this round
-        uint32_t failures = 0;               // failures in all
+        JobFailures::OfJob failures;
         bool cut = false;  // job holds its counts and first samples, not only its rect
     };
 
@@ -246,16 +227,10 @@ private:
     void finish(RenderState state);
     // Whether `result` is of its job's rectangle and size (its pixels are add_merge's).
     static std::string check_shape(const JobSlot& slot, const SampleJobResult& result);
-    bool blocklisted(const std::string& worker, const FailurePolicy& policy) const;
-    // Whether someone in `alive` but `worker` may take `slot`: not blocklisted and not
-    // among those it failed on.
     // Counts a failure of job `j` (no longer leased) against it and `worker`: back to the
     // queue, or the render fails with `reason` when the policy says so.
     void count_failure(size_t j, const std::string& worker, const std::string& reason,
                        const std::set<std::string>& alive, const FailurePolicy& policy);
-    bool another_could_take(const JobSlot& slot, const std::string& worker,
-                            const std::set<std::string>& alive,
-                            const FailurePolicy& policy) const;
 
     std::string id_;
     RenderSpec spec_;
@@ -300,7 +275,7 @@ private:
     size_t merged_jobs_ = 0;
     // Jobs between begin_merge and end_merge, and the round ahead's held results.
     MergesInFlight merges_;
-    std::map<std::string, uint32_t> worker_failures_;  // the blocklist's counts
+    JobFailures failures_;
     uint32_t rounds_done_ = 0;
     RoundSummary last_round_;
 
