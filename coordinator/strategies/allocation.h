@@ -28,6 +28,7 @@ struct RemainderKey {
 struct ApportionScratch {
     std::vector<RemainderKey> keys;
     std::vector<std::vector<uint32_t>> histogram;  // each band's fraction buckets
+    std::vector<uint16_t> bucket;                  // each item's, with unit costs
 };
 // With `kept_total`, the caller's own pass has summed costs[i] * weights[i] (weights[i]
 // alone without costs) over the items of weight > 0 and cap > 0, in bands of kBandPixels
