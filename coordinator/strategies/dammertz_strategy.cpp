@@ -76,6 +76,32 @@ uint64_t DammertzStrategy::planned_samples() const {
     return std::min(max_samples_, saturating_mul(max_spp_, uint64_t(width_) * height_));
 }
 
+double DammertzStrategy::pixel_error(const Accumulator& merged, size_t i) const {
+    // The seed's norm below, kept by the accumulator as results merge (the same
+    // operations, so the same bits): 8 bytes a pixel to read.
+    if (!paper_norm_ && merged.half_difference(i) >= 0) return merged.half_difference(i);
+    double even[3], odd[3];
+    merged.half_means(i, even, odd);
+    double e = 0;
+    if (paper_norm_) {
+        // Paper: |I - A| over the channels, I the full mean and A the even half,
+        // normalised by sqrt(sum_c I) as a stand-in for the eye's response.
+        double full[3];
+        merged.mean(i, full);
+        double diff = 0, sum = 0;
+        for (int c = 0; c < 3; ++c) {
+            diff += std::abs(full[c] - even[c]);
+            sum += full[c];
+        }
+        e = diff / std::sqrt(std::max(sum, kPaperNormFloor));
+    } else {
+        // Seed: the mean absolute difference of the two half images, over RGB.
+        for (int c = 0; c < 3; ++c) e += std::abs(even[c] - odd[c]);
+        e /= 3;
+    }
+    return e;
+}
+
 std::vector<double> DammertzStrategy::pixel_errors(const Accumulator& merged,
                                                    const PixelRect& rect) const {
     std::vector<double> errors(rect.size());
@@ -83,41 +109,23 @@ std::vector<double> DammertzStrategy::pixel_errors(const Accumulator& merged,
     // inside another pass (evaluate's, over leaves) on this thread.
     const size_t band_rows = std::max<size_t>(1, kBandPixels / std::max(rect.width, 1u));
     for_each_band(rect.height, band_rows, [&](size_t, size_t row0, size_t row1) {
-        for (uint32_t row = uint32_t(row0); row < row1; ++row) {
-            for (uint32_t col = 0; col < rect.width; ++col) {
-                const size_t i = size_t(rect.y + row) * width_ + rect.x + col;
-                if (!paper_norm_ && merged.half_difference(i) >= 0) {
-                    // The seed's norm below, kept by the accumulator as results merge
-                    // (the same operations, so the same bits): 8 bytes a pixel to read.
-                    errors[size_t(row) * rect.width + col] = merged.half_difference(i);
-                    continue;
-                }
-                double even[3], odd[3];
-                merged.half_means(i, even, odd);
-                double e = 0;
-                if (paper_norm_) {
-                    // Paper: |I - A| over the channels, I the full mean and A the even
-                    // half, normalised by sqrt(sum_c I) as a stand-in for the eye's
-                    // response.
-                    double full[3];
-                    merged.mean(i, full);
-                    double diff = 0, sum = 0;
-                    for (int c = 0; c < 3; ++c) {
-                        diff += std::abs(full[c] - even[c]);
-                        sum += full[c];
-                    }
-                    e = diff / std::sqrt(std::max(sum, kPaperNormFloor));
-                } else {
-                    // Seed: the mean absolute difference of the two half images, over
-                    // RGB.
-                    for (int c = 0; c < 3; ++c) e += std::abs(even[c] - odd[c]);
-                    e /= 3;
-                }
-                errors[size_t(row) * rect.width + col] = e;
-            }
-        }
+        for (uint32_t row = uint32_t(row0); row < row1; ++row)
+            for (uint32_t col = 0; col < rect.width; ++col)
+                errors[size_t(row) * rect.width + col] =
+                    pixel_error(merged, size_t(rect.y + row) * width_ + rect.x + col);
     });
     return errors;
+}
+
+double DammertzStrategy::error_sum(const Accumulator& merged,
+                                   const PixelRect& rect) const {
+    // Row-major, one pixel after another: bucket_error's sum of pixel_errors, the same
+    // additions in the same order.
+    double sum = 0;
+    for (uint32_t y = rect.y; y < rect.y + rect.height; ++y)
+        for (uint32_t x = rect.x; x < rect.x + rect.width; ++x)
+            sum += pixel_error(merged, size_t(y) * width_ + x);
+    return sum;
 }
 
 double DammertzStrategy::bucket_error(const std::vector<double>& errors) const {
@@ -193,11 +201,21 @@ DammertzStrategy::Judged DammertzStrategy::judge(const Accumulator& merged,
     // The halves need a sample each before they can be compared.
     if (leaf.state != State::active || merged.samples(top_left(leaf.rect, width_)) < 2)
         return {leaf, std::nullopt};
-    const std::vector<double> errors = pixel_errors(merged, leaf.rect);
-    leaf.error = bucket_error(errors);
+    // The pixels' errors are kept, a vector of the leaf's size, only where a split may
+    // need them: a leaf whose E was far above split_factor V a round ago is judged from
+    // the errors summed as they are read (a leaf of 1920x1080 was 16 MB written and read
+    // again every round). Either way E is the same sum, in the same order.
+    std::vector<double> errors;
+    if (leaf.error <= 2 * split_factor_ * max_variance_) {
+        errors = pixel_errors(merged, leaf.rect);
+        leaf.error = bucket_error(errors);
+    } else {
+        leaf.error = bucket_error(error_sum(merged, leaf.rect), leaf.rect.size());
+    }
     if (leaf.error <= max_variance_) {
         leaf.state = State::converged;
     } else if (leaf.error <= split_factor_ * max_variance_) {
+        if (errors.empty()) errors = pixel_errors(merged, leaf.rect);
         if (auto halves = split(leaf.rect, errors, min_bucket_size_)) {
             // Each half's E from the leaf's errors: the pixels' own, read once.
             return {Leaf{halves->first, State::active,

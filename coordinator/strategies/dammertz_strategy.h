@@ -56,6 +56,10 @@ private:
     };
     Judged judge(const Accumulator& merged, Leaf leaf) const;
     void evaluate(const Accumulator& merged);
+    // One pixel's error under the configured norm (pixel_errors' value for it), and the
+    // sum of `rect`'s in pixel_errors' row-major order, without keeping them.
+    double pixel_error(const Accumulator& merged, size_t i) const;
+    double error_sum(const Accumulator& merged, const PixelRect& rect) const;
     // E from the sum of `pixels` pixel errors (bucket_error's arithmetic), and of `part`
     // of `rect` from rect's pixel errors.
     double bucket_error(double sum, size_t pixels) const;
