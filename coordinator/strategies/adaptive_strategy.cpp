@@ -6,6 +6,7 @@
 
 #include "allocation.h"
 #include "bands.h"
+#include "exact_quotient.h"
 #include "vec3.h"
 
 namespace aliquot {
@@ -146,13 +147,8 @@ std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {
         Round round{rounds_, std::vector<uint32_t>(pixels)};
         const uint64_t r = delivered_, k = deliveries_;
         // In bands, and without a 64-bit division a pixel (most of this pass's time at
-        // 1920x1080): the quotient from floating point, then corrected to the exact one.
-        const auto quotient = [k, kd = double(k)](uint64_t x) {
-            uint64_t q = uint64_t(double(x) / kd);
-            while (q * k > x) --q;
-            while ((q + 1) * k <= x) ++q;
-            return q;
-        };
+        // 1920x1080).
+        const ExactQuotient quotient(k);
         for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
             for (size_t i = begin; i < end; ++i)
                 round.spp[i] = uint32_t(quotient(uint64_t(extra_[i]) * (r + 1)) -

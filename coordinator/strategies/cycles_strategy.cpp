@@ -6,6 +6,7 @@
 
 #include "allocation.h"
 #include "bands.h"
+#include "exact_quotient.h"
 
 namespace aliquot {
 
@@ -143,15 +144,8 @@ std::optional<Round> CyclesStrategy::next_round(const Accumulator& merged) {
         // whole numbers, added in any order.
         const size_t band_rows = rows_per_band(width_);
         const size_t bands = band_count(height_, band_rows);
-        // have / step_ without a 64-bit division a pixel (have < max_spp_, a uint32_t):
-        // the quotient from floating point, then corrected to the exact one.
-        const auto steps = [step = uint64_t(step_),
-                            inv = 1.0 / double(step_)](uint64_t have) {
-            uint64_t q = uint64_t(double(have) * inv);
-            while (q * step > have) --q;
-            while ((q + 1) * step <= have) ++q;
-            return q;
-        };
+        // have / step_ without a 64-bit division a pixel (have < max_spp_, a uint32_t).
+        const ExactQuotient steps(step_);
         std::vector<size_t> band_done(bands, 0), band_capped(bands, 0);
         for_each_band(height_, band_rows, [&](size_t band, size_t row0, size_t row1) {
             for (uint32_t y = uint32_t(row0); y < row1; ++y) {
