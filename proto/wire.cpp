@@ -2,6 +2,8 @@
 
 #include <string>
 
+#include "sum_records.h"
+
 namespace aliquot {
 
 namespace {
@@ -28,6 +30,15 @@ void expect_size(const char* field, size_t got, size_t want) {
                         " values, expected " + std::to_string(want));
 }
 
+// `field` must hold exactly `n` records of `record` bytes each (the division, not n times
+// the record, so that no size overflows).
+void expect_records(const char* field, size_t bytes, size_t record, size_t n) {
+    if (bytes % record != 0 || bytes / record != n)
+        throw WireError(std::string(field) + " has " + std::to_string(bytes) +
+                        " bytes, expected " + std::to_string(n) + " records of " +
+                        std::to_string(record));
+}
+
 }  // namespace
 
 void to_proto(const SampleJob& job, v1::SampleJob& out) {
@@ -50,34 +61,11 @@ SampleJob from_proto(const v1::SampleJob& in) {
 
 void to_proto(const SampleJobResult& result, v1::SampleJobResult& out) {
     to_proto(result.rect, *out.mutable_rect());
-    const size_t n = result.pixels.size();
-    auto* even = out.mutable_sum_even();
-    auto* odd = out.mutable_sum_odd();
-    even->Reserve(int(3 * n));
-    odd->Reserve(int(3 * n));
-    for (const PixelSums& p : result.pixels) {
-        for (int c = 0; c < 3; ++c) {
-            even->Add(p.even[c]);
-            odd->Add(p.odd[c]);
-        }
-        out.add_sum_sq_luminance(p.sum_sq_luminance);
-        out.add_samples(p.samples);
-        out.add_rays(p.rays);
-        out.add_nonfinite(p.nonfinite);
-    }
+    write_records(result.pixels, *out.mutable_pixels());
+    if (!result.first_hits.empty())
+        write_records(result.first_hits, *out.mutable_first_hits());
     out.set_wall_seconds(result.wall_seconds);
     out.set_version(kWireVersion);
-    if (!result.first_hits.empty()) {
-        auto* albedo = out.mutable_sum_albedo();
-        auto* normal = out.mutable_sum_normal();
-        albedo->Reserve(int(3 * n));
-        normal->Reserve(int(3 * n));
-        for (const FirstHitSums& f : result.first_hits)
-            for (int c = 0; c < 3; ++c) {
-                albedo->Add(f.albedo[c]);
-                normal->Add(f.normal[c]);
-            }
-    }
 }
 
 SampleJobResult from_proto(const v1::SampleJobResult& in) {
@@ -88,37 +76,18 @@ SampleJobResult from_proto(const v1::SampleJobResult& in) {
                         std::to_string(kWireVersion) + ": update the worker");
     SampleJobResult result;
     result.rect = from_proto(in.rect());
+    // Only sizes are checked here: what the sums say (finite, the job's counts, zero
+    // where untraced) is the Accumulator's to check, as for a result that never met the
+    // wire.
     const size_t n = result.rect.size();
-    expect_size("sum_even", size_t(in.sum_even_size()), 3 * n);
-    expect_size("sum_odd", size_t(in.sum_odd_size()), 3 * n);
-    expect_size("sum_sq_luminance", size_t(in.sum_sq_luminance_size()), n);
-    expect_size("samples", size_t(in.samples_size()), n);
-    expect_size("rays", size_t(in.rays_size()), n);
-    expect_size("nonfinite", size_t(in.nonfinite_size()), n);
-    result.pixels.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-        PixelSums& p = result.pixels[i];
-        for (int c = 0; c < 3; ++c) {
-            p.even[c] = in.sum_even(int(3 * i + c));
-            p.odd[c] = in.sum_odd(int(3 * i + c));
-        }
-        p.sum_sq_luminance = in.sum_sq_luminance(int(i));
-        p.samples = in.samples(int(i));
-        p.rays = in.rays(int(i));
-        p.nonfinite = in.nonfinite(int(i));
-    }
+    expect_records("pixels", in.pixels().size(), kPixelRecordBytes, n);
+    read_records(in.pixels(), result.pixels);
     result.wall_seconds = in.wall_seconds();
-    // Whether the job asked for them is the coordinator's to check (AuxSums): here both
-    // arrays are whole, or absent.
-    if (in.sum_albedo_size() != 0 || in.sum_normal_size() != 0) {
-        expect_size("sum_albedo", size_t(in.sum_albedo_size()), 3 * n);
-        expect_size("sum_normal", size_t(in.sum_normal_size()), 3 * n);
-        result.first_hits.resize(n);
-        for (size_t i = 0; i < n; ++i)
-            for (int c = 0; c < 3; ++c) {
-                result.first_hits[i].albedo[c] = in.sum_albedo(int(3 * i + c));
-                result.first_hits[i].normal[c] = in.sum_normal(int(3 * i + c));
-            }
+    // Whether the job asked for them is the coordinator's to check (AuxSums): here they
+    // are whole, or absent.
+    if (!in.first_hits().empty()) {
+        expect_records("first_hits", in.first_hits().size(), kFirstHitRecordBytes, n);
+        read_records(in.first_hits(), result.first_hits);
     }
     return result;
 }

@@ -1,6 +1,6 @@
 // Conversions between sample jobs / results / completion statuses and their protobuf
-// messages. Decoding checks array lengths, so a malformed message is an error, never an
-// out-of-bounds read.
+// messages. Decoding checks array and record lengths, so a malformed message is an error,
+// never an out-of-bounds read.
 #pragma once
 
 #include <stdexcept>
@@ -19,8 +19,9 @@ public:
 // The version of the job and result messages this build speaks, carried in every
 // result (SampleJobResult.version) and checked by from_proto: a result of another version
 // is a WireError, so it is refused whole. 1 added the first-hit sums (issue 34); a worker
-// from before sends none (0).
-inline constexpr uint32_t kWireVersion = 1;
+// from before sends none (0). 2 carries a result's sums as fixed little-endian records in
+// two bytes fields (sum_records.h), decoded with a length check and one copy (issue 33).
+inline constexpr uint32_t kWireVersion = 2;
 
 void to_proto(const SampleJob& job, v1::SampleJob& out);
 SampleJob from_proto(const v1::SampleJob& in);

@@ -18,11 +18,29 @@
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "scene_loader.h"
+#include "sum_records.h"
 #include "trace_job.h"
 #include "wire.h"
 
 namespace aliquot {
 namespace {
+
+// A result message whose sums are changed as a buggy or hostile worker's would be: the
+// records decoded, edited and encoded again, so only the values differ.
+template <class Edit>
+v1::SampleJobResult with_sums(const v1::SampleJobResult& message, Edit edit) {
+    SampleJobResult result = from_proto(message);
+    edit(result);
+    v1::SampleJobResult out;
+    to_proto(result, out);
+    return out;
+}
+
+// The message with its last pixel's record cut off: the wrong pixel count.
+v1::SampleJobResult one_pixel_short(v1::SampleJobResult message) {
+    message.mutable_pixels()->resize(message.pixels().size() - kPixelRecordBytes);
+    return message;
+}
 
 class WorkerServiceTest : public ::testing::Test {
 protected:
@@ -134,8 +152,7 @@ protected:
 
 TEST_F(WorkerServiceTest, RejectsAResultWithTheWrongPixelCountAndReissuesTheJob) {
     const v1::Lease first = lease();
-    v1::SampleJobResult bad = trace(first);
-    bad.mutable_samples()->RemoveLast();
+    const v1::SampleJobResult bad = one_pixel_short(trace(first));
     EXPECT_EQ(complete(first.lease_id(), bad), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_EQ(samples_merged(), 0u);
     const v1::Lease again = lease();  // the same job, under a new lease
@@ -172,8 +189,7 @@ TEST_F(WorkerServiceTest, ACompleteCarriesTheNextLeaseAfterAMergedResult) {
     EXPECT_EQ(next.render_id(), id2);
     EXPECT_EQ(coordinator_->leases_out(), 1u);
 
-    v1::SampleJobResult wrong = trace(next);
-    wrong.mutable_samples()->RemoveLast();
+    const v1::SampleJobResult wrong = one_pixel_short(trace(next));
     const v1::CompleteReply rejected = complete_and_lease(next, wrong);
     EXPECT_EQ(rejected.status(), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_FALSE(rejected.has_next());
@@ -182,16 +198,18 @@ TEST_F(WorkerServiceTest, ACompleteCarriesTheNextLeaseAfterAMergedResult) {
 
 TEST_F(WorkerServiceTest, RejectsNegativeSampleCounts) {
     const v1::Lease l = lease();
-    v1::SampleJobResult bad = trace(l);
-    bad.set_samples(0, uint64_t(-1));  // -1 as a worker with a sign bug would send it
+    // -1 as a worker with a sign bug would send it
+    const v1::SampleJobResult bad = with_sums(
+        trace(l), [](SampleJobResult& r) { r.pixels[0].samples = uint64_t(-1); });
     EXPECT_EQ(complete(l.lease_id(), bad), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_EQ(samples_merged(), 0u);
 }
 
 TEST_F(WorkerServiceTest, RejectsNonFiniteSums) {
     const v1::Lease l = lease();
-    v1::SampleJobResult bad = trace(l);
-    bad.set_sum_even(0, std::numeric_limits<double>::quiet_NaN());
+    const v1::SampleJobResult bad = with_sums(trace(l), [](SampleJobResult& r) {
+        r.pixels[0].even[0] = std::numeric_limits<double>::quiet_NaN();
+    });
     EXPECT_EQ(complete(l.lease_id(), bad), v1::COMPLETE_STATUS_REJECTED);
     EXPECT_EQ(samples_merged(), 0u);
 }
@@ -357,7 +375,7 @@ TEST_F(WorkerServiceTest, AWorkerNameLongerThan128BytesIsRefused) {
 // sends no version) registered and leased, and each of its results was refused and
 // counted as a job failure. It is turned away at registration, saying why.
 TEST_F(WorkerServiceTest, AWorkerOfAnotherWireVersionIsRefusedAtRegistration) {
-    for (const uint32_t version : {0u, kWireVersion + 1}) {
+    for (const uint32_t version : {0u, kWireVersion - 1, kWireVersion + 1}) {
         testing::TokenContext ctx(Role::Worker);
         v1::RegisterRequest reg;
         reg.set_name("old");
@@ -448,11 +466,14 @@ TEST_F(WorkerServiceTest, AnotherWorkerCannotCompleteOrRevokeALease) {
          {register_over_wire("intruder"), register_over_wire("tester")}) {
         ASSERT_FALSE(intruder.empty());
         ASSERT_NE(intruder, session_);
-        v1::SampleJobResult bogus = honest;  // the right rectangle and sample counts
-        for (int i = 0; i < bogus.sum_even_size(); ++i) {
-            bogus.set_sum_even(i, 100.0 * bogus.samples(i / 3));
-            bogus.set_sum_odd(i, 0);
-        }
+        // The right rectangle and sample counts.
+        const v1::SampleJobResult bogus = with_sums(honest, [](SampleJobResult& r) {
+            for (PixelSums& p : r.pixels)
+                for (int c = 0; c < 3; ++c) {
+                    p.even[c] = 100.0 * double(p.samples);
+                    p.odd[c] = 0;
+                }
+        });
         const v1::CompleteReply reply = complete_as(intruder, l.lease_id(), bogus);
         EXPECT_EQ(reply.status(), v1::COMPLETE_STATUS_IGNORED);
         EXPECT_EQ(reply.message(), "not your lease");
@@ -460,8 +481,7 @@ TEST_F(WorkerServiceTest, AnotherWorkerCannotCompleteOrRevokeALease) {
         wrong.mutable_rect()->set_x(1);
         EXPECT_EQ(complete_as(intruder, l.lease_id(), wrong).status(),
                   v1::COMPLETE_STATUS_IGNORED);
-        v1::SampleJobResult malformed = honest;
-        malformed.mutable_samples()->RemoveLast();
+        const v1::SampleJobResult malformed = one_pixel_short(honest);
         EXPECT_EQ(complete_as(intruder, l.lease_id(), malformed).status(),
                   v1::COMPLETE_STATUS_IGNORED);
         EXPECT_FALSE(renew_as(intruder, l.lease_id()));
@@ -749,7 +769,7 @@ TEST_F(WorkerServiceTest, ARenderWithFirstHitsGetsThemOverTheWire) {
     ASSERT_EQ(l.render_id(), id);
     EXPECT_TRUE(l.job().aux());
     const v1::SampleJobResult result = trace(l);
-    EXPECT_EQ(result.sum_albedo_size(), 3 * 8 * 8);
+    EXPECT_EQ(result.first_hits().size(), 8 * 8 * kFirstHitRecordBytes);
     EXPECT_EQ(complete(l.lease_id(), result), v1::COMPLETE_STATUS_MERGED);
     const std::optional<Image> image = coordinator_->image(id, true);
     ASSERT_TRUE(image);
