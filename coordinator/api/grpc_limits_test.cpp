@@ -483,5 +483,135 @@ TEST_F(GrpcFetchImage, AClientThatStopsReadingIsCutAndTheNextFetchGetsItsPlace) 
     EXPECT_LT(stalled_bytes, stored.size());
 }
 
+// Review of issue 33 (hostile clients): the pace bounds how long one stream holds a
+// FetchImage place, not how many a client that reconnects as fast as it is cut opens. One
+// address now holds at most its share (2 of 3 here): two fetches from 127.0.0.1 that stop
+// reading hold its share, a third from it is refused, and one from 127.0.0.2 is served.
+TEST_F(GrpcFetchImage, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
+    const std::string id = finished_render(*coordinator_, 8);
+    const auto file = coordinator_->image_file(id);
+    ASSERT_TRUE(file);
+    // Far more than the sockets' buffers and a stream's window take of a client that
+    // reads nothing, as in the test above.
+    std::string stored(size_t(16) << 20, '\0');
+    std::mt19937_64 random(11);
+    for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
+        const uint64_t v = random();
+        std::memcpy(&stored[i], &v, 8);
+    }
+    std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+    server_.reset();
+    server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0",
+                                           testing::test_security(), GrpcOptions{},
+                                           limits([](GrpcLimits& l) {
+                                               l.max_fetches = 3;
+                                               l.max_fetches_per_peer = 2;
+                                           }));
+    stub_ = v1::ClientService::NewStub(testing::loopback_channel(server_->port()));
+    v1::FetchImageRequest req;
+    req.set_id(id);
+    req.set_aovs(true);
+    grpc::ChannelArguments stalled_args;
+    stalled_args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+    struct Stalled {
+        std::unique_ptr<v1::ClientService::Stub> stub;
+        testing::TokenContext ctx{Role::Client};
+        std::unique_ptr<grpc::ClientReader<v1::FileChunk>> reader;
+    };
+    std::vector<std::unique_ptr<Stalled>> stalled;
+    v1::FileChunk chunk;
+    for (int i = 0; i < 2; ++i) {
+        auto s = std::make_unique<Stalled>();
+        s->ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+        const auto channel =
+            testing::channel_from("127.0.0.1", server_->port(), stalled_args);
+        ASSERT_TRUE(channel);
+        s->stub = v1::ClientService::NewStub(channel);
+        s->reader = s->stub->FetchImage(&s->ctx, req);
+        ASSERT_TRUE(s->reader->Read(&chunk));  // it holds a place, and reads no more
+        stalled.push_back(std::move(s));
+    }
+    {
+        testing::TokenContext ctx(Role::Client);
+        auto refused = stub_->FetchImage(&ctx, req);  // from 127.0.0.1 too
+        const bool served = refused->Read(&chunk);
+        EXPECT_FALSE(served);
+        if (served) ctx.TryCancel();  // without the share: ended, not read whole
+        const grpc::Status status = refused->Finish();
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+        EXPECT_NE(status.error_message().find("at most 2 from one address"),
+                  std::string::npos)
+            << status.error_message();
+    }
+    {
+        const auto channel = testing::channel_from("127.0.0.2", server_->port());
+        ASSERT_TRUE(channel) << "127.0.0.2 is this host";
+        auto other = v1::ClientService::NewStub(channel);
+        testing::TokenContext ctx(Role::Client);
+        auto reader = other->FetchImage(&ctx, req);
+        std::string bytes;
+        while (reader->Read(&chunk)) bytes += chunk.data();
+        const grpc::Status status = reader->Finish();
+        EXPECT_TRUE(status.ok()) << status.error_message();
+        EXPECT_TRUE(bytes == stored);
+    }
+    for (auto& s : stalled) {
+        s->ctx.TryCancel();
+        s->reader->Finish();
+    }
+}
+
+// The same for Watch streams (2 of 3 here).
+TEST(GrpcWatch, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
+    Coordinator coordinator{CoordinatorOptions{}};  // no worker: the render stays queued
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security(), GrpcOptions{},
+                      limits([](GrpcLimits& l) {
+                          l.max_watches = 3;
+                          l.max_watches_per_peer = 2;
+                      }));
+    auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
+    v1::GetRenderRequest req;
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::RenderInfo info;
+        const grpc::Status status = stub->Submit(
+            &ctx, testing::small_submission(self_contained_scene_json("cornell-box"), 8),
+            &info);
+        ASSERT_TRUE(status.ok()) << status.error_message();
+        req.set_id(info.id());
+    }
+    std::vector<std::unique_ptr<testing::TokenContext>> contexts;
+    std::vector<std::unique_ptr<grpc::ClientReader<v1::RenderInfo>>> readers;
+    const auto watch = [&](v1::ClientService::Stub& from) {
+        contexts.push_back(std::make_unique<testing::TokenContext>(Role::Client));
+        // Ends the test rather than hang it, were a stream to stay open.
+        contexts.back()->set_deadline(std::chrono::system_clock::now() +
+                                      std::chrono::seconds(30));
+        readers.push_back(from.Watch(contexts.back().get(), req));
+        v1::RenderInfo info;
+        return readers.back()->Read(&info);
+    };
+    ASSERT_TRUE(watch(*stub));
+    ASSERT_TRUE(watch(*stub));
+    const bool served = watch(*stub);
+    EXPECT_FALSE(served);
+    if (served) contexts.back()->TryCancel();  // without the share: ended
+    const grpc::Status refused = readers.back()->Finish();
+    readers.pop_back();
+    contexts.pop_back();
+    EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_NE(refused.error_message().find("at most 2 from one address"),
+              std::string::npos)
+        << refused.error_message();
+    const auto channel = testing::channel_from("127.0.0.2", server.port());
+    ASSERT_TRUE(channel) << "127.0.0.2 is this host";
+    auto other = v1::ClientService::NewStub(channel);
+    EXPECT_TRUE(watch(*other));
+    for (size_t i = 0; i < readers.size(); ++i) {
+        contexts[i]->TryCancel();
+        readers[i]->Finish();
+    }
+}
+
 }  // namespace
 }  // namespace aliquot

@@ -13,6 +13,7 @@
 #include <new>
 
 #include "access.h"
+#include "admission.h"
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "farm_log.h"
@@ -26,6 +27,7 @@
 #include "stored_image.h"
 #include "stream_watchdog.h"
 #include "wire.h"
+#include "worker_registry.h"
 
 namespace aliquot {
 
@@ -51,7 +53,7 @@ Status admit(const ServerContext* ctx, const Tokens& tokens, Role role) {
             access_message(access, role)};
 }
 
-// A place among `max` calls of a kind (GrpcLimits' max_watches, max_fetches); one more
+// A place among `max` calls of a kind (GrpcLimits' max_fetches_from_memory); one more
 // is refused rather than given a thread.
 class StreamSlot {
 public:
@@ -71,6 +73,21 @@ private:
 Status too_many(const std::string& calls) {
     return {StatusCode::RESOURCE_EXHAUSTED,
             "too many open " + calls + " calls; try again later"};
+}
+
+// A place among `calls`' (GrpcLimits' max_watches and max_fetches, and their shares per
+// peer address), or the refusal to answer with.
+Status take_place(Admission& calls, const ServerContext& ctx, const std::string& name,
+                  Admission::Place& place) {
+    const std::string host = host_of_peer(ctx.peer());
+    Admission::Ticket ticket = calls.take(host);
+    place = std::move(ticket.place);
+    if (place) return Status::OK;
+    if (!ticket.peer_share_full) return too_many(name);
+    return {StatusCode::RESOURCE_EXHAUSTED, "too many open " + name + " calls from " +
+                                                host + " (at most " +
+                                                std::to_string(calls.places_per_peer()) +
+                                                " from one address); try again later"};
 }
 
 class ClientServiceImpl final : public v1::ClientService::Service {
@@ -152,8 +169,8 @@ public:
                  grpc::ServerWriter<v1::RenderInfo>* writer) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         // Each open stream holds one of the server's threads while it waits.
-        StreamSlot slot(open_streams_, limits_.max_watches);
-        if (!slot.taken()) return too_many("Watch");
+        Admission::Place slot;
+        if (Status s = take_place(watches_, *ctx, "Watch", slot); !s.ok()) return s;
         // Then it ends, OK, and its client opens another (GrpcLimits::watch_life).
         const auto end = std::chrono::steady_clock::now() + limits_.watch_life;
         uint64_t seen = 0;
@@ -218,8 +235,8 @@ public:
                       grpc::ServerWriter<v1::FileChunk>* writer) override {
         if (Status s = admit(ctx, tokens_, Role::Client); !s.ok()) return s;
         // Each holds a server thread and a chunk while it sends.
-        StreamSlot fetch(open_fetches_, limits_.max_fetches);
-        if (!fetch.taken()) return too_many("FetchImage");
+        Admission::Place fetch;
+        if (Status s = take_place(fetches_, *ctx, "FetchImage", fetch); !s.ok()) return s;
         try {
             // A finished render's stored file is sent as it is read.
             if (const auto file = c_.image_file(req->id())) {
@@ -322,8 +339,11 @@ private:
     const GrpcLimits& limits_;
     // Its thread ends with the service, after the server has stopped every call.
     StreamWatchdog watchdog_;
-    std::atomic<int> open_streams_{0};
-    std::atomic<int> open_fetches_{0}, memory_fetches_{0};
+    Admission watches_{size_t(std::max(limits_.max_watches, 0)),
+                       size_t(std::max(limits_.max_watches_per_peer, 0))};
+    Admission fetches_{size_t(std::max(limits_.max_fetches, 0)),
+                       size_t(std::max(limits_.max_fetches_per_peer, 0))};
+    std::atomic<int> memory_fetches_{0};
 };
 
 // Every call but Register carries the worker's session; one the coordinator did not issue

@@ -52,6 +52,11 @@ struct GrpcLimits {
     int max_fetches_from_memory = 2;
     // Watch streams at once.
     int max_watches = 32;
+    // Of the FetchImage and Watch places, one peer address (its host, without the port)
+    // holds at most these, so that a client reconnecting as fast as it is cut leaves a
+    // quarter to other addresses, as the HTTP image routes and threads do.
+    int max_fetches_per_peer = 12;
+    int max_watches_per_peer = 24;
     // A FetchImage or Watch stream must be taken at stream_min_rate at least after a
     // grace, as the HTTP image routes are: each write within stream_grace + its bytes /
     // stream_min_rate, and a FetchImage whole within stream_grace + its size /

@@ -649,7 +649,12 @@ bool a_watch_is_served(v1::ClientService::Stub& stub, const v1::GetRenderRequest
 // kept it open, without limit.
 TEST(GrpcStreams, OpenStreamsAreCappedAndOneMoreIsResourceExhausted) {
     Coordinator coordinator{CoordinatorOptions{}};
-    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security());
+    // Every stream comes from one address here: the cap in all, not its share, is tested
+    // (GrpcWatch.OneAddressHoldsAtMostItsShareAndAnotherIsStillServed has the share).
+    GrpcLimits limits;
+    limits.max_watches_per_peer = limits.max_watches;
+    GrpcServer server(coordinator, "127.0.0.1:0", testing::test_security(), GrpcOptions{},
+                      limits);
     auto stub = v1::ClientService::NewStub(testing::loopback_channel(server.port()));
     const v1::GetRenderRequest req = running_render(coordinator);
 

@@ -456,11 +456,12 @@ struct HttpServer::Impl {
     }
 
     // Event streams open at once (each holds a thread while it lives).
-    Admission streams{options.max_event_streams};
+    Admission streams{options.max_event_streams, options.max_event_streams_per_peer};
 
     // Requests that make or send an image, at once: each may hold a copy of a render's
     // image and its encoding (docs/SECURITY.md, "HTTP image routes").
-    Admission image_requests{options.max_image_requests};
+    Admission image_requests{options.max_image_requests,
+                             options.max_image_requests_per_peer};
 
     // The renders list's thumbnails: at most this many pixels on a side, and made again
     // only when a render changed (ThumbnailCache), for as many renders as a list shows.
@@ -485,32 +486,44 @@ struct HttpServer::Impl {
     }
 
     // A place among image_requests, or ApiError 503 with Retry-After.
-    Admission::Place admit_image(httplib::Response& res) {
-        Admission::Place place = image_requests.take();
-        if (!place) {
+    Admission::Place admit_image(const httplib::Request& req, httplib::Response& res) {
+        Admission::Ticket ticket = image_requests.take(req.remote_addr);
+        if (!ticket.place) {
             res.set_header("Retry-After", "2");
-            throw ApiError(503,
-                           "too many image requests at once (previews, thumbnails, "
+            throw ApiError(
+                503, ticket.peer_share_full
+                         ? "too many image requests at once from " + req.remote_addr +
+                               " (previews, thumbnails, maps and EXR downloads "
+                               "together, at most " +
+                               std::to_string(image_requests.places_per_peer()) +
+                               " from one address); try again later"
+                         : "too many image requests at once (previews, thumbnails, "
                            "maps and EXR downloads together, at most " +
                                std::to_string(image_requests.places()) +
                                "); try again later");
         }
         if (options.image_admitted) options.image_admitted();
-        return place;
+        return std::move(ticket.place);
     }
 
-    void events(const httplib::Request&, httplib::Response& res) {
+    void events(const httplib::Request& req, httplib::Response& res) {
         // A refused stream is told when to come back; the dashboard backs off further.
-        Admission::Place slot = streams.take();
-        if (!slot) {
+        Admission::Ticket ticket = streams.take(req.remote_addr);
+        if (!ticket.place) {
             res.set_header("Retry-After", "10");
             res.set_header("Connection", "close");
             send_error(res, 503,
-                       "too many live-update streams are open (at most " +
-                           std::to_string(options.max_event_streams) +
-                           "); try again later");
+                       ticket.peer_share_full
+                           ? "too many live-update streams are open from " +
+                                 req.remote_addr + " (at most " +
+                                 std::to_string(streams.places_per_peer()) +
+                                 " from one address); try again later"
+                           : "too many live-update streams are open (at most " +
+                                 std::to_string(options.max_event_streams) +
+                                 "); try again later");
             return;
         }
+        Admission::Place slot = std::move(ticket.place);
         res.set_header("Cache-Control", "no-store");
         res.set_header("X-Accel-Buffering", "no");
         // Each event must be taken in time, as an image is; one its client does not
@@ -953,7 +966,7 @@ struct HttpServer::Impl {
                        const auto size = uint32_t(http_api::number_param(
                            "size", query(req, "size", "1024"), 16, 8192));
                        render_or_404(id);
-                       Admission::Place place = admit_image(res);
+                       Admission::Place place = admit_image(req, res);
                        std::string png =
                            http_api::preview_png(image_or_404(id, false), exposure, size);
                        res.set_header("Cache-Control", "no-store");
@@ -972,7 +985,7 @@ struct HttpServer::Impl {
                        // Only a thumbnail made anew takes a place: a kept one is a copy
                        // of a few KB.
                        const std::string png = thumbnails.get(id, version, [&] {
-                           const Admission::Place place = admit_image(res);
+                           const Admission::Place place = admit_image(req, res);
                            return thumbnail_png(id);
                        });
                        res.set_header("Cache-Control", "no-store");
@@ -986,7 +999,7 @@ struct HttpServer::Impl {
                            throw ApiError(400, "'aovs' must be 0 or 1, got \"" +
                                                    aovs.substr(0, 8) + "\"");
                        render_or_404(id);
-                       Admission::Place place = admit_image(res);
+                       Admission::Place place = admit_image(req, res);
                        res.set_header("Cache-Control", "no-store");
                        res.set_header("Content-Disposition",
                                       "attachment; filename=\"" + id + ".exr\"");
@@ -1014,7 +1027,7 @@ struct HttpServer::Impl {
                 const auto size = uint32_t(
                     http_api::number_param("size", query(req, "size", "256"), 8, 256));
                 render_or_404(id);
-                Admission::Place place = admit_image(res);
+                Admission::Place place = admit_image(req, res);
                 const auto map_kind =
                     kind == "spp" ? http_api::MapKind::Spp : http_api::MapKind::Error;
                 json map = http_api::pixel_map(image_or_404(id, true), map_kind, size);

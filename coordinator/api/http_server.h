@@ -38,6 +38,9 @@ struct HttpOptions {
     // Each open stream holds one of the server's threads (front.threads, 32), so 8 always
     // stay free for everything else (the API, /healthz, the dashboard's files).
     size_t max_event_streams = 16;
+    // Of them, one peer address holds at most this many, so that 4 are always there for
+    // other addresses, as 8 of the threads are (FrontLimits::max_threads_per_peer).
+    size_t max_event_streams_per_peer = 12;
     // An event stream ends after this long, so that one whose client reads nothing
     // (whose events the sockets' buffers would take for hours) gives its place and
     // thread back; the dashboard reconnects at once and fetches afresh.
@@ -47,6 +50,10 @@ struct HttpOptions {
     // Retry-After. Each may hold a copy of a render's image and its encoding; a browser
     // opens at most 6 connections to a host, so one dashboard is never refused.
     size_t max_image_requests = 8;
+    // Of them, one peer address holds at most this many: a holder of the token who
+    // reconnects as fast as it is cut keeps 2 places free for other addresses, and a
+    // dashboard (6 connections at most) still never meets its share.
+    size_t max_image_requests_per_peer = 6;
     // Tests only: called by an image route once it holds its place, before it makes
     // anything; a test that blocks in it holds places without timing.
     std::function<void()> image_admitted;

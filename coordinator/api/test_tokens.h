@@ -2,7 +2,13 @@
 // that carry one (a context without a token is refused, as it is in production).
 #pragma once
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <grpcpp/create_channel_posix.h>
 #include <grpcpp/grpcpp.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <string>
 
@@ -31,6 +37,29 @@ public:
 inline std::shared_ptr<grpc::Channel> loopback_channel(int port) {
     return grpc::CreateChannel("127.0.0.1:" + std::to_string(port),
                                grpc::InsecureChannelCredentials());
+}
+
+// A channel of one connection to 127.0.0.1:port made from `source` (any address of 127/8
+// is this host): a second client address on one machine, for what one address may hold.
+// gRPC never connects it again; with `args` a caller can keep its window from growing.
+inline std::shared_ptr<grpc::Channel> channel_from(
+    const char* source, int port, const grpc::ChannelArguments& args = {}) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_in from{};
+    from.sin_family = AF_INET;
+    ::inet_pton(AF_INET, source, &from.sin_addr);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(uint16_t(port));
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (::bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof from) != 0 ||
+        ::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to) != 0 ||
+        ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK) != 0) {
+        ::close(fd);
+        return nullptr;
+    }
+    return grpc::CreateCustomInsecureChannelFromFd("127.0.0.1:" + std::to_string(port),
+                                                   fd, args);
 }
 
 // A uniform 1-spp cornell-box render of `side` x `side` pixels; `scene_json` is the
