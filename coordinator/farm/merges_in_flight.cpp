@@ -79,8 +79,21 @@ void MergesInFlight::hold(size_t place, SampleJobResult&& result) noexcept {
     held_[place] = std::move(result);
 }
 
-std::vector<std::optional<SampleJobResult>> MergesInFlight::take_held() noexcept {
-    return std::exchange(held_, {});
+void MergesInFlight::add_held(
+    Accumulator& merged, AuxSums& aux,
+    const std::function<bool(size_t job, const std::string& refused)>& added) {
+    std::vector<std::optional<SampleJobResult>> held = std::exchange(held_, {});
+    for (size_t j = 0; j < held.size(); ++j) {
+        if (!held[j]) continue;
+        std::string refused;  // checked when it came; the add may still refuse it
+        try {
+            merge_with_aux(merged, aux, *held[j]);
+        } catch (const MergeError& e) {
+            refused = e.what();
+        }
+        held[j].reset();
+        if (!added(j, refused)) return;
+    }
 }
 
 void MergesInFlight::drop_held() noexcept { held_.clear(); }

@@ -62,8 +62,13 @@ public:
     // Holds the result of the round ahead's job `place` (its index in that round) until
     // that round is the one out.
     void hold(size_t place, SampleJobResult&& result) noexcept;
-    // The round ahead is now the round out: its held results, by the job's index in it.
-    std::vector<std::optional<SampleJobResult>> take_held() noexcept;
+    // The round ahead is now the round out: its held results are added to `merged` and
+    // `aux`, in job order, and `added` told of each (its job's index in the round, and
+    // why the add refused it, empty when it did not), while it returns true; the rest
+    // are dropped (a render that failed on one).
+    void add_held(
+        Accumulator& merged, AuxSums& aux,
+        const std::function<bool(size_t job, const std::string& refused)>& added);
     // The render has ended: what was held will never merge.
     void drop_held() noexcept;
 

@@ -4,14 +4,17 @@
 
 #include <atomic>
 #include <thread>
+#include <utility>
 
 namespace aliquot {
 namespace {
 
-SampleJobResult result_of(uint32_t x) {
+// Pixel x's result: `samples` samples of zero radiance.
+SampleJobResult result_of(uint32_t x, uint32_t samples = 1) {
     SampleJobResult result;
     result.rect = {x, 0, 1, 1};
     result.pixels.resize(1);
+    result.pixels[0].samples = samples;
     return result;
 }
 
@@ -31,8 +34,7 @@ struct Row {
     }
     // Adds pixel x's result: with `samples` unlike the one asked, it is refused.
     void add(MergesInFlight& merges, MergesInFlight::Merge& merge, uint32_t samples = 1) {
-        SampleJobResult result = result_of(uint32_t(merge.job));
-        result.pixels[0].samples = samples;
+        const SampleJobResult result = result_of(uint32_t(merge.job), samples);
         merges.add(merge, result, merged, aux, {});
     }
 };
@@ -77,26 +79,48 @@ TEST(MergesInFlight, ARefusedAddNamesItsJobUntilItsRefusalIsCounted) {
     merges.count(7);
 }
 
-TEST(MergesInFlight, HeldResultsComeBackByTheirPlaceInTheRoundAhead) {
+using Told = std::vector<std::pair<size_t, bool>>;  // a job, and whether it was added
+
+TEST(MergesInFlight, HeldResultsAreAddedInJobOrderWithTheirRefusals) {
     MergesInFlight merges;
+    Row row;
     merges.open_round_ahead(4);
-    merges.hold(2, result_of(20));
-    merges.hold(0, result_of(0));
-    const std::vector<std::optional<SampleJobResult>> held = merges.take_held();
-    ASSERT_EQ(held.size(), 4u);
-    ASSERT_TRUE(held[0] && held[2]);
-    EXPECT_FALSE(held[1] || held[3]);
-    EXPECT_EQ(held[0]->rect.x, 0u);
-    EXPECT_EQ(held[2]->rect.x, 20u);
-    EXPECT_TRUE(merges.take_held().empty());  // taken once
+    merges.hold(3, result_of(3, 1));
+    merges.hold(2, result_of(20));  // outside the row: refused when added
+    merges.hold(0, result_of(0, 3));
+    Told told;
+    const auto tell = [&](size_t job, const std::string& refused) {
+        told.push_back({job, refused.empty()});
+        return true;
+    };
+    merges.add_held(row.merged, row.aux, tell);
+    EXPECT_EQ(told, (Told{{0, true}, {2, false}, {3, true}}));
+    EXPECT_EQ(row.merged.total_samples(), 4u);
+    told.clear();
+    merges.add_held(row.merged, row.aux, tell);  // added once
+    EXPECT_TRUE(told.empty());
 }
 
-TEST(MergesInFlight, ARenderThatEndsDropsWhatItHeld) {
+TEST(MergesInFlight, HeldResultsAreDroppedOnceTheRenderEnds) {
     MergesInFlight merges;
-    merges.open_round_ahead(2);
+    Row row;
+    merges.open_round_ahead(3);
+    merges.hold(0, result_of(20));  // refused: its render fails, say
     merges.hold(1, result_of(1));
-    merges.drop_held();
-    EXPECT_TRUE(merges.take_held().empty());
+    Told told;
+    merges.add_held(row.merged, row.aux, [&](size_t job, const std::string& refused) {
+        told.push_back({job, refused.empty()});
+        return false;
+    });
+    EXPECT_EQ(told, (Told{{0, false}}));
+    EXPECT_EQ(row.merged.total_samples(), 0u);
+    merges.open_round_ahead(1);
+    merges.hold(0, result_of(0));
+    merges.drop_held();  // a render cancelled
+    merges.add_held(row.merged, row.aux, [&](size_t, const std::string&) {
+        ADD_FAILURE() << "a result dropped was added";
+        return true;
+    });
 }
 
 }  // namespace

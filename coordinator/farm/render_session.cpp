@@ -154,21 +154,14 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     }
     // The results held for this round merge now, after the round before's: each
     // pixel's sums add up in round order.
-    std::vector<std::optional<SampleJobResult>> held = merges_.take_held();
-    for (size_t j = 0; j < held.size() && state_ == RenderState::Running; ++j) {
-        if (!held[j]) continue;
-        std::string why;  // checked when it came; the merge may still refuse it
-        try {
-            merge_with_aux(merged_, aux_, *held[j]);
-        } catch (const MergeError& e) {
-            why = e.what();
-        }
-        held[j].reset();
-        if (why.empty())
+    merges_.add_held(merged_, aux_, [&](size_t j, const std::string& refused) {
+        if (refused.empty())
             ++merged_jobs_;
         else
-            count_failure(j, jobs_[j].worker, "result rejected: " + why, alive, policy);
-    }
+            count_failure(j, jobs_[j].worker, "result rejected: " + refused, alive,
+                          policy);
+        return state_ == RenderState::Running;
+    });
 }
 
 void RenderSession::open_next_round() {
