@@ -371,6 +371,13 @@ public:
         if (req->host().size() > 128 || req->version().size() > 128)
             return {StatusCode::INVALID_ARGUMENT,
                     "a worker's host and version are at most 128 bytes each"};
+        // Its threads are the farm's cores, for which every render's rounds are cut
+        // (two jobs a core, round_cutter.h): 2^32-1 of them cut every round of every
+        // render into the smallest tiles. The largest machines have a few hundred.
+        if (req->threads() > kMaxWorkerThreads)
+            return {StatusCode::INVALID_ARGUMENT,
+                    "a worker states at most " + std::to_string(kMaxWorkerThreads) +
+                        " threads, got " + std::to_string(req->threads())};
         // Every result of another version would be refused (wire.h) and count as a job
         // failure: such a worker is turned away before it leases anything.
         if (req->wire_version() != kWireVersion)

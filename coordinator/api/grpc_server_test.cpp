@@ -412,6 +412,33 @@ TEST_F(WorkerServiceTest, AWorkerHostOrVersionLongerThan128BytesIsRefused) {
     EXPECT_FALSE(coordinator_->knows_worker("long"));
 }
 
+// Review of issue 33 (hostile workers): a worker's threads count as the farm's cores,
+// two jobs each a round, so one Register stating 2^32-1 threads had every round of every
+// render cut into the smallest tiles, 16 pixels a side (a 1920x1080 round into 8,160
+// jobs). More than kMaxWorkerThreads is refused and registers nothing.
+TEST_F(WorkerServiceTest, AWorkerStatingMoreThanTheMostThreadsIsRefused) {
+    for (const uint32_t threads : {kMaxWorkerThreads + 1, uint32_t(UINT32_MAX)}) {
+        testing::TokenContext ctx(Role::Worker);
+        v1::RegisterRequest reg;
+        reg.set_name("many");
+        reg.set_threads(threads);
+        reg.set_wire_version(kWireVersion);
+        v1::RegisterReply reply;
+        const grpc::Status status = stub_->Register(&ctx, reg, &reply);
+        EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << threads;
+        EXPECT_NE(status.error_message().find("at most 1024 threads"), std::string::npos)
+            << status.error_message();
+    }
+    EXPECT_FALSE(coordinator_->knows_worker("many"));
+    testing::TokenContext ctx(Role::Worker);
+    v1::RegisterRequest reg;
+    reg.set_name("many");
+    reg.set_threads(kMaxWorkerThreads);
+    reg.set_wire_version(kWireVersion);
+    v1::RegisterReply reply;
+    EXPECT_TRUE(stub_->Register(&ctx, reg, &reply).ok());
+}
+
 TEST_F(WorkerServiceTest, TellsAWorkerItDoesNotKnowToRegisterFirst) {
     v1::LeaseRequest req;
     req.set_session("0123456789abcdef0123456789abcdef");  // never issued here
