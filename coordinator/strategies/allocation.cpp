@@ -314,12 +314,13 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
     std::vector<double> band_spent(bands, 0.0);  // with costs: what the floors cost
     std::vector<std::vector<double>> run_cost(unit || one_band ? 0 : bands);
     std::vector<char> band_capped(bands, 0);
-    // With unit costs and several bands, each item's fraction bucket as the floors' pass
-    // found it (kNotKept for an item not kept), so that `gather` reads 2 bytes an item
-    // instead of working its share out again (half of its time at 1920x1080).
+    // With several bands, each item's fraction bucket as the floors' pass found it
+    // (kNotKept for an item not kept), so that the passes after it (`gather`, and with
+    // costs `put_in_place`, whose runs are the buckets' top 8 bits) read 2 bytes an item
+    // instead of working its share out again (half of their time at 1920x1080).
     constexpr uint16_t kNotKept = UINT16_MAX;
     static_assert(kFractionBuckets <= kNotKept);
-    const bool keep_buckets = unit && !one_band;
+    const bool keep_buckets = !one_band;
     Scratch<uint16_t> local_buckets;
     uint16_t* bucket_of = nullptr;
     if (keep_buckets) {
@@ -494,13 +495,13 @@ std::vector<uint32_t> apportion(const std::vector<double>& weights, double total
         for_each_band(n, kBandPixels, [&](size_t band, size_t begin, size_t end) {
             std::vector<size_t>& next = at[band];
             for (size_t i = begin; i < end; ++i) {
-                if (!keep(i)) continue;
-                const double f = order.fraction(i);
-                const size_t r = rank(f) >> kFineBits;
+                if (bucket_of[i] == kNotKept) continue;
+                // rank(f) >> kFineBits, f the item's fraction: both take its top bits.
+                const size_t r = run_of_bucket(bucket_of[i]);
                 if (r < give_below)
                     ++count[i];
                 else if (r >= from && r < upto)
-                    sorted[next[r]++] = {f, i};
+                    sorted[next[r]++] = {order.fraction(i), i};
             }
         });
         for_each_band(upto - from, 4, [&](size_t, size_t begin, size_t end) {
