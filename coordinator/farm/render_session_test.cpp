@@ -511,6 +511,48 @@ TEST_F(RenderSessionTest, UniformOpensEachRoundWhileTheRoundBeforeIsOut) {
     expect_same_buffers(s.merged(), in_place);
 }
 
+// adaptive's deliveries after its decision follow from its state alone: each is handed
+// to the farm while the one before it is out (the pilot's end, which decides, is still
+// waited through), and the buffers are those of the strategy driven round by round.
+TEST_F(RenderSessionTest, AdaptiveOpensEachDeliveryWhileTheOneBeforeIsOut) {
+    spec.width = 256;
+    spec.height = 256;
+    spec.strategy.method = "adaptive";
+    spec.strategy.spp = 1100;  // 72 M samples: three deliveries of at most 2^25
+    const SyntheticImage image(256, 256, 3, {0.5, 0.2});
+    const Accumulator in_place = round_by_round(image);
+    RenderSession s("r", spec, 0);
+    s.start();
+    uint64_t lease = 1;
+    size_t opened_ahead = 0;
+    for (int round = 0; s.state() == RenderState::Running; ++round) {
+        ASSERT_LT(round, 100);
+        std::vector<std::pair<uint64_t, SampleJob>> out;
+        while (auto job = s.issue(lease, "w", far))
+            out.emplace_back(lease++, std::move(*job));
+        ASSERT_FALSE(out.empty());
+        for (size_t j = 0; j + 1 < out.size(); ++j)
+            ASSERT_EQ(s.complete(out[j].first, "w", image.trace(out[j].second)).status,
+                      CompleteStatus::Merged);
+        // With the round's last job out, a delivery made ahead opens (off this thread).
+        std::optional<SampleJob> next;
+        for (int spin = 0; spin < 500 && !(next = s.issue(lease, "w", far)); ++spin)
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        const uint64_t next_lease = lease++;
+        ASSERT_EQ(
+            s.complete(out.back().first, "w", image.trace(out.back().second)).status,
+            CompleteStatus::Merged);
+        if (!next) continue;
+        ++opened_ahead;
+        EXPECT_TRUE(s.round_opened_ahead());
+        ASSERT_EQ(s.complete(next_lease, "w", image.trace(*next)).status,
+                  CompleteStatus::Merged);
+    }
+    EXPECT_GE(opened_ahead, 2u);
+    EXPECT_EQ(s.state(), RenderState::Done);
+    expect_same_buffers(s.merged(), in_place);
+}
+
 // optimal planning every steered round ahead on a banded image, and the buffers it must
 // give.
 class TwoRoundsOutTest : public RenderSessionTest {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "allocation.h"
 #include "bands.h"
@@ -118,7 +119,25 @@ void AdaptiveStrategy::plan_remainder() {
     deliveries_ = uint32_t(std::max<uint64_t>(1, (given + round - 1) / round));
 }
 
+void AdaptiveStrategy::deliver(uint64_t r, std::vector<uint32_t>& spp) const {
+    // Delivery r of K gives floor(a (r+1) / K) - floor(a r / K): the parts add up to a.
+    // In bands, and without a 64-bit division a pixel (most of this pass's time at
+    // 1920x1080).
+    spp.resize(size_t(width_) * height_);
+    const ExactQuotient quotient(deliveries_);
+    for_each_band(spp.size(), kBandPixels, [&](size_t, size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i)
+            spp[i] = uint32_t(quotient(uint64_t(extra_[i]) * (r + 1)) -
+                              quotient(uint64_t(extra_[i]) * r));
+    });
+}
+
+std::function<void()> AdaptiveStrategy::take_work_ahead() {
+    return std::exchange(work_ahead_, nullptr);
+}
+
 std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {
+    if (work_ahead_) std::exchange(work_ahead_, nullptr)();  // not taken: done here
     const size_t pixels = size_t(width_) * height_;
     if (phase_ == Phase::initial) {
         phase_ = Phase::allocate;
@@ -142,21 +161,17 @@ std::optional<Round> AdaptiveStrategy::next_round(const Accumulator& merged) {
         phase_ = Phase::deliver;
     }
     if (phase_ == Phase::deliver && delivered_ < deliveries_) {
-        // Delivery r of K gives floor(a (r+1) / K) - floor(a r / K): the parts add up to
-        // a.
-        Round round{rounds_, std::vector<uint32_t>(pixels)};
-        const uint64_t r = delivered_, k = deliveries_;
-        // In bands, and without a 64-bit division a pixel (most of this pass's time at
-        // 1920x1080).
-        const ExactQuotient quotient(k);
-        for_each_band(pixels, kBandPixels, [&](size_t, size_t begin, size_t end) {
-            for (size_t i = begin; i < end; ++i)
-                round.spp[i] = uint32_t(quotient(uint64_t(extra_[i]) * (r + 1)) -
-                                        quotient(uint64_t(extra_[i]) * r));
-        });
+        Round round{rounds_, {}};
+        // The very vector made ahead, whose jobs may be out already.
+        if (ahead_.empty())
+            deliver(delivered_, round.spp);
+        else
+            round.spp = std::exchange(ahead_, {});
         ++delivered_;
         if (round.total() > 0) {
             ++rounds_;
+            if (delivered_ < deliveries_)
+                work_ahead_ = [this, r = uint64_t(delivered_)] { deliver(r, ahead_); };
             return round;
         }
     }
@@ -201,6 +216,8 @@ void AdaptiveStrategy::restore_state(const nlohmann::json& state) {
     weights_ = std::move(weights);
     remainder_ = state.at("remainder").get<uint64_t>();
     rounds_ = state.at("rounds").get<uint32_t>();
+    work_ahead_ = nullptr;
+    ahead_.clear();
     // The allocation is a function of the weights and the remainder, so it is recomputed
     // rather than stored per pixel.
     if (planned) plan_remainder();

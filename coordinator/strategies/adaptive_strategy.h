@@ -21,6 +21,16 @@ public:
     std::vector<Bucket> buckets() const override;
     nlohmann::json outcome() const override;
 
+    // A delivery after the decision depends on nothing merged, so each hands the farm the
+    // next as work ahead, as uniform's rounds do: its jobs are leased while the delivery
+    // out's last jobs are traced, and no delivery's end is waited through (docs/FARM.md,
+    // "Two rounds out"). The state (delivered_) says which delivery it is, so it is not
+    // a planned round to checkpoint.
+    std::function<void()> take_work_ahead() override;
+    const std::vector<uint32_t>* round_planned_ahead() const override {
+        return ahead_.empty() ? nullptr : &ahead_;
+    }
+
     uint32_t initial_spp() const { return initial_spp_; }  // after fitting the budget
 
     // The seed's bucket "variance": the largest minus the smallest pixel value in the
@@ -37,6 +47,8 @@ private:
     enum class Phase { initial, allocate, deliver, done };
     std::vector<PixelRect> grid() const;
     void plan_remainder();
+    // Delivery r of deliveries_: each pixel's share of extra_.
+    void deliver(uint64_t r, std::vector<uint32_t>& spp) const;
 
     uint32_t width_, height_;
     uint64_t budget_;
@@ -47,7 +59,9 @@ private:
     std::vector<double> variances_, weights_;  // per bucket, from the initial pass
     uint64_t remainder_ = 0, unspent_ = 0;
     uint32_t deliveries_ = 0, delivered_ = 0, rounds_ = 0;
-    std::vector<uint32_t> extra_;  // per pixel, derived from weights_ (not saved)
+    std::vector<uint32_t> extra_;       // per pixel, derived from weights_ (not saved)
+    std::function<void()> work_ahead_;  // fills ahead_ with the next delivery
+    std::vector<uint32_t> ahead_;       // the delivery after the one out, once made
 };
 
 }  // namespace aliquot
