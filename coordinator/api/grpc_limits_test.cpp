@@ -363,6 +363,29 @@ protected:
         coordinator_.reset();
         std::filesystem::remove_all(dir_);
     }
+    // Random bytes of `size` stored as the finished render `id`'s image, sent as they are
+    // stored: far more than the sockets' buffers and a stream's window take of a client
+    // that reads nothing.
+    std::string store_random_image(const std::string& id, size_t size, uint64_t seed) {
+        const auto file = coordinator_->image_file(id);
+        EXPECT_TRUE(file);
+        std::string stored(size, '\0');
+        std::mt19937_64 random(seed);
+        for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
+            const uint64_t v = random();
+            std::memcpy(&stored[i], &v, 8);
+        }
+        if (file) std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
+        return stored;
+    }
+    // The server again, with `limits`.
+    void restart(const GrpcLimits& limits) {
+        server_.reset();
+        server_ =
+            std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0",
+                                         testing::test_security(), GrpcOptions{}, limits);
+        stub_ = v1::ClientService::NewStub(testing::loopback_channel(server_->port()));
+    }
     std::string fetch(const std::string& id, bool aovs) {
         testing::TokenContext ctx(Role::Client);
         v1::FetchImageRequest req;
@@ -428,26 +451,12 @@ TEST_F(GrpcFetchImage, ConcurrentFetchesOfALargeStoredImageHoldNoCopyOfIt) {
 // RESOURCE_EXHAUSTED.
 TEST_F(GrpcFetchImage, AClientThatStopsReadingIsCutAndTheNextFetchGetsItsPlace) {
     const std::string id = finished_render(*coordinator_, 8);
-    const auto file = coordinator_->image_file(id);
-    ASSERT_TRUE(file);
-    // Random bytes, sent as they are stored: far more than the sockets' buffers and the
-    // stream's window take of a client that reads nothing.
-    std::string stored(size_t(32) << 20, '\0');
-    std::mt19937_64 random(7);
-    for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
-        const uint64_t v = random();
-        std::memcpy(&stored[i], &v, 8);
-    }
-    std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
-    server_.reset();
-    server_ = std::make_unique<GrpcServer>(
-        *coordinator_, "127.0.0.1:0", testing::test_security(), GrpcOptions{},
-        limits([](GrpcLimits& l) {
-            l.max_fetches = 1;
-            l.stream_grace = std::chrono::milliseconds(500);
-            l.stream_min_rate = 16 << 20;
-        }));
-    stub_ = v1::ClientService::NewStub(testing::loopback_channel(server_->port()));
+    const std::string stored = store_random_image(id, size_t(32) << 20, 7);
+    restart(limits([](GrpcLimits& l) {
+        l.max_fetches = 1;
+        l.stream_grace = std::chrono::milliseconds(500);
+        l.stream_min_rate = 16 << 20;
+    }));
     v1::FetchImageRequest req;
     req.set_id(id);
     req.set_aovs(true);
@@ -489,25 +498,11 @@ TEST_F(GrpcFetchImage, AClientThatStopsReadingIsCutAndTheNextFetchGetsItsPlace) 
 // reading hold its share, a third from it is refused, and one from 127.0.0.2 is served.
 TEST_F(GrpcFetchImage, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
     const std::string id = finished_render(*coordinator_, 8);
-    const auto file = coordinator_->image_file(id);
-    ASSERT_TRUE(file);
-    // Far more than the sockets' buffers and a stream's window take of a client that
-    // reads nothing, as in the test above.
-    std::string stored(size_t(16) << 20, '\0');
-    std::mt19937_64 random(11);
-    for (size_t i = 0; i + 8 <= stored.size(); i += 8) {
-        const uint64_t v = random();
-        std::memcpy(&stored[i], &v, 8);
-    }
-    std::ofstream(*file, std::ios::binary | std::ios::trunc) << stored;
-    server_.reset();
-    server_ = std::make_unique<GrpcServer>(*coordinator_, "127.0.0.1:0",
-                                           testing::test_security(), GrpcOptions{},
-                                           limits([](GrpcLimits& l) {
-                                               l.max_fetches = 3;
-                                               l.max_fetches_per_peer = 2;
-                                           }));
-    stub_ = v1::ClientService::NewStub(testing::loopback_channel(server_->port()));
+    const std::string stored = store_random_image(id, size_t(16) << 20, 11);
+    restart(limits([](GrpcLimits& l) {
+        l.max_fetches = 3;
+        l.max_fetches_per_peer = 2;
+    }));
     v1::FetchImageRequest req;
     req.set_id(id);
     req.set_aovs(true);

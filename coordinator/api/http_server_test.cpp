@@ -17,6 +17,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <map>
 #include <mutex>
@@ -832,39 +833,76 @@ TEST_F(HttpServerTest, AThumbnailIsASmallPngOfTheRender) {
     get_json("/api/renders/r-999999/thumbnail.png", 404);
 }
 
+// Image places held by requests that HttpOptions::image_admitted keeps waiting, no
+// timing: the first `hold` requests admitted wait until release(); later ones go on.
+class HeldImagePlaces {
+public:
+    explicit HeldImagePlaces(size_t hold) : hold_(hold) {}
+    std::function<void()> hook() {
+        return [this] {
+            std::unique_lock lock(mutex_);
+            if (++admitted_ > hold_) return;
+            changed_.notify_all();
+            changed_.wait(lock, [&] { return released_; });
+        };
+    }
+    // Whether `hold` requests wait (a generous deadline against a hang, not a timing
+    // check).
+    bool all_held() {
+        std::unique_lock lock(mutex_);
+        return changed_.wait_for(lock, std::chrono::seconds(30),
+                                 [&] { return admitted_ >= hold_; });
+    }
+    void release() {
+        std::lock_guard lock(mutex_);
+        released_ = true;
+        changed_.notify_all();
+    }
+    size_t admitted() {
+        std::lock_guard lock(mutex_);
+        return admitted_;
+    }
+
+private:
+    const size_t hold_;
+    std::mutex mutex_;
+    std::condition_variable changed_;
+    size_t admitted_ = 0;
+    bool released_ = false;
+};
+
+// A client of `port` with the client token, patient enough for held requests.
+std::unique_ptr<httplib::Client> patient_client(int port) {
+    auto c = std::make_unique<httplib::Client>("127.0.0.1", port);
+    c->set_read_timeout(30, 0);
+    c->set_bearer_token_auth(testing::kTestTokens.client);
+    return c;
+}
+
+// A 64x48 render with some samples, still running (in memory): "/api/renders/ID".
+std::string running_render_path(Coordinator& coordinator, int port) {
+    auto res = patient_client(port)->Post(
+        "/api/renders", R"({"resolution":"64x48","strategy":{"spp":2}})",
+        "application/json");
+    if (!res || res->status != 201) return "";
+    fake_jobs(coordinator, "w1", 3);
+    return "/api/renders/" + json::parse(res->body)["id"].get<std::string>();
+}
+
 // Review of issue 32: previews and thumbnails were made by any number of requests at
 // once, each from a copy of the whole image. Every route that makes or sends an image
 // now takes a place among one limit; with every place held (by requests the test hook
 // holds, no timing), one more of any of them is 503 with Retry-After.
 TEST(HttpServerImages, OneImageRequestPastTheSharedLimitIsRefusedWith503) {
     Coordinator coordinator{CoordinatorOptions{}};
-    std::mutex mutex;
-    std::condition_variable changed;
-    size_t held = 0;
-    bool release = false;
+    HeldImagePlaces held(3);
     HttpOptions options = options_with_tokens();
     options.max_image_requests = 3;
-    options.image_admitted = [&] {
-        std::unique_lock lock(mutex);
-        ++held;
-        changed.notify_all();
-        changed.wait(lock, [&] { return release; });
-    };
+    options.image_admitted = held.hook();
     HttpServer server(coordinator, "127.0.0.1:0", options);
-    const auto client = [&] {
-        auto c = std::make_unique<httplib::Client>("127.0.0.1", server.port());
-        c->set_read_timeout(30, 0);
-        c->set_bearer_token_auth(testing::kTestTokens.client);
-        return c;
-    };
-    auto res =
-        client()->Post("/api/renders", R"({"resolution":"64x48","strategy":{"spp":2}})",
-                       "application/json");
-    ASSERT_TRUE(res);
-    ASSERT_EQ(res->status, 201) << res->body;
-    const std::string renders =
-        "/api/renders/" + json::parse(res->body)["id"].get<std::string>();
-    fake_jobs(coordinator, "w1", 3);  // some samples, still running: in memory
+    const auto client = [&] { return patient_client(server.port()); };
+    const std::string renders = running_render_path(coordinator, server.port());
+    ASSERT_FALSE(renders.empty());
 
     const std::vector<std::string> holding = {
         renders + "/preview.png", renders + "/thumbnail.png", renders + "/image.exr"};
@@ -875,29 +913,20 @@ TEST(HttpServerImages, OneImageRequestPastTheSharedLimitIsRefusedWith503) {
             auto r = client()->Get(holding[i].c_str());
             statuses[i] = r ? r->status : -1;
         });
-    {
-        // A generous deadline against a hang, not a timing check.
-        std::unique_lock lock(mutex);
-        ASSERT_TRUE(changed.wait_for(lock, std::chrono::seconds(30),
-                                     [&] { return held == holding.size(); }));
-    }
+    ASSERT_TRUE(held.all_held());
     auto refused = client()->Get((renders + "/maps?kind=spp").c_str());
     ASSERT_TRUE(refused);
     EXPECT_EQ(refused->status, 503) << refused->body;
     EXPECT_EQ(refused->get_header_value("Retry-After"), "2");
     EXPECT_NE(refused->body.find("at most 3"), std::string::npos) << refused->body;
-    {
-        std::lock_guard lock(mutex);
-        release = true;
-        changed.notify_all();
-    }
+    held.release();
     for (std::thread& t : requests) t.join();
     for (size_t i = 0; i < holding.size(); ++i) EXPECT_EQ(statuses[i], 200) << holding[i];
     // The places are given back, the EXR's once its response was sent.
     auto again = client()->Get((renders + "/maps?kind=spp").c_str());
     ASSERT_TRUE(again);
     EXPECT_EQ(again->status, 200) << again->body;
-    EXPECT_EQ(held, holding.size() + 1);
+    EXPECT_EQ(held.admitted(), holding.size() + 1);
 }
 
 // Review of issue 33 (hostile clients): the cut of a slow reader bounds how long one
@@ -906,37 +935,16 @@ TEST(HttpServerImages, OneImageRequestPastTheSharedLimitIsRefusedWith503) {
 // (3 of 4 here), and another address is still served.
 TEST(HttpServerImages, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
     Coordinator coordinator{CoordinatorOptions{}};
-    std::mutex mutex;
-    std::condition_variable changed;
-    size_t held = 0;
-    bool release = false;
+    HeldImagePlaces held(3);
     HttpOptions options = options_with_tokens();
     options.max_image_requests = 4;
     options.max_image_requests_per_peer = 3;
-    // The first three requests admitted wait here, holding their places; later ones go
-    // on.
-    options.image_admitted = [&] {
-        std::unique_lock lock(mutex);
-        if (++held > 3) return;
-        changed.notify_all();
-        changed.wait(lock, [&] { return release; });
-    };
+    options.image_admitted = held.hook();
     HttpServer server(coordinator, "127.0.0.1:0", options);
-    const auto client = [&] {
-        auto c = std::make_unique<httplib::Client>("127.0.0.1", server.port());
-        c->set_read_timeout(30, 0);
-        c->set_bearer_token_auth(testing::kTestTokens.client);
-        return c;
-    };
-    auto res =
-        client()->Post("/api/renders", R"({"resolution":"64x48","strategy":{"spp":2}})",
-                       "application/json");
-    ASSERT_TRUE(res);
-    ASSERT_EQ(res->status, 201) << res->body;
-    const std::string maps = "/api/renders/" +
-                             json::parse(res->body)["id"].get<std::string>() +
-                             "/maps?kind=spp";
-    fake_jobs(coordinator, "w1", 3);
+    const auto client = [&] { return patient_client(server.port()); };
+    const std::string renders = running_render_path(coordinator, server.port());
+    ASSERT_FALSE(renders.empty());
+    const std::string maps = renders + "/maps?kind=spp";
 
     std::vector<int> statuses(3, 0);
     std::vector<std::thread> holders;
@@ -945,12 +953,7 @@ TEST(HttpServerImages, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
             auto r = client()->Get(maps.c_str());
             statuses[i] = r ? r->status : -1;
         });
-    {
-        // A generous deadline against a hang, not a timing check.
-        std::unique_lock lock(mutex);
-        ASSERT_TRUE(
-            changed.wait_for(lock, std::chrono::seconds(30), [&] { return held == 3; }));
-    }
+    ASSERT_TRUE(held.all_held());
     auto refused = client()->Get(maps.c_str());
     ASSERT_TRUE(refused);
     EXPECT_EQ(refused->status, 503) << refused->body;
@@ -960,11 +963,7 @@ TEST(HttpServerImages, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
     RawStream other =
         open_stream(server.port(), maps, "Authorization: " + kClientBearer, "127.0.0.2");
     EXPECT_EQ(other.status, 200) << other.head;
-    {
-        std::lock_guard lock(mutex);
-        release = true;
-        changed.notify_all();
-    }
+    held.release();
     for (std::thread& t : holders) t.join();
     for (int status : statuses) EXPECT_EQ(status, 200);
 }
