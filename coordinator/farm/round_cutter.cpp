@@ -20,14 +20,19 @@ SampleJob cut_job(const PixelRect& rect, const std::vector<uint32_t>& spp,
     job.rect = rect;
     job.counts.resize(rect.size());
     job.first_sample.resize(rect.size());
-    const uint32_t w = merged.width();
-    size_t k = 0;
-    for (uint32_t y = rect.y; y < rect.y + rect.height; ++y) {
-        const size_t row = size_t(y) * w + rect.x;
-        for (uint32_t x = 0; x < rect.width; ++x, ++k) {
-            job.counts[k] = spp[row + x];
-            job.first_sample[k] = merged.samples(row + x);
-        }
+    // A row at a time through plain pointers and a width held in a local: the stores
+    // could otherwise alias the rectangle and the vectors, and the loop, reloading them
+    // every pixel, did not vectorise (~3 % of farm_scale's CPU for dammertz at 1080p).
+    const uint32_t w = merged.width(), width = rect.width;
+    uint32_t* counts = job.counts.data();
+    uint64_t* first = job.first_sample.data();
+    for (uint32_t y = 0; y < rect.height; ++y) {
+        const size_t row = size_t(rect.y + y) * w + rect.x;
+        const uint32_t* from = spp.data() + row;
+        for (uint32_t x = 0; x < width; ++x) counts[x] = from[x];
+        for (uint32_t x = 0; x < width; ++x) first[x] = merged.samples(row + x);
+        counts += width;
+        first += width;
     }
     return job;
 }
