@@ -21,6 +21,7 @@
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "grpc_server.h"
+#include "held_places.h"
 #include "peak_memory.h"
 #include "scene_loader.h"
 #include "test_tokens.h"
@@ -554,6 +555,50 @@ TEST_F(GrpcFetchImage, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
         s->ctx.TryCancel();
         s->reader->Finish();
     }
+}
+
+// The same for FetchImage of a running render, encoded in memory (GrpcLimits'
+// max_fetches_from_memory, 2): one address holds at most one of them.
+TEST_F(GrpcFetchImage, OneAddressHoldsOneFetchOfARunningRenderAndAnotherIsStillServed) {
+    testing::HeldPlaces held(1);
+    restart(limits([&](GrpcLimits& l) { l.running_fetch_admitted = held.hook(); }));
+    v1::FetchImageRequest req;
+    {
+        testing::TokenContext ctx(Role::Client);
+        v1::RenderInfo info;
+        ASSERT_TRUE(stub_
+                        ->Submit(&ctx,
+                                 testing::small_submission(
+                                     self_contained_scene_json("cornell-box"), 8),
+                                 &info)
+                        .ok());
+        req.set_id(info.id());  // no worker: it stays in memory
+    }
+    const auto status_of = [&](v1::ClientService::Stub& from) {
+        testing::TokenContext ctx(Role::Client);
+        ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+        auto reader = from.FetchImage(&ctx, req);
+        v1::FileChunk chunk;
+        while (reader->Read(&chunk)) {
+        }
+        return reader->Finish();
+    };
+    std::thread holder([&] { status_of(*stub_); });
+    ASSERT_TRUE(held.all_held());
+    const grpc::Status refused = status_of(*stub_);  // 127.0.0.1 again
+    EXPECT_EQ(refused.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+    EXPECT_NE(refused.error_message().find("at most 1 from one address"),
+              std::string::npos)
+        << refused.error_message();
+    const auto channel = testing::channel_from("127.0.0.2", server_->port());
+    ASSERT_TRUE(channel) << "127.0.0.2 is this host";
+    const grpc::Status other = status_of(*v1::ClientService::NewStub(channel));
+    // Served: past the places, whatever the render's image is by then.
+    EXPECT_NE(other.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED)
+        << other.error_message();
+    EXPECT_EQ(held.admitted(), 2u);
+    held.release();
+    holder.join();
 }
 
 // The same for Watch streams (2 of 3 here).

@@ -53,30 +53,14 @@ Status admit(const ServerContext* ctx, const Tokens& tokens, Role role) {
             access_message(access, role)};
 }
 
-// A place among `max` calls of a kind (GrpcLimits' max_fetches_from_memory); one more
-// is refused rather than given a thread.
-class StreamSlot {
-public:
-    StreamSlot(std::atomic<int>& open, int max) : open_(open) {
-        taken_ = open_.fetch_add(1) < max;
-    }
-    ~StreamSlot() { open_.fetch_sub(1); }
-    StreamSlot(const StreamSlot&) = delete;
-    StreamSlot& operator=(const StreamSlot&) = delete;
-    bool taken() const { return taken_; }
-
-private:
-    std::atomic<int>& open_;
-    bool taken_ = false;
-};
-
 Status too_many(const std::string& calls) {
     return {StatusCode::RESOURCE_EXHAUSTED,
             "too many open " + calls + " calls; try again later"};
 }
 
-// A place among `calls`' (GrpcLimits' max_watches and max_fetches, and their shares per
-// peer address), or the refusal to answer with.
+// A place among `calls`' (GrpcLimits' max_watches, max_fetches and
+// max_fetches_from_memory, and their shares per peer address), or the refusal to answer
+// with: a call past one is refused rather than given a thread.
 Status take_place(Admission& calls, const ServerContext& ctx, const std::string& name,
                   Admission::Place& place) {
     const std::string host = host_of_peer(ctx.peer());
@@ -261,8 +245,12 @@ public:
             // A render in memory is encoded in memory: a copy of its image, then the
             // encoded bytes while they are sent (up to ~1 GB at 8192x8192 with AOVs),
             // hence a cap of its own.
-            StreamSlot from_memory(memory_fetches_, limits_.max_fetches_from_memory);
-            if (!from_memory.taken()) return too_many("FetchImage of a running render");
+            Admission::Place from_memory;
+            if (Status s = take_place(memory_fetches_, *ctx,
+                                      "FetchImage of a running render", from_memory);
+                !s.ok())
+                return s;
+            if (limits_.running_fetch_admitted) limits_.running_fetch_admitted();
             std::string bytes;
             {
                 const auto image = c_.image(req->id(), req->aovs());
@@ -343,7 +331,9 @@ private:
                        size_t(std::max(limits_.max_watches_per_peer, 0))};
     Admission fetches_{size_t(std::max(limits_.max_fetches, 0)),
                        size_t(std::max(limits_.max_fetches_per_peer, 0))};
-    std::atomic<int> memory_fetches_{0};
+    Admission memory_fetches_{
+        size_t(std::max(limits_.max_fetches_from_memory, 0)),
+        size_t(std::max(limits_.max_fetches_from_memory_per_peer, 0))};
 };
 
 // Every call but Register carries the worker's session; one the coordinator did not issue

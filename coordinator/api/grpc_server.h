@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -61,6 +62,12 @@ struct GrpcLimits {
     // quarter to other addresses, as the HTTP image routes and threads do.
     int max_fetches_per_peer = 12;
     int max_watches_per_peer = 24;
+    // Of the FetchImage places of a running render, one address holds at most this many,
+    // so that one is always there for others.
+    int max_fetches_from_memory_per_peer = 1;
+    // Tests only: called by a FetchImage of a running render once it holds its place,
+    // before it copies anything; a test that blocks in it holds places without timing.
+    std::function<void()> running_fetch_admitted;
     // A FetchImage or Watch stream must be taken at stream_min_rate at least after a
     // grace, as the HTTP image routes are: each write within stream_grace + its bytes /
     // stream_min_rate, and a FetchImage whole within stream_grace + its size /

@@ -30,6 +30,7 @@
 #include "aliquot.grpc.pb.h"
 #include "exr_io.h"
 #include "grpc_server.h"
+#include "held_places.h"
 #include "http_api.h"
 #include "http_session.h"
 #include "peak_memory.h"
@@ -833,44 +834,6 @@ TEST_F(HttpServerTest, AThumbnailIsASmallPngOfTheRender) {
     get_json("/api/renders/r-999999/thumbnail.png", 404);
 }
 
-// Image places held by requests that HttpOptions::image_admitted keeps waiting, no
-// timing: the first `hold` requests admitted wait until release(); later ones go on.
-class HeldImagePlaces {
-public:
-    explicit HeldImagePlaces(size_t hold) : hold_(hold) {}
-    std::function<void()> hook() {
-        return [this] {
-            std::unique_lock lock(mutex_);
-            if (++admitted_ > hold_) return;
-            changed_.notify_all();
-            changed_.wait(lock, [&] { return released_; });
-        };
-    }
-    // Whether `hold` requests wait (a generous deadline against a hang, not a timing
-    // check).
-    bool all_held() {
-        std::unique_lock lock(mutex_);
-        return changed_.wait_for(lock, std::chrono::seconds(30),
-                                 [&] { return admitted_ >= hold_; });
-    }
-    void release() {
-        std::lock_guard lock(mutex_);
-        released_ = true;
-        changed_.notify_all();
-    }
-    size_t admitted() {
-        std::lock_guard lock(mutex_);
-        return admitted_;
-    }
-
-private:
-    const size_t hold_;
-    std::mutex mutex_;
-    std::condition_variable changed_;
-    size_t admitted_ = 0;
-    bool released_ = false;
-};
-
 // A client of `port` with the client token, patient enough for held requests.
 std::unique_ptr<httplib::Client> patient_client(int port) {
     auto c = std::make_unique<httplib::Client>("127.0.0.1", port);
@@ -895,7 +858,7 @@ std::string running_render_path(Coordinator& coordinator, int port) {
 // holds, no timing), one more of any of them is 503 with Retry-After.
 TEST(HttpServerImages, OneImageRequestPastTheSharedLimitIsRefusedWith503) {
     Coordinator coordinator{CoordinatorOptions{}};
-    HeldImagePlaces held(3);
+    testing::HeldPlaces held(3);
     HttpOptions options = options_with_tokens();
     options.max_image_requests = 3;
     options.image_admitted = held.hook();
@@ -935,7 +898,7 @@ TEST(HttpServerImages, OneImageRequestPastTheSharedLimitIsRefusedWith503) {
 // (3 of 4 here), and another address is still served.
 TEST(HttpServerImages, OneAddressHoldsAtMostItsShareAndAnotherIsStillServed) {
     Coordinator coordinator{CoordinatorOptions{}};
-    HeldImagePlaces held(3);
+    testing::HeldPlaces held(3);
     HttpOptions options = options_with_tokens();
     options.max_image_requests = 4;
     options.max_image_requests_per_peer = 3;
