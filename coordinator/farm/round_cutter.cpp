@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <utility>
 
 #include "bands.h"
@@ -77,8 +78,49 @@ std::array<PixelRect, 4> quadrants_of(const PixelRect& r) {
             PixelRect{r.x + hw, r.y + hh, r.width - hw, r.height - hh}};
 }
 
-// The jobs of tiles of side `tile`: the tiles that hold samples, the last quarter of
-// them in quadrants.
+// The pixels of a quadrant that hold samples: the bounds of their columns and rows (empty
+// while x0 >= x1).
+struct Extent {
+    uint32_t x0 = UINT32_MAX, x1 = 0, y0 = UINT32_MAX, y1 = 0;
+    bool empty() const { return x0 >= x1; }
+    // Row y's pixels [a, b) of `row`: the first and last with samples, found from either
+    // end (at once in a row that is all samples; the whole span in one without).
+    void add_row(const uint32_t* row, uint32_t a, uint32_t b, uint32_t y) {
+        uint32_t first = a;
+        while (first < b && row[first] == 0) ++first;
+        if (first == b) return;
+        uint32_t last = b - 1;
+        while (row[last] == 0) --last;
+        x0 = std::min(x0, first);
+        x1 = std::max(x1, last + 1);
+        y0 = std::min(y0, y);
+        y1 = std::max(y1, y + 1);
+    }
+    void add(const Extent& e) {
+        x0 = std::min(x0, e.x0);
+        x1 = std::max(x1, e.x1);
+        y0 = std::min(y0, e.y0);
+        y1 = std::max(y1, e.y1);
+    }
+};
+
+// `r` cut down to the cells (kCellSide, on the image's grid) that hold `e`, so that a
+// job merges no pixels a round that refines a small part of the image skips, and how a
+// round is cut still changes no bit: r's own edges are on the grid or the image's edge.
+PixelRect trimmed(const PixelRect& r, const Extent& e) {
+    const uint32_t x0 = std::max(r.x, e.x0 / kCellSide * kCellSide);
+    const uint32_t y0 = std::max(r.y, e.y0 / kCellSide * kCellSide);
+    const uint64_t x1 =
+        std::min<uint64_t>(uint64_t(r.x) + r.width,
+                           (uint64_t(e.x1) + kCellSide - 1) / kCellSide * kCellSide);
+    const uint64_t y1 =
+        std::min<uint64_t>(uint64_t(r.y) + r.height,
+                           (uint64_t(e.y1) + kCellSide - 1) / kCellSide * kCellSide);
+    return {x0, y0, uint32_t(x1 - x0), uint32_t(y1 - y0)};
+}
+
+// The jobs of tiles of side `tile`: the tiles that hold samples, each cut down to the
+// cells that do, the last quarter of them in quadrants.
 std::vector<PixelRect> tiles_of_side(const std::vector<uint32_t>& spp, uint32_t w,
                                      uint32_t h, uint32_t tile) {
     const uint32_t across = (w + tile - 1) / tile, down = (h + tile - 1) / tile;
@@ -86,9 +128,10 @@ std::vector<PixelRect> tiles_of_side(const std::vector<uint32_t>& spp, uint32_t 
         const uint32_t x0 = uint32_t(t % across) * tile, y0 = uint32_t(t / across) * tile;
         return PixelRect{x0, y0, std::min(tile, w - x0), std::min(tile, h - y0)};
     };
-    // Whether each quadrant of each tile holds samples, from one pass over the counts in
-    // bands of tile rows (an "or" is the same in any order).
-    std::vector<uint8_t> holds(size_t(across) * down * 4, 0);
+    // Where each quadrant of each tile holds samples, from one pass over the counts in
+    // bands of tile rows (a tile's rows are all in one band; bounds are the same in any
+    // order).
+    std::vector<Extent> holds(size_t(across) * down * 4);
     const size_t rows_per_band = std::max<size_t>(1, kBandPixels / (size_t(tile) * w));
     for_each_band(down, rows_per_band, [&](size_t, size_t row0, size_t row1) {
         for (size_t ty = row0; ty < row1; ++ty) {
@@ -99,19 +142,17 @@ std::vector<PixelRect> tiles_of_side(const std::vector<uint32_t>& spp, uint32_t 
                 for (uint32_t tx = 0; tx < across; ++tx) {
                     const uint32_t x0 = tx * tile, tw = std::min(tile, w - x0);
                     const uint32_t mid = x0 + half_on_cells(tw);
-                    uint32_t left = 0, right = 0;
-                    for (uint32_t x = x0; x < mid; ++x) left |= row[x];
-                    for (uint32_t x = mid; x < x0 + tw; ++x) right |= row[x];
-                    uint8_t* q = &holds[(ty * across + tx) * 4 + lower];
-                    q[0] |= left != 0;
-                    q[1] |= right != 0;
+                    Extent* q = &holds[(ty * across + tx) * 4 + lower];
+                    q[0].add_row(row, x0, mid, y);
+                    q[1].add_row(row, mid, x0 + tw, y);
                 }
             }
         }
     });
     std::vector<size_t> kept;  // the tiles with samples, row by row
     for (size_t t = 0; t < size_t(across) * down; ++t)
-        if (holds[4 * t] | holds[4 * t + 1] | holds[4 * t + 2] | holds[4 * t + 3])
+        if (!holds[4 * t].empty() || !holds[4 * t + 1].empty() ||
+            !holds[4 * t + 2].empty() || !holds[4 * t + 3].empty())
             kept.push_back(t);
     std::vector<PixelRect> rects;
     // A round ends when its last job does: whoever finishes early waits. Jobs are issued
@@ -120,12 +161,16 @@ std::vector<PixelRect> tiles_of_side(const std::vector<uint32_t>& spp, uint32_t 
     // message).
     const size_t whole =
         tile < 2 * kMinAutoTile ? kept.size() : kept.size() - kept.size() / 4;
-    for (size_t k = 0; k < whole; ++k) rects.push_back(rect_of(kept[k]));
+    for (size_t k = 0; k < whole; ++k) {
+        Extent all;
+        for (int i = 0; i < 4; ++i) all.add(holds[4 * kept[k] + i]);
+        rects.push_back(trimmed(rect_of(kept[k]), all));
+    }
     for (size_t k = whole; k < kept.size(); ++k) {
         const std::array<PixelRect, 4> q = quadrants_of(rect_of(kept[k]));
         for (int i = 0; i < 4; ++i)
-            if (q[i].width > 0 && q[i].height > 0 && holds[4 * kept[k] + i])
-                rects.push_back(q[i]);
+            if (q[i].width > 0 && q[i].height > 0 && !holds[4 * kept[k] + i].empty())
+                rects.push_back(trimmed(q[i], holds[4 * kept[k] + i]));
     }
     return rects;
 }

@@ -11,10 +11,11 @@
 namespace aliquot {
 
 // Tiles of `tile` x `tile` pixels (smaller at the edges); tiles with no samples are
-// skipped. With tile 0 the side follows the round's mean spp (see job_tile_side), halved
-// while the round would have fewer jobs than asked (round_tiles' min_jobs). Jobs are in
-// issue order; the last quarter of the tiles is cut into quadrants so that the round's
-// end waits on small jobs.
+// skipped, and the others cut down to the cells (kCellSide) that hold samples, so that a
+// round that refines part of the image merges no more of it than it must. With tile 0 the
+// side follows the round's mean spp (see job_tile_side), halved while the round would
+// have fewer jobs than asked (round_tiles' min_jobs). Jobs are in issue order; the last
+// quarter of the tiles is cut into quadrants so that the round's end waits on small jobs.
 //
 // Every rectangle is cut on the grid of cells the tracer batches by (kCellSide in
 // sample_job.h), so that how a round is cut never changes a bit of the image: an explicit

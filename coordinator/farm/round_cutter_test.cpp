@@ -39,7 +39,26 @@ TEST(RoundCutter, SkipsTilesWithoutSamples) {
     round.spp[40] = 1;  // only the right-hand 32x32 tile has work
     const auto jobs = cut_round(round, acc, 32);
     ASSERT_EQ(jobs.size(), 1u);
-    EXPECT_EQ(jobs[0].rect.x, 32u);
+    EXPECT_EQ(jobs[0].rect.x, 40u);  // and only its cell (40, 0) to (47, 7)
+}
+
+TEST(RoundCutter, ATileIsCutDownToTheCellsThatHoldSamples) {
+    // A 100x70 image in 64x64 tiles: samples at (9, 3) and (20, 30) of the first tile,
+    // and at (99, 69), the last pixel, in the last. Each job covers the cells (8x8 on
+    // the image's grid) from its first sample's to its last's, clipped at the image.
+    Accumulator acc(100, 70);
+    Round round{0, std::vector<uint32_t>(100 * 70, 0)};
+    round.spp[3 * 100 + 9] = 2;
+    round.spp[30 * 100 + 20] = 3;
+    round.spp[69 * 100 + 99] = 1;
+    const std::vector<PixelRect> rects = round_tiles(round, 100, 70, 64, 1);
+    ASSERT_EQ(rects.size(), 2u);
+    EXPECT_EQ(rects[0], (PixelRect{8, 0, 16, 32}));  // cells x 8-23, y 0-31
+    EXPECT_EQ(rects[1], (PixelRect{96, 64, 4, 6}));  // its last cell, clipped
+    uint64_t samples = 0;
+    for (const SampleJob& job : cut_round(round, acc, 64))
+        for (uint32_t c : job.counts) samples += c;
+    EXPECT_EQ(samples, 6u);
 }
 
 TEST(RoundCutter, LastQuarterOfTheRoundIsCutIntoQuadrants) {
