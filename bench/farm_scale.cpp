@@ -42,6 +42,9 @@
 // the band pool, plans made ahead, the record writer). worker_cores_per_coordinator_core
 // is then how many worker cores tracing RATE samples a second (2 M without one, about
 // today's worker core) one coordinator core keeps fed: 10^9 ÷ (that × RATE).
+// wire_cpu_s_per_g_samples is the part of it the results' parse and decode took (each
+// calling thread's clock), so a run compares with a build from before the wire was
+// counted by the difference.
 //
 // The budget is SPP samples a pixel on average (uniform: SPP a pixel); issue 33 asks for
 // 64 to 1024. With RENDERS, that many such renders are submitted at once and the workers
@@ -123,6 +126,8 @@ struct Run {
     double largest_round_wait_share = 0;
     double coordinator_cpu_seconds = 0;  // see the top of this file
     double worker_wait_seconds = 0;      // the workers' seconds in Lease, all summed
+    double wire_cpu_seconds =
+        0;  // of coordinator_cpu_seconds: parsing and decoding results
 };
 
 // "optimal:K/P": the method, steer_rounds K and plan_ahead P, each optional.
@@ -195,6 +200,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                 std::vector<double> leases, completes;
                 double made = 0;     // CPU seconds making synthetic results
                 double waiting = 0;  // seconds in Lease: no job to trace
+                double wire = 0;     // CPU seconds parsing and decoding results
                 while (!stop) {
                     const auto asked = Clock::now();
                     auto grant =
@@ -224,11 +230,17 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                     // As the gRPC server's Complete: parsed, decoded, moved in. A result
                     // that does not come through is this bench's bug: the run stops.
                     try {
-                        v1::SampleJobResult received;
-                        if (!received.ParseFromString(bytes))
-                            throw WireError("the result's bytes do not parse");
+                        const double decoding = thread_cpu();
+                        SampleJobResult decoded;
+                        {
+                            v1::SampleJobResult received;
+                            if (!received.ParseFromString(bytes))
+                                throw WireError("the result's bytes do not parse");
+                            decoded = from_proto(received);
+                        }
+                        wire += thread_cpu() - decoding;
                         coordinator.complete(session, grant->lease_id,
-                                             from_proto(received));
+                                             std::move(decoded));
                     } catch (const std::exception& e) {
                         std::lock_guard lock(mutex);
                         broken = e.what();
@@ -246,6 +258,7 @@ Run run(uint32_t width, uint32_t height, const std::string& method, int workers,
                 }
                 std::lock_guard lock(mutex);
                 synthetic_cpu += made;
+                out.wire_cpu_seconds += wire;
                 out.worker_wait_seconds += waiting;
                 out.lease_ms.insert(out.lease_ms.end(), leases.begin(), leases.end());
                 out.complete_ms.insert(out.complete_ms.end(), completes.begin(),
@@ -354,7 +367,7 @@ int main(int argc, char** argv) try {
                 "\"largest_round_wait_share\": %.4f, \"farm_efficiency\": %.3f, "
                 "\"coordinator_cpu_s_per_g_samples\": %.2f, "
                 "\"worker_cores_per_coordinator_core\": %.0f, \"worker_wait_share\": "
-                "%.4f}\n",
+                "%.4f, \"wire_cpu_s_per_g_samples\": %.2f}\n",
                 size.width, size.height, spp, renders, method.c_str(), workers, r.seconds,
                 r.state.c_str(), r.rounds, double(r.samples) / r.seconds,
                 double(r.leases) / r.seconds, percentile(r.lease_ms, 0.5),
@@ -367,7 +380,8 @@ int main(int argc, char** argv) try {
                 r.plan_wait_seconds / r.seconds, r.largest_round_wait_share,
                 rate > 0 ? double(r.samples) / r.seconds / (workers * rate) : 0.0, per_g,
                 per_g > 0 ? 1e9 / (per_g * (rate > 0 ? rate : 2e6)) : 0.0,
-                r.worker_wait_seconds / (r.seconds * workers));
+                r.worker_wait_seconds / (r.seconds * workers),
+                r.samples ? r.wire_cpu_seconds / (double(r.samples) * 1e-9) : 0.0);
             std::fflush(stdout);
         }
 } catch (const std::exception& e) {
