@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <type_traits>
 
 #include "sum_records.h"
 
@@ -86,19 +87,17 @@ TEST(Wire, APixelsRecordIsItsSumsInTheDocumentedOrderLittleEndian) {
 // the one copy this machine uses.
 TEST(Wire, TheFieldByFieldRecordsAreTheSameBytes) {
     const SampleJobResult r = two_pixel_result(true);
-    std::string copied, portable;
-    write_records(r.pixels, copied);
-    portable_records::write_records(r.pixels, portable);
-    EXPECT_EQ(copied, portable);
-    std::vector<PixelSums> pixels;
-    portable_records::read_records(copied, pixels);
-    EXPECT_EQ(pixels, r.pixels);
-    write_records(r.first_hits, copied);
-    portable_records::write_records(r.first_hits, portable);
-    EXPECT_EQ(copied, portable);
-    std::vector<FirstHitSums> hits;
-    portable_records::read_records(copied, hits);
-    EXPECT_EQ(hits, r.first_hits);
+    const auto same_bytes = [](const auto& records) {
+        std::string copied, portable;
+        write_records(records, copied);
+        portable_records::write_records(records, portable);
+        EXPECT_EQ(copied, portable);
+        std::decay_t<decltype(records)> read;
+        portable_records::read_records(copied, read);
+        EXPECT_EQ(read, records);
+    };
+    same_bytes(r.pixels);
+    same_bytes(r.first_hits);
 }
 
 // Records short or long by a whole record or a part of one are refused, nothing read.

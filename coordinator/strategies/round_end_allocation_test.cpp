@@ -59,9 +59,14 @@ SyntheticImage noisy_image() {
     return image;
 }
 
-// Each round end of `method` (next_round and the work it leaves ahead), after the first
-// two: bytes allocated beyond the round's own counts.
-std::vector<uint64_t> extra_bytes_a_round_end(const char* method) {
+// Each call of `method`'s next_round in a 64-spp render (with the work it leaves ahead):
+// the bytes it allocated beyond the round's own counts, and whether it gave a round (the
+// last gives none).
+struct RoundEndBytes {
+    uint64_t extra = 0;
+    bool round = false;
+};
+std::vector<RoundEndBytes> bytes_of_each_round_end(const char* method) {
     const unsigned threads = band_threads();
     set_band_threads(1);  // the pool's own bookkeeping is not the strategy's
     const SyntheticImage image = noisy_image();
@@ -70,20 +75,30 @@ std::vector<uint64_t> extra_bytes_a_round_end(const char* method) {
     params.spp = 64;
     const auto strategy = make_strategy(params, image.width(), image.height());
     Accumulator merged(image.width(), image.height());
-    const uint64_t counts = uint64_t(image.pixel_count()) * sizeof(uint32_t);
-    std::vector<uint64_t> extra;
+    std::vector<RoundEndBytes> ends;
     for (int r = 0; r < 20; ++r) {
         std::optional<Round> round;
         const uint64_t bytes = bytes_allocated_by([&] {
             round = strategy->next_round(merged);
             if (auto work = strategy->take_work_ahead()) work();
         });
+        const uint64_t counts = round ? round->spp.size() * sizeof(uint32_t) : 0;
+        ends.push_back({bytes > counts ? bytes - counts : 0, round.has_value()});
         if (!round) break;
-        if (r >= 2) extra.push_back(bytes > counts ? bytes - counts : 0);
         for (const SampleJob& job : cut_round(*round, merged))
             merged.merge(image.trace(job));
     }
     set_band_threads(threads);
+    return ends;
+}
+
+// Each round end of `method`, after the first two: bytes allocated beyond the round's own
+// counts.
+std::vector<uint64_t> extra_bytes_a_round_end(const char* method) {
+    std::vector<uint64_t> extra;
+    const std::vector<RoundEndBytes> ends = bytes_of_each_round_end(method);
+    for (size_t r = 2; r < ends.size(); ++r)
+        if (ends[r].round) extra.push_back(ends[r].extra);
     return extra;
 }
 
@@ -105,29 +120,9 @@ TEST(RoundEndAllocation, OptimalKeepsItsPlanningBuffersFromRoundToRound) {
 // the weights and the gaps are worked in one buffer, and optimal sorts no remainder keys
 // (optimal-time does): 74 and 86 bytes a pixel here with a buffer each, 42 and 70 now.
 uint64_t bytes_a_pixel_over_a_render(const char* method) {
-    const unsigned threads = band_threads();
-    set_band_threads(1);
-    const SyntheticImage image = noisy_image();
-    StrategyParams params;
-    params.method = method;
-    params.spp = 64;
-    const auto strategy = make_strategy(params, image.width(), image.height());
-    Accumulator merged(image.width(), image.height());
     uint64_t extra = 0;
-    for (int r = 0; r < 20; ++r) {
-        std::optional<Round> round;
-        const uint64_t bytes = bytes_allocated_by([&] {
-            round = strategy->next_round(merged);
-            if (auto work = strategy->take_work_ahead()) work();
-        });
-        const uint64_t counts = round ? round->spp.size() * sizeof(uint32_t) : 0;
-        extra += bytes > counts ? bytes - counts : 0;
-        if (!round) break;
-        for (const SampleJob& job : cut_round(*round, merged))
-            merged.merge(image.trace(job));
-    }
-    set_band_threads(threads);
-    return extra / image.pixel_count();
+    for (const RoundEndBytes& end : bytes_of_each_round_end(method)) extra += end.extra;
+    return extra / noisy_image().pixel_count();
 }
 
 TEST(RoundEndAllocation, OptimalPlansInOneBufferForSigmaWeightsAndGaps) {
