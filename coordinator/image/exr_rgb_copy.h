@@ -1,6 +1,6 @@
 // An EXR file's R, G and B without its other channels, copied a band of rows at a time:
 // what a client that did not ask for the AOV layers is sent of a stored render, without
-// the whole image in memory (coordinator/api/grpc_server.cpp, FetchImage).
+// the whole image in memory (coordinator/api/grpc_client_service.cpp, FetchImage).
 #pragma once
 
 #include <filesystem>
