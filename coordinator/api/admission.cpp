@@ -11,9 +11,12 @@ Admission::Ticket Admission::take(const std::string& peer) {
     {
         std::lock_guard lock(mutex_);
         if (taken_ >= places_) return {};
-        const auto it = per_peer_.try_emplace(peer, 0).first;
-        if (it->second >= places_per_peer_) return {nullptr, true};
-        ++it->second;
+        // Looked up, not inserted, before the share is checked: a peer refused (a share
+        // of 0 refuses every one) leaves no entry behind.
+        const auto it = per_peer_.find(peer);
+        if ((it == per_peer_.end() ? 0 : it->second) >= places_per_peer_)
+            return {nullptr, true};
+        ++per_peer_[peer];
         ++taken_;
     }
     // A non-null pointer to nothing: only its deleter matters.
@@ -30,6 +33,11 @@ void Admission::give_back(const std::string& peer) {
 size_t Admission::taken() const {
     std::lock_guard lock(mutex_);
     return taken_;
+}
+
+size_t Admission::peers() const {
+    std::lock_guard lock(mutex_);
+    return per_peer_.size();
 }
 
 }  // namespace aliquot

@@ -36,6 +36,8 @@ public:
     size_t places() const { return places_; }
     size_t places_per_peer() const { return places_per_peer_; }
     size_t taken() const;
+    // Peer addresses holding a place now: the per-address account never holds more.
+    size_t peers() const;
 
 private:
     void give_back(const std::string& peer);

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <string>
 #include <vector>
 
 namespace aliquot {
@@ -44,6 +45,23 @@ TEST(Admission, AShareLargerThanThePlacesIsThePlaces) {
     const Admission::Ticket c = places.take("p");
     EXPECT_FALSE(c.place);
     EXPECT_FALSE(c.peer_share_full);
+}
+
+// Refused peers leave nothing behind: with a share of 0 every caller is refused, and
+// the account of addresses stayed one entry a caller (the map grew without bound).
+TEST(Admission, RefusedPeersLeaveNoEntryBehind) {
+    Admission none(4, 0);
+    for (int i = 0; i < 100; ++i) {
+        const Admission::Ticket t = none.take("10.0.0." + std::to_string(i));
+        EXPECT_FALSE(t.place);
+        EXPECT_TRUE(t.peer_share_full);
+    }
+    EXPECT_EQ(none.peers(), 0u);
+    Admission one(2, 1);
+    const Admission::Place held = one.take("p").place;
+    ASSERT_TRUE(held);
+    for (int i = 0; i < 10; ++i) EXPECT_FALSE(one.take("p").place);
+    EXPECT_EQ(one.peers(), 1u);
 }
 
 }  // namespace
