@@ -368,8 +368,10 @@ RenderSession::Merge RenderSession::begin_merge(uint64_t lease_id,
     try {
         if (!why.empty()) {
             // Nothing was merged; the job is traced again, preferably by another worker.
-            count_failure(j, worker, "result rejected: " + why, alive, policy);
+            // The outcome first: count_failure queues the job again as its last step, so
+            // nothing may throw after it (the give_back below would queue it twice).
             merge.outcome = {CompleteStatus::Rejected, why};
+            count_failure(j, worker, "result rejected: " + why, alive, policy);
         } else if (ahead) {
             if (while_keeping) while_keeping(j);
             merges_.hold(j - current_jobs_,
@@ -398,8 +400,23 @@ CompleteOutcome RenderSession::end_merge(Merge& merge, const std::set<std::strin
         if (state_ != RenderState::Running)
             return {CompleteStatus::Ignored,
                     "render is " + std::string(to_string(state_))};
-        count_failure(merge.job, jobs_[merge.job].worker,
-                      "result rejected: " + merge.refused, alive, policy);
+        try {
+            count_failure(merge.job, jobs_[merge.job].worker,
+                          "result rejected: " + merge.refused, alive, policy);
+        } catch (...) {
+            // The job has no lease and is no longer an add in flight: unless it is queued
+            // again here, nothing would ever issue it and the round would never end.
+            // count_failure queues it as its last step, all or nothing, so it is not
+            // queued yet.
+            if (!finished()) {
+                try {
+                    requeue(merge.job);
+                } catch (...) {
+                    fail("out of memory counting a refused result");
+                }
+            }
+            throw;
+        }
         return {CompleteStatus::Rejected, merge.refused};
     }
     // Added before the render ended (its end waited for the add): in its image.
