@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
+#include <new>
 #include <optional>
 #include <string>
 
@@ -206,6 +208,14 @@ private:
             call();
         } catch (const WorkerUnknown& e) {
             return {StatusCode::UNAUTHENTICATED, e.what()};
+        } catch (const std::bad_alloc&) {
+            // A merge that could not keep what it needs gave its job back
+            // (RenderSession:: begin_merge): the worker may send again later, or another
+            // traces it.
+            return {StatusCode::RESOURCE_EXHAUSTED, "the coordinator is out of memory"};
+        } catch (const std::exception& e) {
+            // Said here rather than left to gRPC's own catch (UNKNOWN, no reason).
+            return {StatusCode::INTERNAL, e.what()};
         }
         return Status::OK;
     }
