@@ -182,15 +182,24 @@ void RenderSession::open_next_round() {
             : std::vector<PixelRect>{};
     end_plan_wait(!rects.empty());
     if (rects.empty()) return;
+    // All of the round ahead opens or none of it: what can fail (memory) is done before
+    // anything changes, so a round ahead short of jobs never skips its pixels' samples.
+    std::deque<size_t> ahead;
+    for (size_t k = 0; k < rects.size(); ++k) ahead.push_back(jobs_.size() + k);
+    jobs_.reserve(jobs_.size() + rects.size());
     merges_.open_round_ahead(rects.size());
     next_spp_ = spp;
     next_data_ = spp->data();
     for (const PixelRect& rect : rects) {
-        next_pending_.push_back(jobs_.size());
         JobSlot slot;
         slot.job.rect = rect;
-        jobs_.push_back(std::move(slot));
+        jobs_.push_back(std::move(slot));  // reserved: no allocation
     }
+    // Empty until now (no round ahead was open): a swap, which cannot fail.
+    if (next_pending_.empty())
+        next_pending_.swap(ahead);
+    else
+        next_pending_.insert(next_pending_.end(), ahead.begin(), ahead.end());
 }
 
 void RenderSession::end_plan_wait(bool a_round_came) {
@@ -404,10 +413,8 @@ CompleteOutcome RenderSession::end_merge(Merge& merge, const std::set<std::strin
             count_failure(merge.job, jobs_[merge.job].worker,
                           "result rejected: " + merge.refused, alive, policy);
         } catch (...) {
-            // The job has no lease and is no longer an add in flight: unless it is queued
-            // again here, nothing would ever issue it and the round would never end.
-            // count_failure queues it as its last step, all or nothing, so it is not
-            // queued yet.
+            // No lease, no add in flight, not queued (count_failure's last step): queued
+            // here, or nothing would issue it and the round would never end.
             if (!finished()) {
                 try {
                     requeue(merge.job);
