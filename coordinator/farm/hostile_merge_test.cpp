@@ -5,6 +5,7 @@
 #include <atomic>
 #include <chrono>
 #include <future>
+#include <limits>
 #include <mutex>
 #include <new>
 #include <random>
@@ -158,6 +159,36 @@ TEST(HostileMerges, AMergeThatCannotKeepWhatItNeedsGivesItsJobBack) {
         merge_to_the_end(s, lease);
         expect_same_image(s.image(true), rendered_alone(spec), ahead ? "ahead" : "out");
     }
+}
+
+// A result refused by its add (a non-finite sum, found off the render's lock) whose
+// failure cannot be counted (no memory) leaves its job queued again: it had no lease
+// and no add in flight left, and nothing would have issued it again, so the round never
+// ended and the render stayed running for good.
+TEST(HostileMerges, ARefusedAddWhoseFailureCannotBeCountedGivesItsJobBack) {
+    const RenderSpec spec = square_test_spec("uniform", 64, 4);  // one round
+    RenderSession s("r", spec, 0);
+    s.start();
+    bool fail = true;
+    s.while_counting_failure = [&](size_t) {
+        if (std::exchange(fail, false)) throw std::bad_alloc();
+    };
+    uint64_t lease = 0;
+    const std::optional<SampleJob> job = next_job(s, lease);
+    ASSERT_TRUE(job);
+    SampleJobResult poisoned = result_for(*job);
+    poisoned.pixels[0].even[0] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_THROW(s.complete(lease, "w", poisoned), std::bad_alloc);
+    EXPECT_FALSE(s.holds(lease));
+    std::optional<SampleJob> again;
+    while ((again = next_job(s, lease)) && !(again->rect == job->rect))
+        EXPECT_EQ(s.complete(lease, "w", result_for(*again)).status,
+                  CompleteStatus::Merged);
+    ASSERT_TRUE(again) << "the refused job is lost";
+    EXPECT_EQ(again->first_sample, job->first_sample);
+    EXPECT_EQ(s.complete(lease, "w", result_for(*again)).status, CompleteStatus::Merged);
+    merge_to_the_end(s, lease);
+    expect_same_image(s.image(true), rendered_alone(spec), "refused");
 }
 
 // A lease whose deadline passes while its result is being added (off the render's

@@ -548,6 +548,7 @@ void RenderSession::count_failure(size_t j, const std::string& worker,
                                   const std::string& reason,
                                   const std::set<std::string>& alive,
                                   const FailurePolicy& policy) {
+    if (while_counting_failure) while_counting_failure(j);
     JobSlot& slot = jobs_[j];
     const std::string why =
         failures_.count(slot.failures, slot.job.rect, worker, reason, alive, policy);

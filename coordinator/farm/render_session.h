@@ -109,6 +109,9 @@ public:
     // in flight, a held result's copy), before the lease ends; a test throws
     // std::bad_alloc there.
     std::function<void(size_t job)> while_keeping;
+    // Tests: called as a job's failure starts to be counted (a refused result's), before
+    // the job is queued again; a test throws std::bad_alloc there.
+    std::function<void(size_t job)> while_counting_failure;
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
     // `worker` could not trace its lease, for `reason`: the failure counts against the
