@@ -12,6 +12,7 @@
 #include <set>
 #include <thread>
 #include <utility>
+#include <vector>
 
 #include "coordinator.h"
 #include "farm_test_results.h"
@@ -189,6 +190,50 @@ TEST(HostileMerges, ARefusedAddWhoseFailureCannotBeCountedGivesItsJobBack) {
     EXPECT_EQ(s.complete(lease, "w", result_for(*again)).status, CompleteStatus::Merged);
     merge_to_the_end(s, lease);
     expect_same_image(s.image(true), rendered_alone(spec), "refused");
+}
+
+// Leases the round out's first job and keeps it out, merges the rest of the round out,
+// then has `held` results of the round ahead held (merged, not added): the round out's
+// end adds them once the first job's result is merged. Returns the first job and lease.
+std::pair<SampleJob, uint64_t> hold_round_ahead(RenderSession& s, uint64_t& lease,
+                                                size_t held,
+                                                SampleJobResult (*made)(const SampleJob&),
+                                                std::vector<SampleJob>* jobs = nullptr) {
+    std::optional<SampleJob> first = next_job(s, lease);
+    EXPECT_TRUE(first);
+    const uint64_t first_lease = lease;
+    for (size_t n = 0; n < held;) {
+        const std::optional<SampleJob> job = next_job(s, lease);
+        if (!job) break;
+        const bool ahead = job->first_sample[0] != 0;  // past the round out's samples
+        EXPECT_EQ(s.complete(lease, "w", ahead ? made(*job) : result_for(*job)).status,
+                  CompleteStatus::Merged);
+        if (ahead && jobs) jobs->push_back(*job);
+        n += ahead;
+    }
+    return {std::move(*first), first_lease};
+}
+
+// A held result of the round ahead whose add fails for want of memory when its round
+// comes (std::bad_alloc, thrown here by a test hook) gives its job back, and the held
+// results after it still merge. Before, the exception left add_held with the rest of
+// them, whose jobs were in no queue, and failed the render ("cannot plan round 2").
+TEST(HostileMerges, AHeldResultThatCannotBeAddedGivesItsJobBackAndTheRestMerge) {
+    const RenderSpec spec = square_test_spec("uniform", 64, 2048);  // two rounds
+    RenderSession s("r", spec, 0);
+    s.start();
+    bool fail = true;
+    s.while_adding_held = [&](size_t) {
+        if (std::exchange(fail, false)) throw std::bad_alloc();
+    };
+    uint64_t lease = 0;
+    const auto [first, first_lease] = hold_round_ahead(s, lease, 3, result_for);
+    EXPECT_EQ(s.complete(first_lease, "w", result_for(first)).status,
+              CompleteStatus::Merged);
+    EXPECT_FALSE(fail) << "no held result was added";
+    EXPECT_EQ(s.state(), RenderState::Running) << s.error();
+    merge_to_the_end(s, lease);
+    expect_same_image(s.image(true), rendered_alone(spec), "held");
 }
 
 // A lease whose deadline passes while its result is being added (off the render's

@@ -13,26 +13,42 @@ void MergesInFlight::begin_add(size_t job) {
 void MergesInFlight::add(Merge& merge, const SampleJobResult& result, Accumulator& merged,
                          AuxSums& aux,
                          const std::function<void(size_t job)>& while_adding) {
-    try {
-        // Refuses, whole, a result unlike its job or sums that would stop being finite.
-        merge.totals = check_with_aux(merged, aux, result, merge.counts);
-        if (while_adding) while_adding(merge.job);
-        add_with_aux(merged, aux, result, merge.totals);
-        merge.added = true;
-    } catch (...) {
-        // MergeError's reason; anything else refuses the result too (no memory left for
-        // a reason, a test's hook).
-        try {
-            throw;
-        } catch (const std::exception& e) {
-            try {
-                merge.refused = e.what();
-            } catch (...) {
-            }
-        } catch (...) {
-        }
-    }
+    // Refused, whole, a result unlike its job or sums that would stop being finite; and
+    // one whose add failed otherwise (no memory for a reason, a test's hook) too.
+    merge.added = add_one(merged, aux, result, merge.counts, merge.job, while_adding,
+                          merge.totals, merge.refused) == HeldEnd::Added;
     end_add(merge.job, merge.added);
+}
+
+MergesInFlight::HeldEnd MergesInFlight::add_one(
+    Accumulator& merged, AuxSums& aux, const SampleJobResult& result,
+    const uint32_t* counts, size_t job,
+    const std::function<void(size_t job)>& while_adding, ResultTotals& totals,
+    std::string& why) noexcept {
+    // Each reason short of memory falls back to one std::string holds in itself (15
+    // characters), which takes none.
+    try {
+        totals = check_with_aux(merged, aux, result, counts);
+        if (while_adding) while_adding(job);
+        add_with_aux(merged, aux, result, totals);
+        return HeldEnd::Added;
+    } catch (const MergeError& e) {
+        try {
+            why = e.what();
+        } catch (...) {
+            why = "refused";
+        }
+        return HeldEnd::Refused;
+    } catch (const std::exception& e) {
+        try {
+            why = e.what();
+        } catch (...) {
+            why = "out of memory";
+        }
+    } catch (...) {
+        why = "unknown error";
+    }
+    return HeldEnd::NotAdded;
 }
 
 void MergesInFlight::end_add(size_t job, bool added) {
@@ -81,18 +97,18 @@ void MergesInFlight::hold(size_t place, SampleJobResult&& result) noexcept {
 
 void MergesInFlight::add_held(
     Accumulator& merged, AuxSums& aux,
-    const std::function<bool(size_t job, const std::string& refused)>& added) {
+    const std::function<void(size_t job)>& while_adding,
+    const std::function<bool(size_t job, HeldEnd how, const std::string& why)>& ended) {
     std::vector<std::optional<SampleJobResult>> held = std::exchange(held_, {});
     for (size_t j = 0; j < held.size(); ++j) {
         if (!held[j]) continue;
-        std::string refused;  // checked when it came; the add may still refuse it
-        try {
-            merge_with_aux(merged, aux, *held[j]);
-        } catch (const MergeError& e) {
-            refused = e.what();
-        }
+        // Checked as asked when it came; its sums against the buffers now (no counts).
+        ResultTotals totals;
+        std::string why;
+        const HeldEnd how =
+            add_one(merged, aux, *held[j], nullptr, j, while_adding, totals, why);
         held[j].reset();
-        if (!added(j, refused)) return;
+        if (!ended(j, how, why)) return;
     }
 }
 

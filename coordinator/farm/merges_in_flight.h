@@ -62,17 +62,31 @@ public:
     // Holds the result of the round ahead's job `place` (its index in that round) until
     // that round is the one out.
     void hold(size_t place, SampleJobResult&& result) noexcept;
+    // How a held result's add ended: added, refused (MergeError: the result's fault,
+    // counted against its worker), or not made (anything else, such as no memory: the
+    // coordinator's, its job to be traced again).
+    enum class HeldEnd { Added, Refused, NotAdded };
     // The round ahead is now the round out: its held results are added to `merged` and
-    // `aux`, in job order, and `added` told of each (its job's index in the round, and
-    // why the add refused it, empty when it did not), while it returns true; the rest
-    // are dropped (a render that failed on one).
-    void add_held(
-        Accumulator& merged, AuxSums& aux,
-        const std::function<bool(size_t job, const std::string& refused)>& added);
+    // `aux`, in job order, and `ended` told of each (its job's index in the round, how,
+    // and why when not added), while it returns true; the rest are dropped (a render
+    // that failed on one). Every held result reaches `ended`, whatever its add threw;
+    // `ended` must not throw, or the results after it would be lost. `while_adding`
+    // (tests) is called between each one's check and its add.
+    void add_held(Accumulator& merged, AuxSums& aux,
+                  const std::function<void(size_t job)>& while_adding,
+                  const std::function<bool(size_t job, HeldEnd how,
+                                           const std::string& why)>& ended);
     // The render has ended: what was held will never merge.
     void drop_held() noexcept;
 
 private:
+    // Checks `result`, calls `while_adding`, adds it; how that ended, and why if not
+    // added. Never throws.
+    static HeldEnd add_one(Accumulator& merged, AuxSums& aux,
+                           const SampleJobResult& result, const uint32_t* counts,
+                           size_t job,
+                           const std::function<void(size_t job)>& while_adding,
+                           ResultTotals& totals, std::string& why) noexcept;
     // `job`'s add is over, its sums added or the result refused.
     void end_add(size_t job, bool added);
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <new>
 #include <thread>
 #include <utility>
 
@@ -79,7 +80,8 @@ TEST(MergesInFlight, ARefusedAddNamesItsJobUntilItsRefusalIsCounted) {
     merges.count(7);
 }
 
-using Told = std::vector<std::pair<size_t, bool>>;  // a job, and whether it was added
+using HeldEnd = MergesInFlight::HeldEnd;
+using Told = std::vector<std::pair<size_t, HeldEnd>>;  // a job, and how its add ended
 
 TEST(MergesInFlight, HeldResultsAreAddedInJobOrderWithTheirRefusals) {
     MergesInFlight merges;
@@ -89,16 +91,41 @@ TEST(MergesInFlight, HeldResultsAreAddedInJobOrderWithTheirRefusals) {
     merges.hold(2, result_of(20));  // outside the row: refused when added
     merges.hold(0, result_of(0, 3));
     Told told;
-    const auto tell = [&](size_t job, const std::string& refused) {
-        told.push_back({job, refused.empty()});
+    const auto tell = [&](size_t job, HeldEnd how, const std::string& why) {
+        EXPECT_EQ(why.empty(), how == HeldEnd::Added) << job;
+        told.push_back({job, how});
         return true;
     };
-    merges.add_held(row.merged, row.aux, tell);
-    EXPECT_EQ(told, (Told{{0, true}, {2, false}, {3, true}}));
+    merges.add_held(row.merged, row.aux, {}, tell);
+    EXPECT_EQ(told,
+              (Told{{0, HeldEnd::Added}, {2, HeldEnd::Refused}, {3, HeldEnd::Added}}));
     EXPECT_EQ(row.merged.total_samples(), 4u);
     told.clear();
-    merges.add_held(row.merged, row.aux, tell);  // added once
+    merges.add_held(row.merged, row.aux, {}, tell);  // added once
     EXPECT_TRUE(told.empty());
+}
+
+// An add that throws anything but a refusal (no memory; here a test's hook) is told as
+// not added, and the held results after it are still added: none is lost with it.
+TEST(MergesInFlight, AHeldAddThatFailsLosesNoneAfterIt) {
+    MergesInFlight merges;
+    Row row;
+    merges.open_round_ahead(3);
+    for (uint32_t j = 0; j < 3; ++j) merges.hold(j, result_of(j, 1));
+    Told told;
+    merges.add_held(
+        row.merged, row.aux,
+        [](size_t job) {
+            if (job == 1) throw std::bad_alloc();
+        },
+        [&](size_t job, HeldEnd how, const std::string& why) {
+            EXPECT_EQ(why.empty(), how == HeldEnd::Added) << job;
+            told.push_back({job, how});
+            return true;
+        });
+    EXPECT_EQ(told,
+              (Told{{0, HeldEnd::Added}, {1, HeldEnd::NotAdded}, {2, HeldEnd::Added}}));
+    EXPECT_EQ(row.merged.total_samples(), 2u);
 }
 
 TEST(MergesInFlight, HeldResultsAreDroppedOnceTheRenderEnds) {
@@ -108,16 +135,17 @@ TEST(MergesInFlight, HeldResultsAreDroppedOnceTheRenderEnds) {
     merges.hold(0, result_of(20));  // refused: its render fails, say
     merges.hold(1, result_of(1));
     Told told;
-    merges.add_held(row.merged, row.aux, [&](size_t job, const std::string& refused) {
-        told.push_back({job, refused.empty()});
-        return false;
-    });
-    EXPECT_EQ(told, (Told{{0, false}}));
+    merges.add_held(row.merged, row.aux, {},
+                    [&](size_t job, HeldEnd how, const std::string&) {
+                        told.push_back({job, how});
+                        return false;
+                    });
+    EXPECT_EQ(told, (Told{{0, HeldEnd::Refused}}));
     EXPECT_EQ(row.merged.total_samples(), 0u);
     merges.open_round_ahead(1);
     merges.hold(0, result_of(0));
     merges.drop_held();  // a render cancelled
-    merges.add_held(row.merged, row.aux, [&](size_t, const std::string&) {
+    merges.add_held(row.merged, row.aux, {}, [&](size_t, HeldEnd, const std::string&) {
         ADD_FAILURE() << "a result dropped was added";
         return true;
     });

@@ -154,14 +154,18 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     }
     // The results held for this round merge now, after the round before's: each
     // pixel's sums add up in round order.
-    merges_.add_held(merged_, aux_, [&](size_t j, const std::string& refused) {
-        if (refused.empty())
-            ++merged_jobs_;
-        else
-            count_failure(j, jobs_[j].worker, "result rejected: " + refused, alive,
-                          policy);
-        return state_ == RenderState::Running;
-    });
+    using HeldEnd = MergesInFlight::HeldEnd;
+    merges_.add_held(
+        merged_, aux_, while_adding_held,
+        [&](size_t j, HeldEnd how, const std::string& why) noexcept {
+            if (how == HeldEnd::Added)
+                ++merged_jobs_;
+            else if (how == HeldEnd::Refused)
+                count_refusal(j, why, alive, policy);
+            else
+                requeue_or_fail(j);  // not the worker's doing: no failure of its
+            return state_ == RenderState::Running;
+        });
 }
 
 void RenderSession::open_next_round() {

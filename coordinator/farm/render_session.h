@@ -112,6 +112,9 @@ public:
     // Tests: called as a job's failure starts to be counted (a refused result's), before
     // the job is queued again; a test throws std::bad_alloc there.
     std::function<void(size_t job)> while_counting_failure;
+    // Tests: called as each held result of the round ahead is added when its round
+    // comes, between its check and its add, under the render's lock.
+    std::function<void(size_t job)> while_adding_held;
     bool renew(uint64_t lease_id, const std::string& worker, Clock::time_point deadline);
     bool abandon(uint64_t lease_id, const std::string& worker);
     // `worker` could not trace its lease, for `reason`: the failure counts against the
@@ -234,6 +237,14 @@ private:
     // queue, or the render fails with `reason` when the policy says so.
     void count_failure(size_t j, const std::string& worker, const std::string& reason,
                        const std::set<std::string>& alive, const FailurePolicy& policy);
+    // Counts the refusal of job `j`'s result (count_failure); when that throws (no
+    // memory), requeue_or_fail. Never throws: the held results after it still merge.
+    void count_refusal(size_t j, const std::string& why,
+                       const std::set<std::string>& alive,
+                       const FailurePolicy& policy) noexcept;
+    // Job `j`, in no queue and under no lease, goes back to its queue; when even that
+    // fails, the render fails: a job in no queue would hold its round open for good.
+    void requeue_or_fail(size_t j) noexcept;
 
     std::string id_;
     RenderSpec spec_;

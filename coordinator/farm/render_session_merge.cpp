@@ -169,4 +169,26 @@ void RenderSession::count_failure(size_t j, const std::string& worker,
     requeue(j);
 }
 
+void RenderSession::count_refusal(size_t j, const std::string& why,
+                                  const std::set<std::string>& alive,
+                                  const FailurePolicy& policy) noexcept {
+    try {
+        count_failure(j, jobs_[j].worker, "result rejected: " + why, alive, policy);
+    } catch (...) {
+        requeue_or_fail(j);  // count_failure queues the job as its last step
+    }
+}
+
+void RenderSession::requeue_or_fail(size_t j) noexcept {
+    if (finished()) return;
+    try {
+        return requeue(j);  // all or nothing (a deque's push_front)
+    } catch (...) {
+    }
+    try {
+        fail("out of memory: a job could not be queued again");
+    } catch (...) {
+    }
+}
+
 }  // namespace aliquot
