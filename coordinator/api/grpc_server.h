@@ -30,10 +30,6 @@ struct GrpcSecurity {
     std::string tls_key_pem;
 };
 
-// The most threads a worker may state at Register (INVALID_ARGUMENT past it): what it
-// states counts as the farm's cores, for which rounds are cut.
-inline constexpr uint32_t kMaxWorkerThreads = 1024;
-
 // What a peer can make the server hold at once (docs/SECURITY.md, "gRPC limits"). A call
 // beyond a cap is answered at once: RESOURCE_EXHAUSTED, or for a Lease an empty reply.
 struct GrpcLimits {

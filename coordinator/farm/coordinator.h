@@ -74,6 +74,9 @@ struct CoordinatorOptions {
     std::chrono::milliseconds forget_workers_after{std::chrono::hours(1)};
     size_t max_worker_sessions = 4096;
     size_t max_workers = 4096;
+    // Workers (names) and sessions from one address at once (WorkerLimits): past either,
+    // a Register from it drops its own lost ones or is refused with TooManyWorkers.
+    size_t max_workers_per_host = 1024;
     // Finished renders are deleted (files, rows, memory) this long after they finished;
     // zero keeps them for ever. Checked once a minute (tick), or every quarter of it when
     // that is shorter.

@@ -47,7 +47,7 @@ WorkerRegistry::WorkerEntry& WorkerRegistry::touch_worker(const std::string& nam
 
 void WorkerRegistry::set_alive(const std::string& name, bool alive) {
     const bool changed_set = alive ? alive_.insert(name).second : alive_.erase(name) > 0;
-    if (changed_set) alive_dirty_ = true;
+    if (changed_set) alive_dirty_ = cores_dirty_ = true;
 }
 
 void WorkerRegistry::refresh_alive() {
@@ -56,9 +56,36 @@ void WorkerRegistry::refresh_alive() {
     for (const auto& [link, entry] : links_)
         if (alive_.count(entry.worker)) hosts.insert(entry.identity);
     alive_snapshot_ = std::make_shared<const std::set<std::string>>(hosts);
-    alive_cores_ = 0;
-    for (const std::string& name : alive_) alive_cores_ += workers_.at(name).threads;
     alive_dirty_ = false;
+}
+
+std::set<std::string> WorkerRegistry::names_holding_leases() const {
+    std::set<std::string> names;
+    for (const std::string& link : holding_leases_())
+        if (const auto it = links_.find(link); it != links_.end())
+            names.insert(it->second.worker);
+    return names;
+}
+
+void WorkerRegistry::count_cores(int64_t now_ms) {
+    const std::set<std::string> holding = names_holding_leases();
+    // A lease period: a worker tracing jobs merges one far more often than that, and
+    // holds a lease while it traces, so every worker of an honest farm at work counts.
+    const int64_t within = limits_.working_within.count();
+    std::unordered_map<std::string, size_t> by_address;
+    for (auto& [name, w] : workers_) {
+        w.counted =
+            alive_.count(name) && (w.trusted || holding.count(name) ||
+                                   (w.merged_ms > 0 && now_ms - w.merged_ms <= within));
+        if (w.counted) by_address[w.address] += w.threads;
+    }
+    // Several workers on one machine share its cores, and one machine states at most
+    // kMaxWorkerThreads; a farm behind one NAT address past it has its rounds cut for
+    // that many (2048 jobs and more a round: most of an image's smallest tiles anyway).
+    alive_cores_ = 0;
+    for (const auto& [address, threads] : by_address)
+        alive_cores_ += std::min<size_t>(threads, kMaxWorkerThreads);
+    cores_dirty_ = false;
 }
 
 std::shared_ptr<const std::set<std::string>> WorkerRegistry::alive_identities() {
@@ -69,7 +96,7 @@ std::shared_ptr<const std::set<std::string>> WorkerRegistry::alive_identities() 
 
 size_t WorkerRegistry::alive_cores() {
     std::lock_guard lock(mutex_);
-    refresh_alive();
+    if (cores_dirty_) count_cores(unix_millis_now());
     return alive_cores_;
 }
 
@@ -154,17 +181,14 @@ void WorkerRegistry::make_room_for_a_link() {
 void WorkerRegistry::forget_worker(const std::string& name) {
     std::erase_if(links_, [&name](const auto& kv) { return kv.second.worker == name; });
     set_alive(name, false);
-    alive_dirty_ = true;
+    alive_dirty_ = cores_dirty_ = true;
     workers_.erase(name);
     archive_.forget_worker(name);
 }
 
 void WorkerRegistry::make_room_for_a_worker(const std::string& name) {
     if (workers_.size() < limits_.max_workers || workers_.count(name)) return;
-    std::set<std::string> holding;  // names holding a lease
-    for (const std::string& link : holding_leases_())
-        if (const auto it = links_.find(link); it != links_.end())
-            holding.insert(it->second.worker);
+    const std::set<std::string> holding = names_holding_leases();
     const auto oldest = longest_silent(workers_, holding);
     if (oldest == workers_.end())
         throw TooManyWorkers("the coordinator knows " + std::to_string(workers_.size()) +
@@ -172,6 +196,60 @@ void WorkerRegistry::make_room_for_a_worker(const std::string& name) {
     // Its samples not yet recorded go with it; if it is still there, it is told to
     // register again at its next call.
     forget_worker(std::string(oldest->first));
+}
+
+void WorkerRegistry::make_room_on_host(const std::string& name,
+                                       const std::string& address) {
+    const size_t most = limits_.max_workers_per_host;
+    const int64_t now = unix_millis_now(), lost_after = limits_.lost_after.count();
+    // Only entries of `address` that are lost (silent past lost_after, in no lease poll)
+    // and hold no lease make room, and links of the name registering again: a host whose
+    // workers restart under new names gets in, and one that has `most` workers at once is
+    // told so, where dropping a live one would have it register again and drop another,
+    // without end.
+    const auto is_lost = [&](const std::string& worker, int64_t last_seen_ms) {
+        const auto w = workers_.find(worker);
+        return now - last_seen_ms > lost_after &&
+               (w == workers_.end() || w->second.polling == 0);
+    };
+    const auto refuse = [&](size_t count, const std::string& what) {
+        return TooManyWorkers(
+            address + " has " + std::to_string(count) + " " + what +
+            ", the most one address may (--max-workers-per-host), none of "
+            "them lost; try again later");
+    };
+    // Its names first (a lost one dropped takes its links with it), then its links.
+    size_t names_here = 0;  // 0 for a name this address registered before
+    if (const auto it = workers_.find(name);
+        it == workers_.end() || it->second.address != address)
+        for (const auto& [worker, w] : workers_) names_here += w.address == address;
+    if (names_here >= most) {
+        const std::set<std::string> holding = names_holding_leases();
+        auto oldest = workers_.end();
+        for (auto it = workers_.begin(); it != workers_.end(); ++it)
+            if (it->second.address == address && !holding.count(it->first) &&
+                is_lost(it->first, it->second.last_seen_ms) &&
+                (oldest == workers_.end() ||
+                 it->second.last_seen_ms < oldest->second.last_seen_ms))
+                oldest = it;
+        if (oldest == workers_.end()) throw refuse(names_here, "workers registered");
+        forget_worker(std::string(oldest->first));
+    }
+    size_t links_here = 0;
+    for (const auto& [token, link] : links_) links_here += link.identity == address;
+    if (links_here < most) return;
+    const std::set<std::string> holding = holding_leases_();
+    auto oldest = links_.end();
+    for (auto it = links_.begin(); it != links_.end(); ++it)
+        if (it->second.identity == address && !holding.count(it->first) &&
+            (it->second.worker == name ||
+             is_lost(it->second.worker, it->second.last_seen_ms)) &&
+            (oldest == links_.end() ||
+             it->second.last_seen_ms < oldest->second.last_seen_ms))
+            oldest = it;
+    if (oldest == links_.end()) throw refuse(links_here, "worker sessions");
+    links_.erase(oldest);
+    alive_dirty_ = true;
 }
 
 void WorkerRegistry::forget_silent_workers(int64_t now_ms) {
@@ -209,11 +287,16 @@ std::string WorkerRegistry::register_link(const std::string& name, uint32_t thre
                                           std::string identity, bool trusted) {
     std::lock_guard lock(mutex_);
     // First: a refused registration adds nothing (the silent link or worker one of
-    // these dropped before the other refused stays dropped).
+    // these dropped before the other refused stays dropped). The address's own share
+    // before the whole registry's, so that a full share drops none of another's.
+    if (!trusted) make_room_on_host(name, identity);
     make_room_for_a_link();
     make_room_for_a_worker(name);
     WorkerEntry& w = touch_worker(name);
     w.threads = threads;
+    w.address = identity;
+    w.trusted = trusted;
+    cores_dirty_ = true;
     set_alive(name, true);
     // A full disk must not keep workers out: the row is written again when it returns.
     archive_.record_worker(name, threads, w.last_seen_ms);
@@ -241,6 +324,9 @@ void WorkerRegistry::note_merged(const std::string& name, uint64_t samples,
     if (it == workers_.end()) return;
     WorkerEntry& w = it->second;
     w.samples += samples;
+    // It has shown it works: its threads count from the next round cut (alive_cores).
+    w.merged_ms = unix_millis_now();
+    if (!w.counted) cores_dirty_ = true;
     // A worker's own clock: a NaN or a near-zero time would poison the smoothed rate.
     if (std::isfinite(wall_seconds) && wall_seconds >= 1e-3) {
         // Per-thread rate of this job, times the worker's threads, smoothed.
@@ -285,6 +371,9 @@ bool WorkerRegistry::tick(int64_t now_ms, bool sweep_rows) {
         }
     }
     forget_silent_workers(now_ms);
+    // Workers whose last merge is now older than working_within stop counting, and
+    // those that took a lease since the last count start.
+    count_cores(now_ms);
     // Rows of workers silent as long, those of an earlier run of the coordinator included
     // (it remembers no worker across a restart).
     if (sweep_rows)

@@ -38,11 +38,24 @@ public:
 // "ipv4:10.0.0.5"): whom failures count against.
 std::string host_of_peer(const std::string& peer);
 
+// The most threads a worker may state at Register (the api refuses more): what it states
+// counts as the farm's cores, for which rounds are cut. The largest machines have a few
+// hundred. It is also the most cores one address counts for (alive_cores).
+inline constexpr uint32_t kMaxWorkerThreads = 1024;
+
 struct WorkerLimits {
     std::chrono::milliseconds lost_after{10000};
     std::chrono::milliseconds forget_after{std::chrono::hours(1)};
     size_t max_links = 4096;
     size_t max_workers = 4096;
+    // Workers (names) and links from one address (host_of_peer) at once: past either, a
+    // Register from it drops its own longest-silent entry that holds no lease and is
+    // lost, or is refused (TooManyWorkers), so that one holder of the worker token can
+    // neither fill the registry nor push other addresses' workers out of it.
+    size_t max_workers_per_host = 1024;
+    // A worker's threads count toward cutting while it holds a lease or merged a job this
+    // recently (the coordinator's lease time): see alive_cores.
+    std::chrono::milliseconds working_within{30000};
 };
 
 class WorkerRegistry {
@@ -98,7 +111,17 @@ public:
     // or are forgotten; an immutable snapshot, so a call can use it under its render's
     // lock alone.
     std::shared_ptr<const std::set<std::string>> alive_identities();
-    // The alive workers' threads, rebuilt with alive_identities.
+    // The farm's live worker cores, for which rounds are cut (two jobs each,
+    // round_cutter.h): the threads of the alive workers that have shown they work (hold a
+    // lease now, or merged a job within working_within; the threads of workers in this
+    // process count always), at most kMaxWorkerThreads from one address. A name costs a
+    // holder of the worker token nothing and a heartbeat keeps it alive, so threads that
+    // idle names state counted as cores had one holder (4096 names x 1024 threads) cut
+    // every round of every render into the smallest tiles; counting only workers that
+    // take jobs ties the count to jobs actually traced, and the cap per address makes
+    // many names on one machine (or behind one NAT) one machine. Rebuilt when workers
+    // register, are lost or forgotten, when one starts counting (its first merge in a
+    // while), and at every tick.
     size_t alive_cores();
 
     // Writes the workers' counts, marks the silent lost, forgets those silent for long
@@ -119,6 +142,10 @@ private:
         double rate = 0;          // samples/s, smoothed over recent jobs
         bool lost = false;
         std::string host, version;  // describe: for the workers list only
+        std::string address;        // the identity its last registration came from
+        bool trusted = false;       // that registration was in this process
+        int64_t merged_ms = 0;      // when a job of it last merged (0: never)
+        bool counted = false;       // its threads are in alive_cores_ (count_cores)
         uint32_t failures = 0;      // jobs it reported failed
         uint32_t polling = 0;       // lease polls in progress (poll_began)
         // last_seen_ms as the store last has it: refreshed now and then (tick), so that
@@ -134,10 +161,17 @@ private:
     // TooManyWorkers.
     void make_room_for_a_worker(const std::string& name);
     void make_room_for_a_link();
+    // The same within `address`'s share (max_workers_per_host), dropping only its own
+    // lost entries: throws TooManyWorkers when it has no room.
+    void make_room_on_host(const std::string& name, const std::string& address);
     // Drops links silent for forget_after that hold no lease, and workers lost that long
     // with no link left.
     void forget_silent_workers(int64_t now_ms);
     void refresh_alive();
+    // The workers (names) with a link holding a lease now.
+    std::set<std::string> names_holding_leases() const;
+    // Rebuilds alive_cores_ as of `now_ms`.
+    void count_cores(int64_t now_ms);
 
     mutable std::mutex mutex_;
     WorkerLimits limits_;
@@ -150,6 +184,7 @@ private:
     std::shared_ptr<const std::set<std::string>> alive_snapshot_ =
         std::make_shared<const std::set<std::string>>();
     bool alive_dirty_ = false;
+    bool cores_dirty_ = false;  // alive_cores_ is rebuilt at its next read
     size_t alive_cores_ = 0;
 };
 
