@@ -154,6 +154,7 @@ struct CoordinatorCommand {
     bool fail_on_fewer_hosts = false;
     std::string forget_workers = "1h";
     size_t max_workers = CoordinatorOptions{}.max_workers;
+    size_t max_workers_per_host = CoordinatorOptions{}.max_workers_per_host;
     double keep_days = 0;  // 0: finished renders are kept for ever
     bool grpc_reflection = false;
 
@@ -165,6 +166,8 @@ struct CoordinatorCommand {
         if (max_job_failures == 0)
             throw UsageError("--max-job-failures: must be 1 or more");
         if (max_workers == 0) throw UsageError("--max-workers: must be 1 or more");
+        if (max_workers_per_host == 0)
+            throw UsageError("--max-workers-per-host: must be 1 or more");
         const std::chrono::milliseconds forget_after =
             parse_duration(forget_workers, "--forget-workers");
         if (!(keep_days >= 0 && keep_days <= 36500))
@@ -208,6 +211,7 @@ struct CoordinatorCommand {
         options.forget_workers_after = forget_after;
         options.max_workers = max_workers;
         options.max_worker_sessions = std::max(options.max_worker_sessions, max_workers);
+        options.max_workers_per_host = max_workers_per_host;
         options.keep_finished =
             std::chrono::milliseconds(int64_t(keep_days * 24 * 3600 * 1000.0));
         Coordinator coordinator(options);
@@ -334,6 +338,12 @@ void register_coordinator(CLI::App& app) {
     cmd->add_option("--max-workers", c->max_workers,
                     "workers remembered at once; registering past it forgets the "
                     "longest-silent one holding no lease")
+        ->check(whole_number())
+        ->capture_default_str();
+    cmd->add_option("--max-workers-per-host", c->max_workers_per_host,
+                    "workers (and their sessions) one address may have registered at "
+                    "once; past it a Register from there is refused unless one of its "
+                    "own is lost (docs/SECURITY.md)")
         ->check(whole_number())
         ->capture_default_str();
     cmd->add_option(
