@@ -1,5 +1,5 @@
 // Error metrics between a test image and a reference (the seed's E, RMSE, relMSE,
-// buckets).
+// buckets, the image's mean bias).
 #include "error_metric.h"
 
 #include <algorithm>
@@ -22,7 +22,27 @@ double nearest_rank(std::vector<double> values, double p) {
     return values[std::clamp<size_t>(rank, 1, values.size()) - 1];
 }
 
+// mean_bias and its standard error from the pass's sums over `pixels` pixels.
+void set_mean_bias(ErrorMetrics& m, double pixels, double ref_mean, double diff_sum,
+                   double diff_sq_sum) {
+    if (!(ref_mean > 0)) {
+        m.mean_bias = m.mean_bias_se = std::nan("");
+        return;
+    }
+    const double diff_mean = diff_sum / pixels;
+    // Sample variance of the per-pixel differences; rounding can take it a hair below 0.
+    const double variance =
+        pixels > 1 ? std::max(0.0, (diff_sq_sum - diff_sum * diff_mean) / (pixels - 1))
+                   : 0.0;
+    m.mean_bias = diff_mean / ref_mean;
+    m.mean_bias_se = std::sqrt(variance / pixels) / ref_mean;
+}
+
 }  // namespace
+
+bool bias_beyond_noise(const ErrorMetrics& m) {
+    return std::abs(m.mean_bias) > 3.0 * m.mean_bias_se;
+}
 
 ErrorMetrics compare_images(const Image& test, const Image& reference, int bucket_size) {
     if (test.width != reference.width || test.height != reference.height)
@@ -43,20 +63,27 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
     const uint32_t buckets_x = (w + b - 1) / b, buckets_y = (h + b - 1) / b;
     std::vector<double> bucket_abs(size_t(buckets_x) * buckets_y, 0.0);
     double abs_sum = 0, sq_sum = 0, rel_sum = 0;
+    // The mean bias's sums, in the same pass: the reference's total, and the per-pixel
+    // differences' sum and sum of squares.
+    double ref_sum = 0, diff_sum = 0, diff_sq_sum = 0;
     for (uint32_t y = 0; y < h; ++y) {
         double* bucket_row = bucket_abs.data() + size_t(y / b) * buckets_x;
         for (uint32_t x = 0; x < w; ++x) {
             const size_t i = (size_t(y) * w + x) * 3;
-            double pixel_abs = 0;
+            double pixel_abs = 0, pixel_diff = 0;
             for (size_t c = 0; c < 3; ++c) {
                 const double a = test.rgb[i + c], r = reference.rgb[i + c];
                 const double d = a - r;
                 pixel_abs += std::abs(d);
+                pixel_diff += d;
+                ref_sum += r;
                 sq_sum += d * d;
                 rel_sum += d * d / (r * r + 1e-2);
             }
             abs_sum += pixel_abs;
             bucket_row[x / b] += pixel_abs;
+            diff_sum += pixel_diff / 3.0;
+            diff_sq_sum += (pixel_diff / 3.0) * (pixel_diff / 3.0);
         }
     }
     std::vector<double> bucket_errors;
@@ -75,6 +102,8 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
     m.mean_abs = abs_sum / samples;
     m.rmse = std::sqrt(sq_sum / samples);
     m.relative_mse = rel_sum / samples;
+    set_mean_bias(m, double(test.pixel_count()), ref_sum / samples, diff_sum,
+                  diff_sq_sum);
     if (any_nan) {
         // A NaN would break the sort's ordering; report it rather than a misleading
         // number.

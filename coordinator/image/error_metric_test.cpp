@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 namespace aliquot {
 namespace {
@@ -94,6 +95,72 @@ TEST(ErrorMetric, WholeImageMetricsDoNotDependOnBucketSize) {
     EXPECT_EQ(a.mean_abs, b.mean_abs);
     EXPECT_EQ(a.rmse, b.rmse);
     EXPECT_EQ(a.relative_mse, b.relative_mse);
+    EXPECT_EQ(a.mean_bias, b.mean_bias);
+    EXPECT_EQ(a.mean_bias_se, b.mean_bias_se);
+}
+
+// A reference with structure (0.2..1.0, mean 0.6) and a test image that is it times
+// `scale` plus zero-mean noise of half-width `noise` in every channel. The noise comes
+// from mt19937's raw output, which the standard fixes, so the image is the same on every
+// platform.
+std::pair<Image, Image> noisy_copy(double scale, double noise) {
+    Image test(128, 128), ref(128, 128);
+    std::mt19937 rng(7);
+    for (size_t i = 0; i < ref.pixel_count(); ++i) {
+        const float base = 0.2f + 0.8f * float((i * 37) % 101) / 100.0f;
+        for (int c = 0; c < 3; ++c) {
+            const double u = double(rng()) / double(std::mt19937::max());  // [0, 1]
+            ref.rgb[3 * i + c] = base;
+            test.rgb[3 * i + c] = float(base * scale + noise * (2 * u - 1));
+        }
+    }
+    return {test, ref};
+}
+
+TEST(ErrorMetric, MeanBiasIsTheRelativeDifferenceOfTheImageMeans) {
+    // Reference mean 1; pixel differences +1 and -1/3 (over RGB): mean 1/3.
+    Image test(2, 1), ref(2, 1);
+    test.rgb = {2, 2, 2, 1, 1, 0};
+    ref.rgb = {1, 1, 1, 1, 1, 1};
+    const ErrorMetrics m = compare_images(test, ref);
+    EXPECT_DOUBLE_EQ(m.mean_bias, 1.0 / 3.0);
+    // Sample variance of {1, -1/3} is (2/3)^2 * 2 = 8/9; over 2 pixels, sqrt(4/9).
+    EXPECT_DOUBLE_EQ(m.mean_bias_se, 2.0 / 3.0);
+    EXPECT_FALSE(bias_beyond_noise(m));
+}
+
+TEST(ErrorMetric, AnImageTwoPercentTooDarkIsFlagged) {
+    const auto [test, ref] = noisy_copy(0.98, 0.05);
+    const ErrorMetrics m = compare_images(test, ref);
+    EXPECT_NEAR(m.mean_bias, -0.02, 0.001);
+    EXPECT_LT(m.mean_bias_se, 0.001);
+    EXPECT_TRUE(bias_beyond_noise(m));
+}
+
+TEST(ErrorMetric, ZeroMeanNoiseIsNotFlaggedAndItsStandardErrorIsTheNoises) {
+    const auto [test, ref] = noisy_copy(1.0, 0.3);
+    const ErrorMetrics m = compare_images(test, ref);
+    EXPECT_FALSE(bias_beyond_noise(m)) << m.mean_bias << " +- " << m.mean_bias_se;
+    // A uniform of half-width a has variance a^2/3; a pixel's mean of 3 channels, a^2/9.
+    const double expected = std::sqrt(0.3 * 0.3 / 9.0 / (128.0 * 128.0)) / 0.6;
+    EXPECT_NEAR(m.mean_bias_se, expected, 0.05 * expected);
+    EXPECT_GT(m.mean_abs, 0.1);  // far more noise than bias, yet no flag
+}
+
+TEST(ErrorMetric, IdenticalImagesHaveNoBias) {
+    const Image a = grey(3, 2, {1, 2, 3, 4, 5, 6});
+    const ErrorMetrics m = compare_images(a, a);
+    EXPECT_EQ(m.mean_bias, 0);
+    EXPECT_EQ(m.mean_bias_se, 0);
+    EXPECT_FALSE(bias_beyond_noise(m));
+}
+
+TEST(ErrorMetric, ABlackReferenceHasNoRelativeBias) {
+    const ErrorMetrics m = compare_images(grey(2, 2, {1, 1, 1, 1}), grey(2, 2, {}));
+    EXPECT_TRUE(std::isnan(m.mean_bias));
+    EXPECT_TRUE(std::isnan(m.mean_bias_se));
+    EXPECT_FALSE(bias_beyond_noise(m));
+    EXPECT_DOUBLE_EQ(m.mean_abs, 1.0);  // the other metrics stay defined
 }
 
 TEST(ErrorMetric, DifferentResolutionsThrowNamingBoth) {
