@@ -10,6 +10,7 @@
 #include <new>
 #include <random>
 #include <set>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -234,6 +235,35 @@ TEST(HostileMerges, AHeldResultThatCannotBeAddedGivesItsJobBackAndTheRestMerge) 
     EXPECT_EQ(s.state(), RenderState::Running) << s.error();
     merge_to_the_end(s, lease);
     expect_same_image(s.image(true), rendered_alone(spec), "held");
+}
+
+// A round's end that throws after the round has merged (on_round's record, here a test's
+// throw; a reference the image cannot be compared with) fails the render with the
+// reason, and the merge that ended the round returns. Before, the exception escaped that
+// merge, out of the render's own catch, and left the render Running with no job out.
+TEST(HostileMerges, ARoundEndThatThrowsFailsItsRenderWithTheReason) {
+    for (const bool by_reference : {false, true}) {
+        RenderSpec spec = square_test_spec("uniform", 64, 4);  // one round
+        if (by_reference) spec.reference = Image(8, 8);        // not the render's size
+        RenderSession s("r", spec, 0);
+        if (!by_reference)
+            s.on_round = [](RenderSession&, const RoundSummary&) {
+                throw std::runtime_error("the record cannot be kept");
+            };
+        s.start();
+        uint64_t lease = 0;
+        while (const std::optional<SampleJob> job = next_job(s, lease)) {
+            CompleteOutcome outcome{CompleteStatus::Ignored, {}};
+            EXPECT_NO_THROW(outcome = s.complete(lease, "w", result_for(*job)));
+            EXPECT_EQ(outcome.status, CompleteStatus::Merged);
+        }
+        EXPECT_EQ(s.state(), RenderState::Failed) << by_reference;
+        EXPECT_NE(s.error().find(by_reference ? "resolution differs"
+                                              : "the record cannot be kept"),
+                  std::string::npos)
+            << s.error();
+        EXPECT_NE(s.error().find("cannot end round"), std::string::npos) << s.error();
+    }
 }
 
 // A lease whose deadline passes while its result is being added (off the render's

@@ -175,10 +175,8 @@ void RenderSession::open_next_round() {
     next_tried_ = true;
     try {
         work_ahead_.get();
-    } catch (const std::exception& e) {
-        fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
-             e.what());
-        return;
+    } catch (...) {
+        return fail_in_catch("plan");
     }
     const std::vector<uint32_t>* spp = strategy_->round_planned_ahead();
     const std::vector<PixelRect> rects =
@@ -300,41 +298,38 @@ std::optional<SampleJob> RenderSession::issue(uint64_t lease_id,
 
 void RenderSession::end_rounds(const std::set<std::string>& alive,
                                const FailurePolicy& policy) {
-    // A plan that cannot be made (memory, or a strategy's error) fails the render with
-    // the reason: the round has merged and no job is out, so nothing else would end it.
-    const auto planning_failed = [&](const std::exception& e) {
-        fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
-             e.what());
-    };
     // Every job of the round out has merged, each counted after its add was over, so no
     // add of the round out is in flight, and the round ahead's results are held: the
     // round's end reads buffers no one writes.
     // A plan begun off the lock (begin_next_round) ends the loop: its round comes later.
     while (state_ == RenderState::Running && !planning_round_end_ &&
            merged_jobs_ == current_jobs_) {
+        // Whatever a round's end throws (no memory, a strategy's error, on_round's
+        // record, a reference the image cannot be compared with) fails the render with
+        // the reason: the round has merged and no job is out, so nothing else would end
+        // it, and the merge that ended it is over.
+        const char* doing = "plan";
         try {
             finish_work_ahead();
-        } catch (const std::exception& e) {
-            return planning_failed(e);
-        }
-        // From here the round end's own time, which the coordinator counts.
-        end_plan_wait(strategy_->round_planned_ahead() != nullptr);
-        ++rounds_done_;
-        RoundSummary summary;
-        summary.index = round_index_;
-        summary.samples_in_round = round_samples_;
-        summary.samples_total = merged_.total_samples();
-        summary.seconds = seconds();
-        summary.error_estimate = estimate_mean_abs_error(merged_);
-        if (spec_.reference)
-            summary.error_vs_reference =
-                compare_images(merged_.image(), *spec_.reference).mean_abs;
-        last_round_ = summary;
-        if (on_round) on_round(*this, summary);
-        try {
+            // From here the round end's own time, which the coordinator counts.
+            end_plan_wait(strategy_->round_planned_ahead() != nullptr);
+            doing = "end";
+            ++rounds_done_;
+            RoundSummary summary;
+            summary.index = round_index_;
+            summary.samples_in_round = round_samples_;
+            summary.samples_total = merged_.total_samples();
+            summary.seconds = seconds();
+            summary.error_estimate = estimate_mean_abs_error(merged_);
+            if (spec_.reference)
+                summary.error_vs_reference =
+                    compare_images(merged_.image(), *spec_.reference).mean_abs;
+            last_round_ = summary;
+            if (on_round) on_round(*this, summary);
+            doing = "plan";
             begin_next_round(alive, policy);
-        } catch (const std::exception& e) {
-            return planning_failed(e);
+        } catch (...) {
+            return fail_in_catch(doing);
         }
     }
 }
@@ -373,9 +368,8 @@ bool RenderSession::open_round_end_plan(const std::set<std::string>& alive,
     try {
         work_ahead_.get();
         plan_next_round(alive, policy);
-    } catch (const std::exception& e) {
-        fail(std::string("cannot plan round ") + std::to_string(round_index_ + 1) + ": " +
-             e.what());
+    } catch (...) {
+        fail_in_catch("plan");
     }
     end_plan_wait(state_ == RenderState::Running);
     return state_ == RenderState::Running;

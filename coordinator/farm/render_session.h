@@ -231,6 +231,10 @@ private:
     bool open_round_end_plan(const std::set<std::string>& alive,
                              const FailurePolicy& policy);
     void finish(RenderState state);
+    // Called in a catch block: fails the render with "cannot `doing` round n: " and the
+    // exception's reason, or, when even that cannot be said (no memory), with "out of
+    // memory". Never throws.
+    void fail_in_catch(const char* doing) noexcept;
     // Whether `result` is of its job's rectangle and size (its pixels are add_merge's).
     static std::string check_shape(const JobSlot& slot, const SampleJobResult& result);
     // Counts a failure of job `j` (no longer leased) against it and `worker`: back to the

@@ -4,6 +4,9 @@
 // Apart from render_session.cpp, which plans, issues and ends the rounds.
 #include "render_session.h"
 
+#include <string>
+#include <string_view>
+
 namespace aliquot {
 
 void RenderSession::give_back(uint64_t lease_id, size_t j) noexcept {
@@ -187,6 +190,31 @@ void RenderSession::requeue_or_fail(size_t j) noexcept {
     }
     try {
         fail("out of memory: a job could not be queued again");
+    } catch (...) {
+    }
+}
+
+void RenderSession::fail_in_catch(const char* doing) noexcept {
+    try {
+        // The round a plan is for is the next; the round an end is of, the one out.
+        const bool plan = std::string_view(doing) == "plan";
+        std::string why = "cannot ";
+        why += doing;
+        why += " round " + std::to_string(round_index_ + (plan ? 1 : 0)) + ": ";
+        try {
+            throw;
+        } catch (const std::exception& e) {
+            why += e.what();
+        } catch (...) {
+            why += "unknown error";
+        }
+        return fail(why);
+    } catch (...) {
+    }
+    if (finished()) return;    // its end threw (on_finished): it has failed all the same
+    error_ = "out of memory";  // held in std::string's own buffer: takes no memory
+    try {
+        finish(RenderState::Failed);
     } catch (...) {
     }
 }
