@@ -36,6 +36,15 @@ import json, sys
 s = json.loads(sys.argv[1])
 assert s["mean_abs"] > 0 and s["rmse"] >= s["mean_abs"] and s["relative_mse"] > 0, s
 PY
+# Two seeds of one unbiased render: a mean bias within its noise, which is not zero.
+python3 - "$cmpjson" <<'PY' && pass "compare --json reports the mean bias and its standard error" || fail "compare --json reports the mean bias and its standard error: $cmpjson"
+import json, sys
+s = json.loads(sys.argv[1])
+assert s["mean_bias_se"] > 0 and abs(s["mean_bias"]) <= 3 * s["mean_bias_se"], s
+assert s["bias_beyond_noise"] is False, s
+PY
+"$aliquot" compare "$tmp/a1.exr" "$tmp/b.exr" | grep -Eq '^mean bias +[-+][0-9.e-]+ % ± [0-9.e-]+ %, within 3 SE$' &&
+    pass "compare prints the mean bias beside E" || fail "compare prints the mean bias beside E"
 
 # Each bad input: exactly one line on stderr that names the problem, and the exit status
 # that says whose fault it is: 2 for a command line that cannot be right (usage), 1 for one
