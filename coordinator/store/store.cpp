@@ -148,6 +148,15 @@ ALTER TABLE study_results ADD COLUMN denoised_mean_abs REAL;
 ALTER TABLE study_results ADD COLUMN denoised_rmse REAL;
 ALTER TABLE study_results ADD COLUMN denoised_relative_mse REAL;
 )sql",
+    // 7: a study's renders' mean bias against the reference and its standard error
+    // (coordinator/image/error_metric.h), raw and denoised: E alone rewards an image too
+    // dark. NULL for the rows of earlier runs, which did not measure it.
+    R"sql(
+ALTER TABLE study_results ADD COLUMN mean_bias REAL;
+ALTER TABLE study_results ADD COLUMN mean_bias_se REAL;
+ALTER TABLE study_results ADD COLUMN denoised_mean_bias REAL;
+ALTER TABLE study_results ADD COLUMN denoised_mean_bias_se REAL;
+)sql",
 };
 
 constexpr int kLatestVersion = int(sizeof(kMigrations) / sizeof(kMigrations[0]));
@@ -906,8 +915,10 @@ void RunStore::put_study_result(const StudyResult& r) {
         "INSERT INTO study_results (study_id, render_key, spec_json, origin, remote_id,"
         " render_id, state, samples, rays, seconds, samples_per_second, mean_abs, rmse,"
         " relative_mse, max_bucket, p99_bucket, outcome_json, updated_at,"
-        " denoised_mean_abs, denoised_rmse, denoised_relative_mse)"
-        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"
+        " denoised_mean_abs, denoised_rmse, denoised_relative_mse, mean_bias,"
+        " mean_bias_se, denoised_mean_bias, denoised_mean_bias_se)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?,"
+        " ?)"
         " ON CONFLICT (study_id, render_key) DO UPDATE SET spec_json = "
         "excluded.spec_json,"
         " origin = excluded.origin, remote_id = excluded.remote_id,"
@@ -919,7 +930,10 @@ void RunStore::put_study_result(const StudyResult& r) {
         " outcome_json = excluded.outcome_json, updated_at = excluded.updated_at,"
         " denoised_mean_abs = excluded.denoised_mean_abs,"
         " denoised_rmse = excluded.denoised_rmse,"
-        " denoised_relative_mse = excluded.denoised_relative_mse",
+        " denoised_relative_mse = excluded.denoised_relative_mse,"
+        " mean_bias = excluded.mean_bias, mean_bias_se = excluded.mean_bias_se,"
+        " denoised_mean_bias = excluded.denoised_mean_bias,"
+        " denoised_mean_bias_se = excluded.denoised_mean_bias_se",
         "record render " + r.render_key + " of study " + r.study_id);
     if (r.state != "submitted" && r.state != "done")
         q.refuse("state must be submitted or done, not '" + r.state + "'");
@@ -947,6 +961,10 @@ void RunStore::put_study_result(const StudyResult& r) {
         .bind(finite(r.denoised_mean_abs))
         .bind(finite(r.denoised_rmse))
         .bind(finite(r.denoised_relative_mse))
+        .bind(finite(r.mean_bias))
+        .bind(finite(r.mean_bias_se))
+        .bind(finite(r.denoised_mean_bias))
+        .bind(finite(r.denoised_mean_bias_se))
         .run();
 }
 
@@ -957,7 +975,8 @@ std::vector<StudyResult> RunStore::study_results(const std::string& study_id) {
         "samples,"
         " rays, seconds, samples_per_second, mean_abs, rmse, relative_mse, max_bucket,"
         " p99_bucket, outcome_json, updated_at, denoised_mean_abs, denoised_rmse,"
-        " denoised_relative_mse FROM study_results WHERE study_id = ?"
+        " denoised_relative_mse, mean_bias, mean_bias_se, denoised_mean_bias,"
+        " denoised_mean_bias_se FROM study_results WHERE study_id = ?"
         " ORDER BY rowid",
         "read the renders of study " + study_id);
     q.bind(study_id);
@@ -985,6 +1004,10 @@ std::vector<StudyResult> RunStore::study_results(const std::string& study_id) {
         r.denoised_mean_abs = q.maybe_real(18);
         r.denoised_rmse = q.maybe_real(19);
         r.denoised_relative_mse = q.maybe_real(20);
+        r.mean_bias = q.maybe_real(21);
+        r.mean_bias_se = q.maybe_real(22);
+        r.denoised_mean_bias = q.maybe_real(23);
+        r.denoised_mean_bias_se = q.maybe_real(24);
         out.push_back(std::move(r));
     }
     return out;

@@ -113,6 +113,11 @@ struct StudyResult {
     std::optional<double> mean_abs, rmse, relative_mse, max_bucket, p99_bucket;
     // The same after denoising (a study with "denoise"); empty for any other.
     std::optional<double> denoised_mean_abs, denoised_rmse, denoised_relative_mse;
+    // The image's mean bias against the reference and its standard error (fractions, as
+    // ErrorMetrics has them), raw and denoised; empty for rows recorded before
+    // migration 7 and for a black reference.
+    std::optional<double> mean_bias, mean_bias_se, denoised_mean_bias,
+        denoised_mean_bias_se;
     std::string outcome_json;
     int64_t updated_at = 0;
 };

@@ -581,5 +581,35 @@ TEST_F(RunStoreTest, TheDatabaseIsTheOwnersAloneWhateverTheUmask) {
     ::umask(before);
 }
 
+// A study database from before migration 7 (no mean bias columns) opens, gains them, and
+// its rows read with no bias rather than a zero one; new rows keep theirs.
+TEST_F(RunStoreTest, AStudyDatabaseFromBeforeTheMeanBiasLoadsWithoutIt) {
+    { RunStore store(dir); }
+    raw_query(
+        db(),
+        "DELETE FROM schema_migrations WHERE version = 7;"
+        "ALTER TABLE study_results DROP COLUMN mean_bias;"
+        "ALTER TABLE study_results DROP COLUMN mean_bias_se;"
+        "ALTER TABLE study_results DROP COLUMN denoised_mean_bias;"
+        "ALTER TABLE study_results DROP COLUMN denoised_mean_bias_se;"
+        "INSERT INTO studies (id, name, definition_json, created_at)"
+        " VALUES ('s@small', 's', '{}', 1);"
+        "INSERT INTO study_results (study_id, render_key, spec_json, origin, remote_id,"
+        " state, mean_abs, updated_at) VALUES ('s@small', 'u/0/1', '{}', 'embedded',"
+        " 'r-1', 'done', 0.25, 1)");
+    RunStore store(dir);
+    EXPECT_EQ(store.schema_version(), RunStore::latest_schema_version());
+    StudyResult fresh = store.study_results("s@small").at(0);
+    EXPECT_EQ(fresh.mean_abs, 0.25);
+    EXPECT_FALSE(fresh.mean_bias.has_value());
+    EXPECT_FALSE(fresh.mean_bias_se.has_value());
+    fresh.render_key = "u/1/1";
+    fresh.mean_bias = -0.0168;
+    fresh.mean_bias_se = 0.0004;
+    store.put_study_result(fresh);
+    EXPECT_EQ(store.study_results("s@small").at(1).mean_bias, -0.0168);
+    EXPECT_EQ(store.study_results("s@small").at(1).mean_bias_se, 0.0004);
+}
+
 }  // namespace
 }  // namespace aliquot

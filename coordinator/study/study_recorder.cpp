@@ -69,11 +69,15 @@ void StudyRecorder::record_done(const std::string& key, const CollectedRender& c
     row.relative_mse = m.relative_mse;
     row.max_bucket = m.max_bucket;
     row.p99_bucket = m.p99_bucket;
+    row.mean_bias = m.mean_bias;  // NaN (a black reference) is stored as NULL
+    row.mean_bias_se = m.mean_bias_se;
     row.outcome_json = c.outcome_json;
     if (denoised) {
         row.denoised_mean_abs = denoised->mean_abs;
         row.denoised_rmse = denoised->rmse;
         row.denoised_relative_mse = denoised->relative_mse;
+        row.denoised_mean_bias = denoised->mean_bias;
+        row.denoised_mean_bias_se = denoised->mean_bias_se;
     }
     store_.link_study_render(id_, c.local_id);
     record(row);
