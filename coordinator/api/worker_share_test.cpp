@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "aliquot.grpc.pb.h"
+#include "farm_test_results.h"
 #include "grpc_server.h"
-#include "scene_loader.h"
 #include "test_tokens.h"
 #include "wire.h"
 
@@ -71,11 +71,8 @@ TEST(WorkerShare, NamesThatTakeNoJobLeaveTheCutAsItWas) {
         ASSERT_TRUE(
             register_over(*stub, "idle-" + std::to_string(i), kMaxWorkerThreads).ok());
     }
-    RenderSpec spec;
-    spec.scene_name = "cornell-box";
-    spec.scene_json = self_contained_scene_json("cornell-box");
+    RenderSpec spec = small_test_spec();
     spec.width = spec.height = 256;
-    spec.strategy.method = "uniform";
     spec.strategy.spp = 8;
     coordinator.submit(spec);
     const std::string honest =
