@@ -73,6 +73,11 @@ void Coordinator::attach(std::unique_ptr<RenderSession> session, bool queued) {
             events_.on_render(EventKind::RoundEnded, r.id(), round_fields(round));
             archive_.record_round(*raw, round);
         };
+        // A held result counts once it merges, as complete counts any other.
+        s->on_held_merged = [this](const MergesInFlight::Credit& c) noexcept {
+            samples_merged_ += c.samples;
+            registry_.note_merged(c.worker, c.samples, c.wall_seconds);  // no allocation
+        };
         s->on_finished = [this, raw](RenderSession& r) {
             events_.on_render(end_event(r.state()), r.id(), end_fields(r));
             archive_.record_end(*raw, [this](const std::string& id) { evict(id); });
@@ -398,7 +403,8 @@ CompleteOutcome Coordinator::complete_result(const std::string& session,
         std::lock_guard render(slot->mutex);
         s.set_worker_cores(cores);  // the next round is cut for them
         // A rejected result counts as a failure.
-        merge = s.begin_merge(lease_id, caller.identity, result, movable, *alive, policy);
+        merge = s.begin_merge(lease_id, caller.identity, result, movable, *alive, policy,
+                              caller.worker);
         render_failed = s.state() == RenderState::Failed;
     }
     if (!merge.outcome) {
@@ -410,7 +416,7 @@ CompleteOutcome Coordinator::complete_result(const std::string& session,
         render_failed = s.state() == RenderState::Failed;
     }
     round_ends_.add(round_end);
-    if (merge.outcome->status == CompleteStatus::Merged) {
+    if (merge.outcome->status == CompleteStatus::Merged && !merge.held) {
         samples_merged_ += merge.totals.samples;
         registry_.note_merged(caller.worker, merge.totals.samples, wall_seconds);
     }

@@ -299,6 +299,46 @@ TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {
     expect_same_image(*c.image(id, true), rendered_alone(spec), "uniform");
 }
 
+// A result of the round ahead is held, and its merge said Merged, before its sums can
+// be checked against the buffers; refused when its round comes (here its sums would pass
+// 1e30 a sample), it counts for no one, as any refused result: neither the farm's
+// merged samples nor its worker's count it, and its job is traced again. Before, both
+// counted it when it was held.
+TEST(HostileMerges, AHeldResultRefusedWhenItsRoundComesIsNotCountedAsMerged) {
+    Coordinator c(CoordinatorOptions{});
+    const RenderSpec spec = square_test_spec("uniform", 64, 2048);  // two rounds
+    const std::string id = c.submit(spec);
+    const std::string a = c.register_worker("a", 8).session;
+    const std::string b = c.register_worker("b", 8).session;
+    const std::optional<LeaseGrant> ga = c.lease(a, milliseconds(0));
+    ASSERT_TRUE(ga);  // kept out: the round ahead's results are held meanwhile
+    bool poisoned = false;
+    for (int tries = 0; tries < 1000 && !poisoned; ++tries) {
+        const std::optional<LeaseGrant> g = c.lease(b, milliseconds(20));
+        if (!g) continue;
+        SampleJobResult result = made_up_result(*g);
+        poisoned = g->job.first_sample[0] != 0;          // the round ahead's
+        if (poisoned) result.pixels[0].even[0] = 1e300;  // finite, but not in the sums
+        EXPECT_EQ(c.complete(b, g->lease_id, result).status, CompleteStatus::Merged);
+    }
+    ASSERT_TRUE(poisoned);
+    EXPECT_EQ(c.complete(a, ga->lease_id, made_up_result(*ga)).status,
+              CompleteStatus::Merged);
+    // Both: the refused job waits for a worker it did not fail on.
+    for (int tries = 0; tries < 10000 && !is_terminal(c.info(id)->state); ++tries)
+        for (const std::string& w : {a, b})
+            if (const std::optional<LeaseGrant> g = c.lease(w, milliseconds(20)))
+                c.complete(w, g->lease_id, made_up_result(*g));
+    ASSERT_EQ(c.info(id)->state, RenderState::Done) << c.info(id)->error;
+    const uint64_t samples = c.info(id)->samples_done;
+    EXPECT_EQ(samples, uint64_t(64) * 64 * 2048);
+    EXPECT_EQ(c.samples_merged(), samples) << "the refused result counted as merged";
+    uint64_t traced = 0;
+    for (const WorkerStatus& w : c.workers()) traced += w.samples_traced;
+    EXPECT_EQ(traced, samples) << "the refused result counted for its worker";
+    expect_same_image(*c.image(id, true), rendered_alone(spec), "refused when held");
+}
+
 // A job of the round ahead, cut while a result of the round out is being added, counts
 // that result's samples as to come: its cut waits for the add (issue). Cut before it, it
 // would start its pixels' samples where the round out's job starts them, and trace

@@ -91,24 +91,27 @@ void MergesInFlight::open_round_ahead(size_t jobs) {
     held_.resize(jobs);
 }
 
-void MergesInFlight::hold(size_t place, SampleJobResult&& result) noexcept {
-    held_[place] = std::move(result);
+void MergesInFlight::hold(size_t place, SampleJobResult&& result,
+                          Credit&& credit) noexcept {
+    held_[place] = Held{std::move(result), std::move(credit)};
 }
 
 void MergesInFlight::add_held(
     Accumulator& merged, AuxSums& aux,
     const std::function<void(size_t job)>& while_adding,
-    const std::function<bool(size_t job, HeldEnd how, const std::string& why)>& ended) {
-    std::vector<std::optional<SampleJobResult>> held = std::exchange(held_, {});
+    const std::function<bool(size_t job, HeldEnd how, const std::string& why,
+                             const Credit& credit)>& ended) {
+    std::vector<std::optional<Held>> held = std::exchange(held_, {});
     for (size_t j = 0; j < held.size(); ++j) {
         if (!held[j]) continue;
         // Checked as asked when it came; its sums against the buffers now (no counts).
         ResultTotals totals;
         std::string why;
         const HeldEnd how =
-            add_one(merged, aux, *held[j], nullptr, j, while_adding, totals, why);
+            add_one(merged, aux, held[j]->result, nullptr, j, while_adding, totals, why);
+        const bool go_on = ended(j, how, why, held[j]->credit);
         held[j].reset();
-        if (!ended(j, how, why)) return;
+        if (!go_on) return;
     }
 }
 

@@ -35,6 +35,15 @@ public:
         const uint32_t* counts = nullptr;  // the job's, stable while it merges
         std::string refused;               // add's reason, when it refused
         bool added = false;
+        bool held =
+            false;  // of the round ahead: merged, or refused, at its round's start
+    };
+    // Whom a held result's samples count for once it merges (the coordinator's merged
+    // samples and its worker's): a result held and then refused counts for no one.
+    struct Credit {
+        std::string worker;
+        uint64_t samples = 0;
+        double wall_seconds = 0;
     };
 
     // The add of job `job` begins: it is in flight until counted. Called before the job's
@@ -61,21 +70,22 @@ public:
     void open_round_ahead(size_t jobs);
     // Holds the result of the round ahead's job `place` (its index in that round) until
     // that round is the one out.
-    void hold(size_t place, SampleJobResult&& result) noexcept;
+    void hold(size_t place, SampleJobResult&& result, Credit&& credit) noexcept;
     // How a held result's add ended: added, refused (MergeError: the result's fault,
     // counted against its worker), or not made (anything else, such as no memory: the
     // coordinator's, its job to be traced again).
     enum class HeldEnd { Added, Refused, NotAdded };
     // The round ahead is now the round out: its held results are added to `merged` and
     // `aux`, in job order, and `ended` told of each (its job's index in the round, how,
-    // and why when not added), while it returns true; the rest are dropped (a render
-    // that failed on one). Every held result reaches `ended`, whatever its add threw;
-    // `ended` must not throw, or the results after it would be lost. `while_adding`
-    // (tests) is called between each one's check and its add.
-    void add_held(Accumulator& merged, AuxSums& aux,
-                  const std::function<void(size_t job)>& while_adding,
-                  const std::function<bool(size_t job, HeldEnd how,
-                                           const std::string& why)>& ended);
+    // why when not added, and its credit), while it returns true; the rest are dropped (a
+    // render that failed on one). Every held result reaches `ended`, whatever its add
+    // threw; `ended` must not throw, or the results after it would be lost.
+    // `while_adding` (tests) is called between each one's check and its add.
+    void add_held(
+        Accumulator& merged, AuxSums& aux,
+        const std::function<void(size_t job)>& while_adding,
+        const std::function<bool(size_t job, HeldEnd how, const std::string& why,
+                                 const Credit& credit)>& ended);
     // The render has ended: what was held will never merge.
     void drop_held() noexcept;
 
@@ -97,7 +107,11 @@ private:
     mutable std::mutex mutex_;
     mutable std::condition_variable over_;
     std::vector<Add> adds_;
-    std::vector<std::optional<SampleJobResult>> held_;  // the round ahead's, by place
+    struct Held {
+        SampleJobResult result;
+        Credit credit;
+    };
+    std::vector<std::optional<Held>> held_;  // the round ahead's, by place
 };
 
 }  // namespace aliquot

@@ -87,12 +87,14 @@ TEST(MergesInFlight, HeldResultsAreAddedInJobOrderWithTheirRefusals) {
     MergesInFlight merges;
     Row row;
     merges.open_round_ahead(4);
-    merges.hold(3, result_of(3, 1));
-    merges.hold(2, result_of(20));  // outside the row: refused when added
-    merges.hold(0, result_of(0, 3));
+    merges.hold(3, result_of(3, 1), {"w", 1, 0.5});  // counted for "w" once added
+    merges.hold(2, result_of(20), {});  // outside the row: refused when added
+    merges.hold(0, result_of(0, 3), {});
     Told told;
-    const auto tell = [&](size_t job, HeldEnd how, const std::string& why) {
+    const auto tell = [&](size_t job, HeldEnd how, const std::string& why,
+                          const MergesInFlight::Credit& credit) {
         EXPECT_EQ(why.empty(), how == HeldEnd::Added) << job;
+        EXPECT_EQ(credit.worker, job == 3 ? "w" : "") << job;
         told.push_back({job, how});
         return true;
     };
@@ -111,14 +113,15 @@ TEST(MergesInFlight, AHeldAddThatFailsLosesNoneAfterIt) {
     MergesInFlight merges;
     Row row;
     merges.open_round_ahead(3);
-    for (uint32_t j = 0; j < 3; ++j) merges.hold(j, result_of(j, 1));
+    for (uint32_t j = 0; j < 3; ++j) merges.hold(j, result_of(j, 1), {});
     Told told;
     merges.add_held(
         row.merged, row.aux,
         [](size_t job) {
             if (job == 1) throw std::bad_alloc();
         },
-        [&](size_t job, HeldEnd how, const std::string& why) {
+        [&](size_t job, HeldEnd how, const std::string& why,
+            const MergesInFlight::Credit&) {
             EXPECT_EQ(why.empty(), how == HeldEnd::Added) << job;
             told.push_back({job, how});
             return true;
@@ -132,23 +135,26 @@ TEST(MergesInFlight, HeldResultsAreDroppedOnceTheRenderEnds) {
     MergesInFlight merges;
     Row row;
     merges.open_round_ahead(3);
-    merges.hold(0, result_of(20));  // refused: its render fails, say
-    merges.hold(1, result_of(1));
+    merges.hold(0, result_of(20), {});  // refused: its render fails, say
+    merges.hold(1, result_of(1), {});
     Told told;
-    merges.add_held(row.merged, row.aux, {},
-                    [&](size_t job, HeldEnd how, const std::string&) {
-                        told.push_back({job, how});
-                        return false;
-                    });
+    merges.add_held(
+        row.merged, row.aux, {},
+        [&](size_t job, HeldEnd how, const std::string&, const MergesInFlight::Credit&) {
+            told.push_back({job, how});
+            return false;
+        });
     EXPECT_EQ(told, (Told{{0, HeldEnd::Refused}}));
     EXPECT_EQ(row.merged.total_samples(), 0u);
     merges.open_round_ahead(1);
-    merges.hold(0, result_of(0));
+    merges.hold(0, result_of(0), {});
     merges.drop_held();  // a render cancelled
-    merges.add_held(row.merged, row.aux, {}, [&](size_t, HeldEnd, const std::string&) {
-        ADD_FAILURE() << "a result dropped was added";
-        return true;
-    });
+    merges.add_held(
+        row.merged, row.aux, {},
+        [&](size_t, HeldEnd, const std::string&, const MergesInFlight::Credit&) {
+            ADD_FAILURE() << "a result dropped was added";
+            return true;
+        });
 }
 
 }  // namespace

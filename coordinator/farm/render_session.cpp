@@ -157,10 +157,12 @@ void RenderSession::plan_next_round(const std::set<std::string>& alive,
     using HeldEnd = MergesInFlight::HeldEnd;
     merges_.add_held(
         merged_, aux_, while_adding_held,
-        [&](size_t j, HeldEnd how, const std::string& why) noexcept {
-            if (how == HeldEnd::Added)
+        [&](size_t j, HeldEnd how, const std::string& why,
+            const MergesInFlight::Credit& credit) noexcept {
+            if (how == HeldEnd::Added) {
                 ++merged_jobs_;
-            else if (how == HeldEnd::Refused)
+                if (on_held_merged) on_held_merged(credit);
+            } else if (how == HeldEnd::Refused)
                 count_refusal(j, why, alive, policy);
             else
                 requeue_or_fail(j);  // not the worker's doing: no failure of its

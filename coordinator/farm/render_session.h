@@ -89,10 +89,12 @@ public:
     // and added at the round end, under the lock. Readers of the buffers' pixels
     // (image, wait_for_adds) and the render's end wait for adds in flight.
     using Merge = MergesInFlight::Merge;
+    // A held result's samples count for `credit_to` when it merges (on_held_merged).
     Merge begin_merge(uint64_t lease_id, const std::string& worker,
                       const SampleJobResult& result, SampleJobResult* movable,
                       const std::set<std::string>& alive = {},
-                      const FailurePolicy& policy = {});
+                      const FailurePolicy& policy = {},
+                      const std::string& credit_to = {});
     // Checks `result` against its job and the buffers, then adds it, or refuses it
     // whole (MergesInFlight::add). Takes no lock but the adds' own; never throws.
     void add_merge(Merge& merge, const SampleJobResult& result) {
@@ -187,6 +189,11 @@ public:
     // Called after a round is fully merged, before the next is planned: the moment a
     // checkpoint captures (the strategy's state still describes the merged buffers).
     std::function<void(RenderSession&, const RoundSummary&)> on_round;
+    // Called, under the render's lock, as a held result of the round ahead merges at its
+    // round's start: what it adds counts as merged from then (begin_merge's outcome said
+    // Merged, but one refused then counts for no one, as any refused result). Must not
+    // throw.
+    std::function<void(const MergesInFlight::Credit&)> on_held_merged;
     // Called once when the render reaches Done, Cancelled or Failed.
     std::function<void(RenderSession&)> on_finished;
 

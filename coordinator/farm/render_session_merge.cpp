@@ -49,12 +49,10 @@ CompleteOutcome RenderSession::complete(uint64_t lease_id, const std::string& wo
     return end_merge(merge, alive, policy);
 }
 
-RenderSession::Merge RenderSession::begin_merge(uint64_t lease_id,
-                                                const std::string& worker,
-                                                const SampleJobResult& result,
-                                                SampleJobResult* movable,
-                                                const std::set<std::string>& alive,
-                                                const FailurePolicy& policy) {
+RenderSession::Merge RenderSession::begin_merge(
+    uint64_t lease_id, const std::string& worker, const SampleJobResult& result,
+    SampleJobResult* movable, const std::set<std::string>& alive,
+    const FailurePolicy& policy, const std::string& credit_to) {
     Merge merge;
     if (state_ != RenderState::Running) {
         merge.outcome = {CompleteStatus::Ignored,
@@ -98,9 +96,13 @@ RenderSession::Merge RenderSession::begin_merge(uint64_t lease_id,
             count_failure(j, worker, "result rejected: " + why, alive, policy);
         } else if (ahead) {
             if (while_keeping) while_keeping(j);
+            MergesInFlight::Credit credit{credit_to, merge.totals.samples,
+                                          result.wall_seconds};
             merges_.hold(j - current_jobs_,
-                         movable ? std::move(*movable) : SampleJobResult(result));
+                         movable ? std::move(*movable) : SampleJobResult(result),
+                         std::move(credit));
             merge.outcome = {CompleteStatus::Merged, {}};
+            merge.held = true;
         } else {
             if (while_keeping) while_keeping(j);
             merges_.begin_add(j);
