@@ -201,6 +201,8 @@ void WorkerRegistry::make_room_for_a_worker(const std::string& name) {
 void WorkerRegistry::make_room_on_host(const std::string& name,
                                        const std::string& address) {
     const size_t most = limits_.max_workers_per_host;
+    // Fewer in all than an address's share: no address is at it (no scan below).
+    if (workers_.size() < most && links_.size() < most) return;
     const int64_t now = unix_millis_now(), lost_after = limits_.lost_after.count();
     // Only entries of `address` that are lost (silent past lost_after, in no lease poll)
     // and hold no lease make room, and links of the name registering again: a host whose
