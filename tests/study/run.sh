@@ -60,6 +60,41 @@ check "the report gives E over the oracle's E" "grep -q 'E ÷ oracle E' '$tmp/ti
 check "a second run renders nothing" "grep -q '(0 rendered now' '$tmp/again.log'"
 check "... and adds no render" "[[ \$(sql '$db' 'SELECT COUNT(*) FROM renders') -eq $renders_now ]]"
 
+# --- the mean bias beside E: recorded, reported, flagged beyond 3 standard errors, and a
+# database from before it (migration 7) still loads
+check "mean bias and its standard error recorded for every render" \
+    "[[ \$(sql '$db' \"SELECT COUNT(*) FROM study_results WHERE mean_bias IS NOT NULL AND mean_bias_se > 0\") -eq 27 ]]"
+check "the report and results.csv give the mean bias" \
+    "grep -q '^Mean bias of the image' '$tmp/tiny/report.md' && head -1 '$tmp/tiny/results.csv' | grep -q ',mean_bias,mean_bias_se,'"
+# optimal's images 2 % too dark (± 0.1 % a seed), the others' noise ten times their bias.
+cp "$db" "$tmp/biased.db"
+python3 -c 'import sqlite3, sys; c = sqlite3.connect(sys.argv[1])
+c.execute("UPDATE study_results SET mean_bias = 0.001, mean_bias_se = 0.01")
+c.execute("UPDATE study_results SET mean_bias = -0.02, mean_bias_se = 0.001 WHERE render_key LIKE ?", ("optimal/%",))
+c.commit()' "$tmp/biased.db"
+/usr/bin/python3 "$ROOT/tools/report/aliquot_report.py" --db "$tmp/biased.db" --study tiny@small --out "$tmp/biased" >/dev/null 2>&1
+flags=$(python3 - "$tmp/biased/report.md" <<'PY'
+import sys
+lines = open(sys.argv[1]).read().split("Mean bias of the image")[1].split("\n\n")[1].splitlines()
+head = [c.strip() for c in lines[0].strip("|").split("|")]
+cells = [dict(zip(head, (c.strip() for c in row.strip("|").split("|")))) for row in lines[2:]]
+print(" ".join(sorted({m for row in cells for m, v in row.items() if "**biased**" in v})),
+      all(row["optimal"].startswith("−2.00 % ± 0.07 %") for row in cells))
+PY
+)
+check "the report flags a method biased beyond 3 standard errors, and only it" "[[ '$flags' == 'optimal True' ]]"
+cp -r "$tmp/tiny" "$tmp/old"
+python3 -c 'import sqlite3, sys; c = sqlite3.connect(sys.argv[1])
+for col in ("mean_bias", "mean_bias_se", "denoised_mean_bias", "denoised_mean_bias_se"):
+    c.execute(f"ALTER TABLE study_results DROP COLUMN {col}")
+c.execute("DELETE FROM schema_migrations WHERE version = 7")
+c.commit()' "$tmp/old/data/aliquot.db"
+"$aliquot" study "$tiny" --scale small --out "$tmp/old" >"$tmp/old.log" 2>&1
+check "a study database from before the mean bias loads, renders nothing and reports without it" \
+    "grep -q '(0 rendered now' '$tmp/old.log' && grep -q '^## Equal budget' '$tmp/old/report.md' &&
+     ! grep -q '^Mean bias of the image' '$tmp/old/report.md' &&
+     [[ \$(sql '$tmp/old/data/aliquot.db' 'SELECT COUNT(*) FROM study_results WHERE mean_bias IS NULL') -eq 27 ]]"
+
 # --- an interrupted study resumes without re-rendering
 python3 - "$tmp/slow.json" <<'PY'
 import json, sys

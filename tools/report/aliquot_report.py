@@ -26,6 +26,9 @@ except ImportError as e:  # the study command turns status 3 into an install hin
     print(f"aliquot report: {e.name} is not installed for {sys.executable}", file=sys.stderr)
     sys.exit(3)
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bias_table import BIAS, DENOISED_BIAS, bias_cells, bias_note, fmt_bias, measured, point_bias  # noqa: E402
+
 METRICS = ["mean_abs", "rmse", "relative_mse", "max_bucket", "p99_bucket"]
 # After Open Image Denoise, for a study with "denoise" (NaN for any other).
 DENOISED = ["denoised_mean_abs", "denoised_rmse", "denoised_relative_mse"]
@@ -64,7 +67,7 @@ class Render:
         for m in METRICS:
             v = row[m]
             setattr(self, m, float("nan") if v is None else v)
-        for m in DENOISED:  # databases from before migration 6 have no such columns
+        for m in DENOISED + BIAS + DENOISED_BIAS:  # older databases lack these columns
             v = row[m] if m in row.keys() else None
             setattr(self, m, float("nan") if v is None else v)
         self.outcome = json.loads(row["outcome_json"] or "{}")
@@ -182,13 +185,15 @@ def sweep_table(study, t):
     cols = t.get("columns", [])
     seeds = pts[0].n if pts else 1
     err_head = "avg error per pixel (E)" + (f", mean ± sd of {seeds} seeds" if seeds > 1 else "")
-    header = cols + [err_head, "RMSE", "p99 bucket E", "max bucket E", "time (s)", "budget", "samples/s"]
+    header = cols + [err_head, "mean bias", "RMSE", "p99 bucket E", "max bucket E", "time (s)", "budget",
+                     "samples/s"]
     rows = []
     for p in pts:
         rows.append(
             [fmt(p.param(c)) for c in cols]
             + [
                 fmt_err(p),
+                fmt_bias(point_bias(p)),
                 fmt(p.mean("rmse")),
                 fmt(p.mean("p99_bucket")),
                 fmt(p.mean("max_bucket")),
@@ -217,6 +222,7 @@ def compare_table(study, t):
                     fmt(int(round(budget))),
                     lab,
                     fmt_err(p),
+                    fmt_bias(point_bias(p)),
                     fmt(p.mean("rmse")),
                     fmt(p.mean("p99_bucket")),
                     fmt(p.mean("max_bucket")),
@@ -225,8 +231,12 @@ def compare_table(study, t):
                     fmt(p.mean("sps")),
                 ]
             )
-    dh = ["budget", "method", "E", "RMSE", "p99 bucket E", "max bucket E", "time (s)", "samples", "samples/s"]
+    dh = ["budget", "method", "E", "mean bias", "RMSE", "p99 bucket E", "max bucket E", "time (s)", "samples",
+          "samples/s"]
     out = md_table(header, rows)
+    if measured(series, groups, n):
+        out += "\n\n" + bias_note() + "\n\n" + md_table(header, [[rows[i][0]] + bias_cells(series, groups, i)
+                                                                 for i in range(n)])
     if n and all(not np.isnan(series[g][i].mean("denoised_mean_abs")) for g in groups for i in range(n)):
         out += "\n\n" + denoised_tables(series, groups, labels, header, n)
     oracle = [g for g in groups if study.method(g) == "oracle"]
@@ -265,6 +275,9 @@ def denoised_tables(series, groups, labels, header, n):
                 + [fmt(p.mean(m)) for m in ["mean_abs", "rmse", "relative_mse"] + DENOISED]
             )
     out = "E after denoising (Open Image Denoise, colour + albedo + normal):\n\n" + md_table(header, rows)
+    if measured(series, groups, n, "denoised_mean_bias"):
+        out += "\n\n" + bias_note("the denoised image") + "\n\n" + md_table(
+            header, [[rows[i][0]] + bias_cells(series, groups, i, "denoised_mean_bias") for i in range(n)])
     out += (
         f"\n\nE ÷ {labels[0]}'s E at the same budget and seed, raw / denoised (mean over seeds):\n\n"
         + md_table(header, ratio_rows)
@@ -718,7 +731,7 @@ def conclusions(study):
 
 
 def write_csv(study, path):
-    metrics = METRICS + (DENOISED if study.definition.get("denoise") else [])
+    metrics = METRICS + BIAS + (DENOISED + DENOISED_BIAS if study.definition.get("denoise") else [])
     fields = ["study", "key", "group", "index", "seed", "scene", "width", "height", "method",
               "strategy", "samples", "rays", "seconds", "samples_per_second"] + metrics + ["outcome", "render_id"]
     with open(path, "w", newline="") as f:
@@ -770,6 +783,9 @@ def main():
         "- E is the seed's error: mean |image − reference| per pixel, averaged over RGB. RMSE is over pixels and "
         f"channels; bucket errors are E over {sc.get('metric_bucket', 16)}×{sc.get('metric_bucket', 16)}-pixel buckets "
         "(16×16 at the written resolution, scaled with it; p99 = 99th percentile, max = worst bucket). "
+        "The mean bias is the image's mean against the reference's, ± its standard error (pixels taken as "
+        "independent); E rewards an image too dark, so a method **biased** beyond 3 standard errors wins "
+        "some of its E by it. "
         + ("Wall times are the farm's: renders ran in parallel and shared its workers. " if farm else
            "Wall times are each render's own (embedded renders run one at a time), measured on a machine "
            "shared with other work: read them as ±30 %.")
