@@ -36,6 +36,7 @@ namespace {
 using sigma_passes::box_mean;
 using sigma_passes::kImageFactor;
 using sigma_passes::median_value;
+using sigma_passes::neighbours_mean;
 using sigma_passes::sigma_from_neighbourhood;
 
 // Mean rays a sample costs so far; 1 before anything is traced.
@@ -61,6 +62,7 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
       cap_(spp_cap(p)),
       sigma_radius_(p.sigma_radius),
       sigma_prior_(p.sigma_prior),
+      sigma_self_out_(p.sigma_self_out),
       steer_rounds_(p.steer_rounds),
       plan_ahead_(p.plan_ahead),
       cost_aware_(cost_aware) {
@@ -73,10 +75,11 @@ OptimalStrategy::OptimalStrategy(const StrategyParams& p, uint32_t width, uint32
 }
 
 std::vector<double> OptimalStrategy::sigma_estimates(const Accumulator& merged,
-                                                     uint32_t radius, uint32_t prior) {
+                                                     uint32_t radius, uint32_t prior,
+                                                     uint32_t self_out) {
     Planning b;
     read_merged(merged, false, {}, b);
-    estimate_sigma(b, merged.width(), merged.height(), radius, prior);
+    estimate_sigma(b, merged.width(), merged.height(), radius, prior, self_out);
     return std::move(b.sigma);
 }
 
@@ -122,7 +125,7 @@ void OptimalStrategy::read_merged(const Accumulator& merged, bool costs,
 }
 
 void OptimalStrategy::estimate_sigma(Planning& b, uint32_t width, uint32_t height,
-                                     uint32_t radius, uint32_t prior) {
+                                     uint32_t radius, uint32_t prior, uint32_t self_out) {
     std::vector<double>& var = b.variance;
     std::vector<double>& sigma = b.sigma;
     const size_t n = var.size();
@@ -138,6 +141,21 @@ void OptimalStrategy::estimate_sigma(Planning& b, uint32_t width, uint32_t heigh
             for (size_t i = begin; i < end; ++i) f(i);
         });
     };
+    if (self_out > 0) {
+        // Leave-one-out: a pixel's own samples set its mean, so they must not set its
+        // count too, or a pixel that missed a heavy tail's rare bright paths looks quiet,
+        // gets few samples more and keeps its dark mean (docs/RESULTS.md, "Is `optimal`
+        // biased low?"). Its neighbours' variances alone stand for its own; the 3x3
+        // median protection is left out (it would read the pixel's own variance back
+        // through its neighbours' means), the image floor kept; a mean that overflowed
+        // says "as noisy as the noisiest pixel".
+        neighbours_mean(var, width, height, self_out, sigma);
+        const double largest = std::max(b.largest, kImageFactor * median);
+        each_pixel([&](size_t i) {
+            sigma[i] = std::sqrt(std::clamp(sigma[i], kImageFactor * median, largest));
+        });
+        return;
+    }
     if (prior > 0) {
         // Shrinkage: the pool is a prior worth `prior` samples, the pixel's own s^2 is
         // worth its (n - 1) degrees of freedom. A pixel whose four samples held one
@@ -457,7 +475,7 @@ OptimalStrategy::Steered OptimalStrategy::steered_round() {
                     : remaining;
     }
 
-    estimate_sigma(b, width_, height_, sigma_radius_, sigma_prior_);
+    estimate_sigma(b, width_, height_, sigma_radius_, sigma_prior_, sigma_self_out_);
     if (!prepared_) prepare_buffers();
     // sigma becomes each pixel's weight in place: w_i = r_i^(2/3) = cbrt(r_i^2), r_i =
     // sigma_i (optimal-time: sigma_i / c_i). The squares of a chunk are taken first, so

@@ -35,9 +35,12 @@ public:
     // Per-pixel standard deviation of one sample's luminance, protected against estimates
     // that are too low at low sample counts (see the .cpp); with `radius` > 0, pooled
     // over the (2 radius + 1)^2 pixels around each (sigma_radius); with `prior` > 0,
-    // shrunk towards that pool as a prior worth `prior` samples (sigma_prior).
+    // shrunk towards that pool as a prior worth `prior` samples (sigma_prior); with
+    // `self_out` > 0, the mean over the (2 self_out + 1)^2 - 1 pixels around each, its
+    // own left out (sigma_self_out), in place of both.
     static std::vector<double> sigma_estimates(const Accumulator& merged,
-                                               uint32_t radius = 0, uint32_t prior = 0);
+                                               uint32_t radius = 0, uint32_t prior = 0,
+                                               uint32_t self_out = 0);
 
     // The real-valued optimum n_i = clamp(lambda * w_i, lo, hi) with sum_i c_i n_i =
     // total (c_i = costs[i], or 1 when costs is empty). Below the floor's cost the floors
@@ -95,7 +98,7 @@ private:
                             const std::vector<uint32_t>& in_flight, Planning& b);
     // b.sigma from b.variance (and b.samples, for the prior); see sigma_estimates.
     static void estimate_sigma(Planning& b, uint32_t width, uint32_t height,
-                               uint32_t radius, uint32_t prior);
+                               uint32_t radius, uint32_t prior, uint32_t self_out);
     // What optimal_counts finds: each pixel's target as a function of its weight alone.
     struct Targets {
         enum { kScaledFloors, kAllCapped, kClamped } kind = kClamped;
@@ -128,7 +131,7 @@ private:
 
     uint32_t width_, height_;
     uint64_t budget_;
-    uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_, steer_rounds_;
+    uint32_t min_spp_, cap_, sigma_radius_, sigma_prior_, sigma_self_out_, steer_rounds_;
     double plan_ahead_;
     bool cost_aware_;
     // The pilot's samples a pixel, and whether it is traced in two rounds of half each so

@@ -66,13 +66,15 @@ struct RoundEndBytes {
     uint64_t extra = 0;
     bool round = false;
 };
-std::vector<RoundEndBytes> bytes_of_each_round_end(const char* method) {
+std::vector<RoundEndBytes> bytes_of_each_round_end(const char* method,
+                                                   uint32_t sigma_self_out = 0) {
     const unsigned threads = band_threads();
     set_band_threads(1);  // the pool's own bookkeeping is not the strategy's
     const SyntheticImage image = noisy_image();
     StrategyParams params;
     params.method = method;
     params.spp = 64;
+    params.sigma_self_out = sigma_self_out;
     const auto strategy = make_strategy(params, image.width(), image.height());
     Accumulator merged(image.width(), image.height());
     std::vector<RoundEndBytes> ends;
@@ -94,9 +96,11 @@ std::vector<RoundEndBytes> bytes_of_each_round_end(const char* method) {
 
 // Each round end of `method`, after the first two: bytes allocated beyond the round's own
 // counts.
-std::vector<uint64_t> extra_bytes_a_round_end(const char* method) {
+std::vector<uint64_t> extra_bytes_a_round_end(const char* method,
+                                              uint32_t sigma_self_out = 0) {
     std::vector<uint64_t> extra;
-    const std::vector<RoundEndBytes> ends = bytes_of_each_round_end(method);
+    const std::vector<RoundEndBytes> ends =
+        bytes_of_each_round_end(method, sigma_self_out);
     for (size_t r = 2; r < ends.size(); ++r)
         if (ends[r].round) extra.push_back(ends[r].extra);
     return extra;
@@ -110,6 +114,18 @@ TEST(RoundEndAllocation, OptimalKeepsItsPlanningBuffersFromRoundToRound) {
         // A plan reads and writes ~10 vectors of a pixel each; taken anew each round
         // end they were ~15 bytes a pixel here (the weights copied, the median's and
         // apportion's per-band histograms). What is left is per-band sums and the like.
+        for (size_t k = 0; k < extra.size(); ++k)
+            EXPECT_LT(extra[k], pixels) << method << ", round end " << k + 2;
+    }
+}
+
+// sigma_self_out's neighbours' means are written into the sigma buffer the plan keeps,
+// with two rows of column sums a band beside it: no image-sized buffer of its own.
+TEST(RoundEndAllocation, SigmaSelfOutPlansInTheSameBuffers) {
+    const uint64_t pixels = noisy_image().pixel_count();
+    for (const char* method : {"optimal", "optimal-time"}) {
+        const std::vector<uint64_t> extra = extra_bytes_a_round_end(method, 3);
+        ASSERT_GE(extra.size(), 4u) << method;
         for (size_t k = 0; k < extra.size(); ++k)
             EXPECT_LT(extra[k], pixels) << method << ", round end " << k + 2;
     }

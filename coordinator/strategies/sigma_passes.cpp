@@ -103,6 +103,54 @@ std::vector<double> box_mean(const std::vector<double>& v, uint32_t w, uint32_t 
     return out;
 }
 
+// Leave-one-out: a pixel's own samples must not set its own count (docs/RESULTS.md, "Is
+// `optimal` biased low?"). Each band of rows keeps two rows of column sums over the
+// window's rows: `beside` with the pixel's row left out, `whole` with it; a pixel's
+// neighbours are its own column's `beside` plus the other columns' `whole`. Only
+// additions of values >= 0, in an order fixed by the pixel, so the same bits in any band
+// or thread, and a firefly's variance is never subtracted from a sum (which would leave
+// its rounding behind in a quiet neighbour's mean).
+void neighbours_mean(const std::vector<double>& v, uint32_t w, uint32_t h, uint32_t r,
+                     std::vector<double>& out) {
+    out.resize(v.size());
+    for_each_band(h, rows_per_band(w), [&](size_t, size_t row0, size_t row1) {
+        std::vector<double> beside(w), whole(w);
+        for (uint32_t y = uint32_t(row0); y < row1; ++y) {
+            const uint32_t top = y > r ? y - r : 0, bottom = std::min(h, y + r + 1);
+            const double* mid = &v[size_t(y) * w];
+            std::fill(beside.begin(), beside.end(), 0.0);
+            for (uint32_t yy = top; yy < bottom; ++yy) {
+                if (yy == y) continue;
+                const double* row = &v[size_t(yy) * w];
+                for (uint32_t x = 0; x < w; ++x) beside[x] += row[x];
+            }
+            for (uint32_t x = 0; x < w; ++x) whole[x] = beside[x] + mid[x];
+            const double rows = double(bottom - top);
+            double* mean = &out[size_t(y) * w];
+            const auto clipped = [&](uint32_t x) {
+                const uint32_t left = x > r ? x - r : 0, right = std::min(w, x + r + 1);
+                double sum = beside[x];
+                for (uint32_t xx = left; xx < right; ++xx)
+                    if (xx != x) sum += whole[xx];
+                const double others = rows * double(right - left) - 1;
+                mean[x] = others > 0 ? sum / others : mid[x];
+            };
+            if (w <= 2 * r) {
+                for (uint32_t x = 0; x < w; ++x) clipped(x);
+                continue;
+            }
+            for (uint32_t x = 0; x < r; ++x) clipped(x);
+            const double others = rows * double(2 * r + 1) - 1;
+            for (uint32_t x = r; x + r < w; ++x) {
+                double sum = beside[x];
+                for (uint32_t d = 1; d <= r; ++d) sum += whole[x - d] + whole[x + d];
+                mean[x] = sum / others;
+            }
+            for (uint32_t x = w - r; x < w; ++x) clipped(x);
+        }
+    });
+}
+
 // The element of rank n/2 of v (what nth_element on a copy gives), for values that are
 // finite and >= +0: their bit patterns sort as the values do, so a histogram of the top
 // 16 bits, counted in bands, finds the bucket that holds the rank and selection runs on

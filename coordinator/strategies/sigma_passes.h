@@ -30,6 +30,17 @@ void sigma_from_neighbourhood(const std::vector<double>& v, uint32_t w, uint32_t
 std::vector<double> box_mean(const std::vector<double>& v, uint32_t w, uint32_t h,
                              uint32_t r);
 
+// The largest sigma_self_out: a window of at most 7x7, so each pixel's neighbours are
+// summed one by one (at most 48 additions, no sums that slide or differences).
+inline constexpr uint32_t kMaxSelfOutRadius = 3;
+
+// The mean of v over the (2r+1)^2 - 1 pixels around each pixel, the pixel itself left
+// out (clipped at the image's edges; v itself for a 1x1 image), written into `out`
+// (w x h pixels, row by row; not v). r from 1 to kMaxSelfOutRadius. For values that are
+// finite and >= 0 the means are >= 0, at worst +inf, never NaN.
+void neighbours_mean(const std::vector<double>& v, uint32_t w, uint32_t h, uint32_t r,
+                     std::vector<double>& out);
+
 // The element of rank n/2 of v (what nth_element on a copy gives), for values that are
 // finite and >= +0. `counts` and `candidates` are kept by the caller from one plan to the
 // next.

@@ -5,6 +5,8 @@
 #include <limits>
 #include <map>
 
+#include "sigma_passes.h"
+
 namespace aliquot {
 
 using nlohmann::json;
@@ -96,6 +98,11 @@ std::vector<StrategyParameter> make_table() {
         whole("sigma_prior", &P::sigma_prior, 0, 16777216, kOptimal,
               "shrink each pixel's variance towards its neighbourhood's, a prior worth "
               "this many samples (0: off)"),
+        whole("sigma_self_out", &P::sigma_self_out, 0, sigma_passes::kMaxSelfOutRadius,
+              kOptimal,
+              "take each pixel's variance from the (2r+1)^2 - 1 pixels around it, its "
+              "own left out: the image mean unbiased but for a little, E higher (0: "
+              "its own)"),
         number("floor_fraction", &P::floor_fraction, 0, false, 1, true, kSteered,
                "pilot and floor at this share of the budget's mean spp (0: min_spp "
                "alone)"),

@@ -128,6 +128,9 @@ void validate_parameters(const StrategyParams& p, uint32_t width, uint32_t heigh
         p.min_spp > p.max_spp)
         fail("min_spp (" + std::to_string(p.min_spp) + ") exceeds max_spp (" +
              std::to_string(p.max_spp) + ")");
+    if (p.method.starts_with("optimal") && p.sigma_self_out &&
+        (p.sigma_radius || p.sigma_prior))
+        fail("sigma_self_out replaces sigma_radius and sigma_prior: give one of them");
     if (p.max_spp && p.method == "cycles" && p.adaptive_min_samples > p.max_spp)
         fail("adaptive_min_samples (" + std::to_string(p.adaptive_min_samples) +
              ") exceeds max_spp (" + std::to_string(p.max_spp) + ")");

@@ -46,6 +46,11 @@ struct StrategyParams {
     // pool (radius max(sigma_radius, 1)) as a prior worth n0 samples: (n s^2 + n0 pool) /
     // (n + n0). Few samples lean on the neighbourhood, many on the pixel itself.
     uint32_t sigma_prior = 0;
+    // optimal / optimal-time: r >= 1 takes each pixel's variance from the (2r+1)^2 - 1
+    // pixels around it, its own left out, so its own samples no longer set its own count
+    // and the image mean loses most of optimal's low bias, for a higher E (docs/
+    // RESULTS.md, "Is `optimal` biased low?"). 0: its own, with the protections.
+    uint32_t sigma_self_out = 0;
     // optimal / optimal-time: f in [0, 1) raises the pilot and floor to f times the
     // budget's mean spp when that is above min_spp, so the allocation is decided from
     // many samples per pixel whatever the budget (0: min_spp alone). Half by default:
