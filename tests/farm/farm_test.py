@@ -549,6 +549,16 @@ def test_a_job_no_worker_can_trace_fails_the_render():
         print(f"     failed in {took:.1f}s: {final['error']}", flush=True)
         assert took < 20, f"the render took {took:.1f}s to fail"
         # Bounded work and logs: a few lines per worker, and none once the render failed.
+        # A worker still in its reconnect back-off when the render failed registers after
+        # it ("registered again", then "coordinator back" once a lease call answers): that
+        # is not work, so wait for every worker to say it is back before counting.
+        def back(n):
+            with open(os.path.join(farm.dir, f"worker-{n}.log")) as f:
+                return "coordinator back" in "".join(f.readlines()[before[n]:])
+        deadline = time.time() + 30
+        while not all(back(n) for n in farm.workers):
+            assert time.time() < deadline, "a worker did not come back"
+            time.sleep(0.2)
         lines = {n: farm.log_lines(n) for n in farm.workers}
         assert all(lines[n] - before[n] <= 10 for n in lines), (before, lines)
         time.sleep(2)
