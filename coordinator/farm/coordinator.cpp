@@ -51,20 +51,6 @@ void Coordinator::stop() {
     if (ticker_) ticker_->stop();
 }
 
-std::unique_lock<std::mutex> Coordinator::hold_render_for_test(const std::string& id) {
-    const SlotPtr slot = renders_.find(id);
-    // The slot outlives the lock: a test holds it only while the render is in memory.
-    return slot ? std::unique_lock(slot->mutex) : std::unique_lock<std::mutex>();
-}
-
-void Coordinator::set_while_adding_for_test(const std::string& id,
-                                            std::function<void(size_t job)> hook) {
-    if (const SlotPtr slot = renders_.find(id)) {
-        std::lock_guard render(slot->mutex);
-        slot->session->while_adding = std::move(hook);
-    }
-}
-
 void Coordinator::attach(std::unique_ptr<RenderSession> session, bool queued) {
     renders_.add(std::move(session), [&](RenderSlot& slot) {
         RenderSlot* raw = &slot;  // the slot owns the session: it outlives the callbacks
@@ -399,21 +385,27 @@ CompleteOutcome Coordinator::complete_result(const std::string& session,
     RenderSession::Merge merge;
     RoundEnd round_end;
     bool render_failed = false;
-    {
-        std::lock_guard render(slot->mutex);
+    try {
+        std::unique_lock render(slot->mutex);
         s.set_worker_cores(cores);  // the next round is cut for them
         // A rejected result counts as a failure.
         merge = s.begin_merge(lease_id, caller.identity, result, movable, *alive, policy,
                               caller.worker);
         render_failed = s.state() == RenderState::Failed;
-    }
-    if (!merge.outcome) {
-        s.add_merge(merge, result);
-        std::lock_guard render(slot->mutex);
-        const RoundEndMeter meter(s);
-        merge.outcome = s.end_merge(merge, *alive, policy);
-        round_end = meter.finish(s);
-        render_failed = s.state() == RenderState::Failed;
+        if (!merge.outcome) {
+            render.unlock();
+            s.add_merge(merge, result);
+            render.lock();
+            const RoundEndMeter meter(s);
+            merge.outcome = s.end_merge(merge, *alive, policy);
+            round_end = meter.finish(s);
+            render_failed = s.state() == RenderState::Failed;
+        }
+    } catch (...) {
+        // A job given back (a merge that could not keep what it needs, a refusal whose
+        // count failed) can be leased now: waiting leases hear of it, as of any requeue.
+        renders_.note_change();
+        throw;
     }
     round_ends_.add(round_end);
     if (merge.outcome->status == CompleteStatus::Merged && !merge.held) {

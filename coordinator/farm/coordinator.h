@@ -214,6 +214,10 @@ public:
     // each merge between its check and its add).
     void set_while_adding_for_test(const std::string& id,
                                    std::function<void(size_t job)> hook);
+    // For tests: runs `f` on render `id`'s session under its lock (to set its other test
+    // hooks). These three are in coordinator_test_hooks.cpp.
+    void with_session_for_test(const std::string& id,
+                               const std::function<void(RenderSession&)>& f);
 
 private:
     // complete's: `movable` is `result` when the caller gives it up, else null.
