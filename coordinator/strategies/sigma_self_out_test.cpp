@@ -156,6 +156,18 @@ TEST(SigmaSelfOut, IsAWholeNumberFrom0To3OfOptimalsAlone) {
     EXPECT_TRUE(p->applies_to("optimal-time"));
     EXPECT_FALSE(p->applies_to("denoised"));
     EXPECT_FALSE(p->applies_to("uniform"));
+    // What the dashboard's form is made from (GET /api/methods).
+    for (const nlohmann::json& m : methods_json()) {
+        bool listed = false;
+        for (const nlohmann::json& e : m["parameters"])
+            if (e["key"] == "sigma_self_out") {
+                listed = true;
+                EXPECT_EQ(e["default"], 0);
+                EXPECT_EQ(e["max"], 3);
+            }
+        EXPECT_EQ(listed, m["name"] == "optimal" || m["name"] == "optimal-time")
+            << m["name"];
+    }
     const auto why = [](const nlohmann::json& j) {
         try {
             validate(j.get<StrategyParams>(), 8, 8);
