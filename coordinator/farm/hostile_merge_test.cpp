@@ -4,6 +4,8 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstddef>
+#include <cstdint>
 #include <future>
 #include <limits>
 #include <mutex>
@@ -19,6 +21,12 @@
 #include "farm_test_results.h"
 #include "render_session.h"
 #include "scene_loader.h"
+
+// failing_allocator.h's cap on this thread's allocations (its operator new is
+// submit_memory_test.cpp's, one file of this binary): declared again as it is there.
+namespace aliquot::testing {
+inline thread_local size_t allocation_cap = SIZE_MAX;
+}  // namespace aliquot::testing
 
 namespace aliquot {
 namespace {
@@ -264,6 +272,38 @@ TEST(HostileMerges, ARoundEndThatThrowsFailsItsRenderWithTheReason) {
             << s.error();
         EXPECT_NE(s.error().find("cannot end round"), std::string::npos) << s.error();
     }
+}
+
+// A refused result whose failure cannot be counted, whose job cannot be queued again
+// either, and whose render's reason cannot be allocated (std::bad_alloc from test hooks,
+// then from every allocation) fails its render, "out of memory": the job is in no queue
+// and under no lease, so a render left Running would wait for it for good. Before, the
+// reason's allocation threw out of end_merge's catch and left the render Running.
+TEST(HostileMerges, ARefusalThatCannotBeCountedNorQueuedFailsItsRender) {
+    const RenderSpec spec = square_test_spec("uniform", 64, 4);  // one round
+    RenderSession s("r", spec, 0);
+    s.start();
+    s.while_counting_failure = [](size_t) { throw std::bad_alloc(); };
+    s.while_requeueing = [](size_t) {
+        testing::allocation_cap = 0;  // every allocation fails, on this thread
+        throw std::bad_alloc();
+    };
+    uint64_t lease = 0;
+    const std::optional<SampleJob> job = next_job(s, lease);
+    ASSERT_TRUE(job);
+    SampleJobResult poisoned = result_for(*job);
+    poisoned.pixels[0].even[0] = std::numeric_limits<double>::quiet_NaN();
+    bool threw = false;
+    try {
+        s.complete(lease, "w", poisoned);
+    } catch (const std::bad_alloc&) {
+        threw = true;
+    }
+    testing::allocation_cap = SIZE_MAX;
+    EXPECT_TRUE(threw);
+    s.while_requeueing = nullptr;
+    EXPECT_EQ(s.state(), RenderState::Failed) << "the refused job is lost";
+    EXPECT_EQ(s.error(), "out of memory");
 }
 
 // A lease whose deadline passes while its result is being added (off the render's

@@ -230,6 +230,7 @@ std::vector<const SampleJob*> RenderSession::unmerged_jobs() const {
 }
 
 void RenderSession::requeue(size_t j) {
+    if (while_requeueing) while_requeueing(j);
     if (j < current_jobs_) {
         pending_.push_front(j);
     } else {

@@ -114,6 +114,9 @@ public:
     // Tests: called as a job's failure starts to be counted (a refused result's), before
     // the job is queued again; a test throws std::bad_alloc there.
     std::function<void(size_t job)> while_counting_failure;
+    // Tests: called as a job goes back to its queue (requeue), before it does; a test
+    // throws std::bad_alloc there.
+    std::function<void(size_t job)> while_requeueing;
     // Tests: called as each held result of the round ahead is added when its round
     // comes, between its check and its add, under the render's lock.
     std::function<void(size_t job)> while_adding_held;
@@ -242,6 +245,9 @@ private:
     // exception's reason, or, when even that cannot be said (no memory), with "out of
     // memory". Never throws.
     void fail_in_catch(const char* doing) noexcept;
+    // After a fail() that threw before the render ended (no memory for its reason):
+    // fails it with "out of memory", which takes none. Never throws.
+    void fail_out_of_memory() noexcept;
     // Whether `result` is of its job's rectangle and size (its pixels are add_merge's).
     static std::string check_shape(const JobSlot& slot, const SampleJobResult& result);
     // Counts a failure of job `j` (no longer leased) against it and `worker`: back to the

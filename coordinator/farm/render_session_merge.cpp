@@ -131,14 +131,9 @@ CompleteOutcome RenderSession::end_merge(Merge& merge, const std::set<std::strin
                           "result rejected: " + merge.refused, alive, policy);
         } catch (...) {
             // No lease, no add in flight, not queued (count_failure's last step): queued
-            // here, or nothing would issue it and the round would never end.
-            if (!finished()) {
-                try {
-                    requeue(merge.job);
-                } catch (...) {
-                    fail("out of memory counting a refused result");
-                }
-            }
+            // here, or the render fails, or nothing would issue it and the round would
+            // never end.
+            requeue_or_fail(merge.job);
             throw;
         }
         return {CompleteStatus::Rejected, merge.refused};
@@ -191,9 +186,10 @@ void RenderSession::requeue_or_fail(size_t j) noexcept {
     } catch (...) {
     }
     try {
-        fail("out of memory: a job could not be queued again");
+        return fail("out of memory: a job could not be queued again");
     } catch (...) {
     }
+    fail_out_of_memory();
 }
 
 void RenderSession::fail_in_catch(const char* doing) noexcept {
@@ -213,6 +209,10 @@ void RenderSession::fail_in_catch(const char* doing) noexcept {
         return fail(why);
     } catch (...) {
     }
+    fail_out_of_memory();
+}
+
+void RenderSession::fail_out_of_memory() noexcept {
     if (finished()) return;    // its end threw (on_finished): it has failed all the same
     error_ = "out of memory";  // held in std::string's own buffer: takes no memory
     try {
