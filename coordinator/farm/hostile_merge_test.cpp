@@ -306,6 +306,43 @@ TEST(HostileMerges, ARefusalThatCannotBeCountedNorQueuedFailsItsRender) {
     EXPECT_EQ(s.error(), "out of memory");
 }
 
+// A failure a worker reports that cannot be counted (std::bad_alloc, from a test hook)
+// leaves its job queued again, and an abandon that cannot queue its job leaves it under
+// its lease (which expires): neither loses it. Before, both ended the lease first.
+TEST(HostileMerges, AFailureOrAbandonThatThrowsLosesNoJob) {
+    for (const bool abandon : {false, true}) {
+        const RenderSpec spec = square_test_spec("uniform", 64, 4);  // one round
+        RenderSession s("r", spec, 0);
+        s.start();
+        bool fail = true;
+        const auto once = [&](size_t) {
+            if (std::exchange(fail, false)) throw std::bad_alloc();
+        };
+        (abandon ? s.while_requeueing : s.while_counting_failure) = once;
+        uint64_t lease = 0;
+        const std::optional<SampleJob> job = next_job(s, lease);
+        ASSERT_TRUE(job);
+        const uint64_t held = lease;
+        if (abandon) {
+            EXPECT_THROW(s.abandon(held, "w"), std::bad_alloc);
+            EXPECT_TRUE(s.holds(held)) << "the abandoned job is lost";
+            EXPECT_TRUE(s.abandon(held, "w"));
+        } else {
+            EXPECT_THROW(s.fail_job(held, "w", "crashed", {"w"}, {}), std::bad_alloc);
+            EXPECT_FALSE(s.holds(held));
+        }
+        std::optional<SampleJob> again;
+        while ((again = next_job(s, lease)) && !(again->rect == job->rect))
+            EXPECT_EQ(s.complete(lease, "w", result_for(*again)).status,
+                      CompleteStatus::Merged);
+        ASSERT_TRUE(again) << "the job is lost";
+        EXPECT_EQ(s.complete(lease, "w", result_for(*again)).status,
+                  CompleteStatus::Merged);
+        merge_to_the_end(s, lease);
+        expect_same_image(s.image(true), rendered_alone(spec), "given back");
+    }
+}
+
 // A lease whose deadline passes while its result is being added (off the render's
 // lock) is not expired and issued again: its job's pixels are added once, by its holder.
 TEST(HostileMerges, ALeaseExpiringWhileItsResultIsAddedIsNotIssuedAgain) {

@@ -389,14 +389,15 @@ bool RenderSession::renew(uint64_t lease_id, const std::string& worker,
 bool RenderSession::abandon(uint64_t lease_id, const std::string& worker) {
     const auto it = lease_to_job_.find(lease_id);
     if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
-    const size_t j = it->second;
+    requeue(it->second);  // first: when it throws (no memory), the lease still holds it
     lease_to_job_.erase(it);
-    requeue(j);
     return true;
 }
 
 std::vector<uint64_t> RenderSession::expire(Clock::time_point now) {
     std::vector<uint64_t> expired;
+    // Room first: a job queued again whose lease then stayed would be issued twice.
+    expired.reserve(lease_to_job_.size());
     for (auto it = lease_to_job_.begin(); it != lease_to_job_.end();) {
         JobSlot& slot = jobs_[it->second];
         if (slot.deadline <= now) {

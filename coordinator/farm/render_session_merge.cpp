@@ -152,7 +152,12 @@ bool RenderSession::fail_job(uint64_t lease_id, const std::string& worker,
     if (it == lease_to_job_.end() || jobs_[it->second].worker != worker) return false;
     const size_t j = it->second;
     lease_to_job_.erase(it);
-    count_failure(j, worker, reason, alive, policy);
+    try {
+        count_failure(j, worker, reason, alive, policy);
+    } catch (...) {
+        requeue_or_fail(j);  // in no queue and under no lease: count_failure's last step
+        throw;
+    }
     return true;
 }
 
