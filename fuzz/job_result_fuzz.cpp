@@ -61,9 +61,10 @@ aliquot::SampleJobResult answer(const aliquot::SampleJob& job) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     aliquot::v1::SampleJobResult message;
     if (!message.ParseFromArray(data, int(size))) return 0;
+    // Read in place, as the gRPC service does: `message` outlives every merge below.
     aliquot::SampleJobResult result;
     try {
-        result = aliquot::from_proto(message);
+        aliquot::from_proto_in_place(message, result);
     } catch (const aliquot::WireError&) {
         return 0;  // the service rejects it and the job is traced again
     }

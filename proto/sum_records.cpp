@@ -3,6 +3,7 @@
 #include <bit>
 #include <cstdint>
 #include <cstring>
+#include <new>
 #include <type_traits>
 
 namespace aliquot {
@@ -27,16 +28,41 @@ static_assert(offsetof(FirstHitSums, albedo) == 0 &&
 
 constexpr bool kLittleEndian = std::endian::native == std::endian::little;
 
+// The records' bytes as the structs they are, or null where they cannot be read as such
+// in place (none, or not aligned for them: a heap buffer always is).
 template <class Sums>
-void copy_out(const std::vector<Sums>& sums, std::string& out) {
-    out.resize(sums.size() * sizeof(Sums));
-    if (!sums.empty()) std::memcpy(out.data(), sums.data(), out.size());
+const Sums* as_sums(std::string_view bytes) {
+    if (bytes.empty() || reinterpret_cast<uintptr_t>(bytes.data()) % alignof(Sums) != 0)
+        return nullptr;
+    // The buffer's objects begin where its bytes were copied in (implicit-lifetime
+    // types).
+    return std::launder(reinterpret_cast<const Sums*>(bytes.data()));
+}
+
+// On a little-endian machine one pass each way: the bytes copied in or out, never zeroed
+// first; on another, field by field.
+template <class Sums>
+void copy_out(const SumsArray<Sums>& sums, std::string& out) {
+    if constexpr (!kLittleEndian) return portable_records::write_records(sums, out);
+    out.assign(reinterpret_cast<const char*>(sums.data()), sums.size() * sizeof(Sums));
 }
 
 template <class Sums>
-void copy_in(std::string_view bytes, std::vector<Sums>& out) {
-    out.resize(bytes.size() / sizeof(Sums));
-    if (!out.empty()) std::memcpy(out.data(), bytes.data(), out.size() * sizeof(Sums));
+void copy_in(std::string_view bytes, SumsArray<Sums>& out) {
+    if constexpr (!kLittleEndian) return portable_records::read_records(bytes, out);
+    const size_t n = bytes.size() / sizeof(Sums);
+    if (const Sums* sums = as_sums<Sums>(bytes)) return out.assign(sums, sums + n);
+    out.resize(n);
+    if (n > 0) std::memcpy(out.data(), bytes.data(), n * sizeof(Sums));
+}
+
+template <class Sums>
+void read_in_place(std::string_view bytes, SumsArray<Sums>& out) {
+    const Sums* sums = kLittleEndian ? as_sums<Sums>(bytes) : nullptr;
+    if (sums)
+        out.borrow(sums, bytes.size() / sizeof(Sums));
+    else
+        copy_in(bytes, out);
 }
 
 void store(uint64_t v, char*& at) {
@@ -55,7 +81,7 @@ double load_double(const char*& at) { return std::bit_cast<double>(load_u64(at))
 
 namespace portable_records {
 
-void write_records(const std::vector<PixelSums>& sums, std::string& out) {
+void write_records(const SumsArray<PixelSums>& sums, std::string& out) {
     out.resize(sums.size() * kPixelRecordBytes);
     char* at = out.data();
     for (const PixelSums& p : sums) {
@@ -68,7 +94,7 @@ void write_records(const std::vector<PixelSums>& sums, std::string& out) {
     }
 }
 
-void write_records(const std::vector<FirstHitSums>& sums, std::string& out) {
+void write_records(const SumsArray<FirstHitSums>& sums, std::string& out) {
     out.resize(sums.size() * kFirstHitRecordBytes);
     char* at = out.data();
     for (const FirstHitSums& f : sums) {
@@ -77,7 +103,7 @@ void write_records(const std::vector<FirstHitSums>& sums, std::string& out) {
     }
 }
 
-void read_records(std::string_view bytes, std::vector<PixelSums>& out) {
+void read_records(std::string_view bytes, SumsArray<PixelSums>& out) {
     out.resize(bytes.size() / kPixelRecordBytes);
     const char* at = bytes.data();
     for (PixelSums& p : out) {
@@ -90,7 +116,7 @@ void read_records(std::string_view bytes, std::vector<PixelSums>& out) {
     }
 }
 
-void read_records(std::string_view bytes, std::vector<FirstHitSums>& out) {
+void read_records(std::string_view bytes, SumsArray<FirstHitSums>& out) {
     out.resize(bytes.size() / kFirstHitRecordBytes);
     const char* at = bytes.data();
     for (FirstHitSums& f : out) {
@@ -101,32 +127,23 @@ void read_records(std::string_view bytes, std::vector<FirstHitSums>& out) {
 
 }  // namespace portable_records
 
-void write_records(const std::vector<PixelSums>& sums, std::string& out) {
-    if constexpr (kLittleEndian)
-        copy_out(sums, out);
-    else
-        portable_records::write_records(sums, out);
+void write_records(const SumsArray<PixelSums>& sums, std::string& out) {
+    copy_out(sums, out);
 }
-
-void write_records(const std::vector<FirstHitSums>& sums, std::string& out) {
-    if constexpr (kLittleEndian)
-        copy_out(sums, out);
-    else
-        portable_records::write_records(sums, out);
+void write_records(const SumsArray<FirstHitSums>& sums, std::string& out) {
+    copy_out(sums, out);
 }
-
-void read_records(std::string_view bytes, std::vector<PixelSums>& out) {
-    if constexpr (kLittleEndian)
-        copy_in(bytes, out);
-    else
-        portable_records::read_records(bytes, out);
+void read_records(std::string_view bytes, SumsArray<PixelSums>& out) {
+    copy_in(bytes, out);
 }
-
-void read_records(std::string_view bytes, std::vector<FirstHitSums>& out) {
-    if constexpr (kLittleEndian)
-        copy_in(bytes, out);
-    else
-        portable_records::read_records(bytes, out);
+void read_records(std::string_view bytes, SumsArray<FirstHitSums>& out) {
+    copy_in(bytes, out);
+}
+void read_records_in_place(std::string_view bytes, SumsArray<PixelSums>& out) {
+    read_in_place(bytes, out);
+}
+void read_records_in_place(std::string_view bytes, SumsArray<FirstHitSums>& out) {
+    read_in_place(bytes, out);
 }
 
 }  // namespace aliquot

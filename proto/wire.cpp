@@ -1,6 +1,7 @@
 #include "wire.h"
 
 #include <string>
+#include <string_view>
 
 #include "sum_records.h"
 
@@ -68,28 +69,47 @@ void to_proto(const SampleJobResult& result, v1::SampleJobResult& out) {
     out.set_version(kWireVersion);
 }
 
-SampleJobResult from_proto(const v1::SampleJobResult& in) {
+namespace {
+
+// The checks both decodes make, then `read` (a copy, or in place) of each array.
+template <class Read>
+void decode(const v1::SampleJobResult& in, SampleJobResult& out, Read read) {
     if (in.version() != kWireVersion)
         throw WireError("result of wire protocol version " +
                         std::to_string(in.version()) +
                         ", this coordinator speaks version " +
                         std::to_string(kWireVersion) + ": update the worker");
-    SampleJobResult result;
-    result.rect = from_proto(in.rect());
-    // Only sizes are checked here: what the sums say (finite, the job's counts, zero
-    // where untraced) is the Accumulator's to check, as for a result that never met the
-    // wire.
-    const size_t n = result.rect.size();
+    out.rect = from_proto(in.rect());
+    // Only sizes are checked here, before anything is read or allocated: what the sums
+    // say (finite, the job's counts, zero where untraced) is the Accumulator's to check,
+    // as for a result that never met the wire.
+    const size_t n = out.rect.size();
     expect_records("pixels", in.pixels().size(), kPixelRecordBytes, n);
-    read_records(in.pixels(), result.pixels);
-    result.wall_seconds = in.wall_seconds();
     // Whether the job asked for them is the coordinator's to check (AuxSums): here they
     // are whole, or absent.
-    if (!in.first_hits().empty()) {
+    if (!in.first_hits().empty())
         expect_records("first_hits", in.first_hits().size(), kFirstHitRecordBytes, n);
-        read_records(in.first_hits(), result.first_hits);
-    }
+    read(in.pixels(), out.pixels);
+    if (in.first_hits().empty())
+        out.first_hits.clear();
+    else
+        read(in.first_hits(), out.first_hits);
+    out.wall_seconds = in.wall_seconds();
+}
+
+}  // namespace
+
+SampleJobResult from_proto(const v1::SampleJobResult& in) {
+    SampleJobResult result;
+    decode(in, result,
+           [](std::string_view bytes, auto& sums) { read_records(bytes, sums); });
     return result;
+}
+
+void from_proto_in_place(const v1::SampleJobResult& in, SampleJobResult& out) {
+    decode(in, out, [](std::string_view bytes, auto& sums) {
+        read_records_in_place(bytes, sums);
+    });
 }
 
 v1::CompleteStatus to_proto(CompleteStatus status) {

@@ -27,6 +27,11 @@ void to_proto(const SampleJob& job, v1::SampleJob& out);
 SampleJob from_proto(const v1::SampleJob& in);
 void to_proto(const SampleJobResult& result, v1::SampleJobResult& out);
 SampleJobResult from_proto(const v1::SampleJobResult& in);
+// `out` becomes `in`'s result, its sums read where `in`'s bytes hold them
+// (sum_records.h's read_records_in_place), with the same checks: what Complete merges,
+// with no copy of the sums. `in` must outlive every read of `out` unchanged; a copy or a
+// move of `out` owns its sums (SumsArray), so pass it on by reference.
+void from_proto_in_place(const v1::SampleJobResult& in, SampleJobResult& out);
 
 // The worker loop and the coordinator speak the C++ CompleteStatus (worker/job/lease.h):
 // the embedded render passes it by direct call, with no protobuf in between. These two

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <string>
+#include <string_view>
 #include <type_traits>
 
 #include "sum_records.h"
@@ -27,6 +29,12 @@ SampleJobResult two_pixel_result(bool aux) {
     return r;
 }
 
+// What Complete does: the sums read where the message holds them, nothing copied.
+void decode_in_place(const v1::SampleJobResult& message) {
+    SampleJobResult result;
+    from_proto_in_place(message, result);
+}
+
 TEST(Wire, AResultWithFirstHitSumsComesBackTheSame) {
     const SampleJobResult r = two_pixel_result(true);
     v1::SampleJobResult message;
@@ -36,6 +44,43 @@ TEST(Wire, AResultWithFirstHitSumsComesBackTheSame) {
     EXPECT_EQ(back.rect, r.rect);
     EXPECT_EQ(back.pixels, r.pixels);
     EXPECT_EQ(back.first_hits, r.first_hits);
+}
+
+TEST(Wire, AResultDecodedInPlaceReadsTheMessagesBytesAndIsTheSame) {
+    const SampleJobResult r = two_pixel_result(true);
+    v1::SampleJobResult message;
+    to_proto(r, message);
+    SampleJobResult back;
+    from_proto_in_place(message, back);
+    EXPECT_EQ(back.rect, r.rect);
+    EXPECT_EQ(back.wall_seconds, r.wall_seconds);
+    EXPECT_EQ(back.pixels, r.pixels);
+    EXPECT_EQ(back.first_hits, r.first_hits);
+    const SampleJobResult& read = back;
+    EXPECT_EQ(static_cast<const void*>(read.pixels.data()), message.pixels().data());
+    EXPECT_EQ(static_cast<const void*>(read.first_hits.data()),
+              message.first_hits().data());
+    // Decoded again into the same result, now without first hits: none are left.
+    message.Clear();
+    to_proto(two_pixel_result(false), message);
+    from_proto_in_place(message, back);
+    EXPECT_TRUE(back.first_hits.empty());
+}
+
+// Bytes not aligned for the structs (a buffer of someone else's making) are copied, not
+// read where they are.
+TEST(Wire, RecordsNotAlignedForTheSumsAreCopied) {
+    const SampleJobResult r = two_pixel_result(true);
+    std::string records;
+    write_records(r.pixels, records);
+    const std::string shifted = "x" + records;
+    SumsArray<PixelSums> read;
+    read_records_in_place(std::string_view(shifted).substr(1), read);
+    EXPECT_FALSE(read.borrows());
+    EXPECT_EQ(read, r.pixels);
+    read_records_in_place(records, read);
+    EXPECT_TRUE(read.borrows());
+    EXPECT_EQ(read, r.pixels);
 }
 
 // A render that is not denoised pays nothing: no first-hit records on the wire.
@@ -110,6 +155,7 @@ TEST(Wire, PixelsOfTheWrongLengthAreRefused) {
         v1::SampleJobResult wrong = message;
         wrong.mutable_pixels()->resize(size);
         EXPECT_THROW(from_proto(wrong), WireError) << size << " bytes";
+        EXPECT_THROW(decode_in_place(wrong), WireError) << size << " bytes";
     }
 }
 
@@ -122,12 +168,15 @@ TEST(Wire, AHugeRectWithFewRecordsIsRefusedBeforeAnyAllocation) {
     message.mutable_rect()->set_width(65536);
     message.mutable_rect()->set_height(65536);
     EXPECT_THROW(from_proto(message), WireError);
+    EXPECT_THROW(decode_in_place(message), WireError);
     message.mutable_rect()->set_width(65537);  // beyond any image
     EXPECT_THROW(from_proto(message), WireError);
+    EXPECT_THROW(decode_in_place(message), WireError);
     // Width x height that would wrap a 32-bit size: the rect's own bound refuses it.
     message.mutable_rect()->set_width(uint32_t(-1));
     message.mutable_rect()->set_height(uint32_t(-1));
     EXPECT_THROW(from_proto(message), WireError);
+    EXPECT_THROW(decode_in_place(message), WireError);
 }
 
 TEST(Wire, AJobsAuxFlagComesBackTheSame) {
@@ -165,6 +214,7 @@ TEST(Wire, AResultOfAnOlderVersionIsRefusedWithAClearError) {
     to_proto(two_pixel_result(false), message);
     message.set_version(kWireVersion + 1);
     EXPECT_THROW(from_proto(message), WireError);
+    EXPECT_THROW(decode_in_place(message), WireError);
 }
 
 // The bytes a version 1 worker sends for a 1x1 result: its arrays' reserved fields
@@ -189,6 +239,7 @@ TEST(Wire, FirstHitSumsOfTheWrongLengthAreRefused) {
         v1::SampleJobResult wrong = message;
         wrong.mutable_first_hits()->resize(size);
         EXPECT_THROW(from_proto(wrong), WireError) << size << " bytes";
+        EXPECT_THROW(decode_in_place(wrong), WireError) << size << " bytes";
     }
 }
 

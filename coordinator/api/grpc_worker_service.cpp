@@ -8,6 +8,7 @@
 #include <new>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "aliquot.grpc.pb.h"
 #include "grpc_access.h"
@@ -90,12 +91,12 @@ public:
                     v1::CompleteReply* reply) override {
         if (Status s = admit(ctx, tokens_, Role::Worker); !s.ok()) return s;
         return known([&] {
-            // The sums are copied once, from the parsed message's records into `result`
-            // (one memcpy: wire.h), and moved from there to the merge and to a round
-            // held ahead: never copied again.
+            // The sums are read where protobuf parsed them, in `req`, which outlives the
+            // merge (wire.h's from_proto_in_place): `result` is passed by reference,
+            // and only a result held for the round ahead copies them, once.
             SampleJobResult result;
             try {
-                result = from_proto(req->result());
+                from_proto_in_place(req->result(), result);
             } catch (const WireError& e) {
                 // Malformed: nothing is merged, and it counts as the sender's failure on
                 // the job, as a rejected result does (fail checks the sender holds it;
@@ -112,7 +113,7 @@ public:
             }
             const auto began = std::chrono::steady_clock::now();
             const CompleteOutcome outcome =
-                c_.complete(req->session(), req->lease_id(), std::move(result));
+                c_.complete(req->session(), req->lease_id(), std::as_const(result));
             if (metrics_) metrics_->observe_merge(seconds_since(began));
             reply->set_status(to_proto(outcome.status));
             reply->set_message(outcome.message);

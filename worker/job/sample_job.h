@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "sums_array.h"
 #include "vec3.h"
 
 namespace aliquot {
@@ -60,12 +61,15 @@ struct PixelSums {
     bool operator==(const PixelSums&) const = default;
 };
 
+// Its sums are owned, or read where a message's bytes hold them for as long as the
+// message lives (SumsArray): such a result is passed on by reference, since a copy or a
+// move of it copies its sums.
 struct SampleJobResult {
     PixelRect rect;
-    std::vector<PixelSums> pixels;  // per pixel of rect, row-major
-    double wall_seconds = 0;        // statistics only: nothing may decide on it
+    SumsArray<PixelSums> pixels;  // per pixel of rect, row-major
+    double wall_seconds = 0;      // statistics only: nothing may decide on it
     // Per pixel of rect for a job with `aux`; empty for any other.
-    std::vector<FirstHitSums> first_hits;
+    SumsArray<FirstHitSums> first_hits;
 
     uint64_t total_samples() const;
     uint64_t total_rays() const;
