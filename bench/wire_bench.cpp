@@ -1,7 +1,9 @@
 // What one SampleJobResult costs on the wire, per pixel: the worker's encode (wire.h's
 // to_proto, then the message serialized) and the coordinator's decode (the bytes parsed
-// as the gRPC server's Complete receives them, then from_proto), each in CPU time of this
-// thread, the least of several passes. The sums vary per pixel like a render's (no run of
+// as the gRPC server's Complete receives them, then from_proto_in_place, as Complete
+// reads them; decode_copy also copies the sums out, as from_proto does and as a result
+// held for the round ahead is), each in CPU time of this thread, the least of several
+// passes. The sums vary per pixel like a render's (no run of
 // equal values a codec could exploit). Prints one JSON object per job size.
 //
 // Usage: wire_bench [side,...] [spp] [aux 0|1]  (defaults: 16,64,256 64 0)
@@ -70,7 +72,7 @@ int main(int argc, char** argv) {
         const double pixels = double(result.pixels.size());
         // About 4 M pixels a pass, so small jobs are timed over many.
         const int reps = std::max(1, int(4e6 / pixels));
-        double encode = 1e30, decode = 1e30;
+        double encode = 1e30, decode = 1e30, decode_copy = 1e30;
         std::string bytes;
         size_t merged = 0;  // keeps the decode from being optimised away
         for (int pass = 0; pass < 5; ++pass) {
@@ -86,16 +88,25 @@ int main(int argc, char** argv) {
             for (int k = 0; k < reps; ++k) {
                 v1::SampleJobResult message;
                 if (!message.ParseFromString(bytes)) return 1;
-                merged += from_proto(message).pixels.size();
+                SampleJobResult in_place;
+                from_proto_in_place(message, in_place);
+                merged += in_place.pixels.size();
             }
             decode = std::min(decode, (thread_cpu() - began) / (reps * pixels));
+            began = thread_cpu();
+            for (int k = 0; k < reps; ++k) {
+                v1::SampleJobResult message;
+                if (!message.ParseFromString(bytes)) return 1;
+                merged += from_proto(message).pixels.size();
+            }
+            decode_copy = std::min(decode_copy, (thread_cpu() - began) / (reps * pixels));
         }
         if (merged == 0) return 1;
         std::printf(
             "{\"job\": \"%ux%u\", \"spp\": %u, \"aux\": %d, \"wire_version\": %u, "
             "\"bytes_per_pixel\": %.1f, \"encode_ns_per_pixel\": %.1f, "
-            "\"decode_ns_per_pixel\": %.1f}\n",
+            "\"decode_ns_per_pixel\": %.1f, \"decode_copy_ns_per_pixel\": %.1f}\n",
             side, side, spp, int(aux), kWireVersion, double(bytes.size()) / pixels,
-            1e9 * encode, 1e9 * decode);
+            1e9 * encode, 1e9 * decode, 1e9 * decode_copy);
     }
 }
