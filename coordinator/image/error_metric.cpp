@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -22,26 +23,81 @@ double nearest_rank(std::vector<double> values, double p) {
     return values[std::clamp<size_t>(rank, 1, values.size()) - 1];
 }
 
-// mean_bias and its standard error from the pass's sums over `pixels` pixels.
-void set_mean_bias(ErrorMetrics& m, double pixels, double ref_mean, double diff_sum,
-                   double diff_sq_sum) {
-    if (!(ref_mean > 0)) {
+// The side of the blocks whose mean differences give the mean bias's standard error: 16
+// pixels, halved until the image holds at least kMinBiasBlocks of them (a 16x16 image:
+// 4). Fixed in pixels rather than the metric's bucket size, which a study scales with its
+// resolution down to 1 pixel: a denoiser spreads a pixel's error over neighbours a fixed
+// number of pixels away, so the blocks must stay wider than that whatever the scale.
+constexpr uint32_t kBiasBlock = 16;
+constexpr uint64_t kMinBiasBlocks = 16;
+
+uint32_t bias_block_side(uint32_t w, uint32_t h) {
+    uint32_t s = kBiasBlock;
+    while (s > 1 && uint64_t((w + s - 1) / s) * ((h + s - 1) / s) < kMinBiasBlocks)
+        s /= 2;
+    return s;
+}
+
+// mean_bias and its standard error from the pass's sums: `block_diff` holds each block's
+// sum of per-pixel differences (A - B averaged over RGB), blocks of side `s` over a w x h
+// image. The standard error is the batch means': a block's mean difference varies with
+// its pixels' noise however it is correlated inside the block (a denoiser's kernel, a
+// caustic's clustered fireflies), and the blocks' means are nearly independent of each
+// other. Edge blocks are smaller: with n_k pixels and difference sum D_k, the variance of
+// the whole image's mean difference D/N is K/(K-1) * sum_k (D_k - n_k D/N)^2 / N^2 (the
+// ratio estimator's; for equal blocks, the variance of the block means over K).
+void set_mean_bias(ErrorMetrics& m, const std::vector<double>& block_diff, uint32_t w,
+                   uint32_t h, uint32_t s, double ref_sum) {
+    const double pixels = double(w) * h, ref_mean = ref_sum / (3.0 * pixels);
+    double diff_sum = 0;
+    for (const double d : block_diff) diff_sum += d;
+    // A NaN or inf in either image makes the sums so: no bias to tell, not a bias of 0 +-
+    // 0 (std::max(0.0, NaN) would have made it one).
+    if (!std::isfinite(diff_sum) || !std::isfinite(ref_sum) || !(ref_mean > 0)) {
         m.mean_bias = m.mean_bias_se = std::nan("");
         return;
     }
     const double diff_mean = diff_sum / pixels;
-    // Sample variance of the per-pixel differences; rounding can take it a hair below 0.
-    const double variance =
-        pixels > 1 ? std::max(0.0, (diff_sq_sum - diff_sum * diff_mean) / (pixels - 1))
-                   : 0.0;
     m.mean_bias = diff_mean / ref_mean;
-    m.mean_bias_se = std::sqrt(variance / pixels) / ref_mean;
+    const size_t blocks = block_diff.size();
+    if (blocks < 2) {  // one block (a 1x1 image) has no spread to measure
+        m.mean_bias_se = std::nan("");
+        return;
+    }
+    const uint32_t blocks_x = (w + s - 1) / s;
+    double spread = 0;
+    for (size_t k = 0; k < blocks; ++k) {
+        const uint32_t bx = uint32_t(k % blocks_x), by = uint32_t(k / blocks_x);
+        const double n = double(std::min(s, w - bx * s)) * std::min(s, h - by * s);
+        const double r = block_diff[k] - n * diff_mean;
+        spread += r * r;
+    }
+    const double variance =
+        double(blocks) / double(blocks - 1) * spread / (pixels * pixels);
+    m.mean_bias_se = std::sqrt(variance) / ref_mean;
 }
 
 }  // namespace
 
 bool bias_beyond_noise(const ErrorMetrics& m) {
     return std::abs(m.mean_bias) > 3.0 * m.mean_bias_se;
+}
+
+std::string mean_bias_text(const ErrorMetrics& m) {
+    // mean_abs is NaN exactly when some pixel's difference is not finite (the sums of
+    // finite floats in doubles do not overflow): that, not a black reference, is why.
+    if (!std::isfinite(m.mean_abs)) return "– (an image holds NaN or inf)";
+    if (std::isnan(m.mean_bias)) return "– (the reference is black)";
+    char text[96];
+    if (std::isnan(m.mean_bias_se)) {
+        std::snprintf(text, sizeof text, "%+.3g %% (no standard error: one block)",
+                      100 * m.mean_bias);
+        return text;
+    }
+    std::snprintf(text, sizeof text, "%+.3g %% ± %.2g %%%s", 100 * m.mean_bias,
+                  100 * m.mean_bias_se,
+                  bias_beyond_noise(m) ? ", beyond 3 SE: biased" : ", within 3 SE");
+    return text;
 }
 
 ErrorMetrics compare_images(const Image& test, const Image& reference, int bucket_size) {
@@ -63,11 +119,14 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
     const uint32_t buckets_x = (w + b - 1) / b, buckets_y = (h + b - 1) / b;
     std::vector<double> bucket_abs(size_t(buckets_x) * buckets_y, 0.0);
     double abs_sum = 0, sq_sum = 0, rel_sum = 0;
-    // The mean bias's sums, in the same pass: the reference's total, and the per-pixel
-    // differences' sum and sum of squares.
-    double ref_sum = 0, diff_sum = 0, diff_sq_sum = 0;
+    // The mean bias's sums, in the same pass: the reference's total, and each block's sum
+    // of the per-pixel differences.
+    const uint32_t s = bias_block_side(w, h), blocks_x = (w + s - 1) / s;
+    std::vector<double> block_diff(size_t(blocks_x) * ((h + s - 1) / s), 0.0);
+    double ref_sum = 0;
     for (uint32_t y = 0; y < h; ++y) {
         double* bucket_row = bucket_abs.data() + size_t(y / b) * buckets_x;
+        double* block_row = block_diff.data() + size_t(y / s) * blocks_x;
         for (uint32_t x = 0; x < w; ++x) {
             const size_t i = (size_t(y) * w + x) * 3;
             double pixel_abs = 0, pixel_diff = 0;
@@ -82,8 +141,7 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
             }
             abs_sum += pixel_abs;
             bucket_row[x / b] += pixel_abs;
-            diff_sum += pixel_diff / 3.0;
-            diff_sq_sum += (pixel_diff / 3.0) * (pixel_diff / 3.0);
+            block_row[x / s] += pixel_diff / 3.0;
         }
     }
     std::vector<double> bucket_errors;
@@ -102,8 +160,7 @@ ErrorMetrics compare_images(const Image& test, const Image& reference, int bucke
     m.mean_abs = abs_sum / samples;
     m.rmse = std::sqrt(sq_sum / samples);
     m.relative_mse = rel_sum / samples;
-    set_mean_bias(m, double(test.pixel_count()), ref_sum / samples, diff_sum,
-                  diff_sq_sum);
+    set_mean_bias(m, block_diff, w, h, s, ref_sum);
     if (any_nan) {
         // A NaN would break the sort's ordering; report it rather than a misleading
         // number.

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <stdexcept>
+#include <string>
 
 #include "image.h"
 
@@ -17,18 +18,28 @@ struct ErrorMetrics {
     // fraction (-0.02: A is 2 % too dark). E rewards a method that darkens heavy-tailed
     // pixels towards their median (docs/RESULTS.md, "Is `optimal` biased low?"); this
     // shows it. NaN when B's mean is not positive (a black reference has no relative
-    // bias).
+    // bias) or when either image holds a NaN or an infinity.
     double mean_bias = 0;
-    // Its standard error: the standard deviation of the per-pixel differences (A - B
-    // averaged over RGB) over sqrt(pixels), over B's mean. It treats pixels as
-    // independent (a pixel's channels share their paths, so a pixel, not a channel, is
-    // the unit); the reference's own noise is in it too. NaN with mean_bias.
+    // Its standard error, from batch means: the image is cut into blocks of 16x16 pixels
+    // (smaller for an image of fewer than 16 such blocks, never the metric's bucket
+    // size), and the spread of the blocks' mean differences (A - B averaged over RGB),
+    // each weighted by its pixels, gives the error of the image's mean, over B's mean.
+    // Pixels are not taken as independent: a denoiser spreads each pixel's error over its
+    // neighbours and a caustic's fireflies cluster, and both stay inside a block. Blocks
+    // are taken as independent (a kernel wider than a block still makes it run low), and
+    // from K blocks it has K - 1 degrees of freedom: with few blocks it is itself noisy.
+    // The reference's own noise is in it too. NaN with mean_bias, and for a single block.
     double mean_bias_se = 0;
 };
 
 // Whether |mean_bias| exceeds 3 standard errors: a bias the image's noise does not
 // explain. False when either is NaN.
 bool bias_beyond_noise(const ErrorMetrics& m);
+
+// The mean bias as one line says it: "-1.68 % ± 0.05 %, beyond 3 SE: biased",
+// "+0.1 % ± 0.2 %, within 3 SE", or "–" and why there is none (a black reference, an
+// image or reference holding NaN or inf, too few blocks for a standard error).
+std::string mean_bias_text(const ErrorMetrics& m);
 
 class ImageMismatch : public std::invalid_argument {
 public:
