@@ -1,6 +1,5 @@
 // `aliquot compare A.exr B.exr`: the error of image A against the reference B, and of A
 // denoised when A has a denoised layer or --denoise asks (issue 34).
-#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -50,20 +49,11 @@ nlohmann::ordered_json metrics_json(const ErrorMetrics& m) {
             {"relative_mse", m.relative_mse},
             {"max_bucket", m.max_bucket},
             {"p99_bucket", m.p99_bucket},
-            // A fraction, as relative_mse; NaN (a black reference) dumps as null.
+            // A fraction, as relative_mse; NaN (a black reference, an image holding NaN
+            // or inf) dumps as null.
             {"mean_bias", m.mean_bias},
             {"mean_bias_se", m.mean_bias_se},
             {"bias_beyond_noise", bias_beyond_noise(m)}};
-}
-
-// "-1.68 % ± 0.05 %", and whether that is more than the image's noise explains.
-std::string bias_text(const ErrorMetrics& m) {
-    if (std::isnan(m.mean_bias)) return "– (the reference is black)";
-    char text[96];
-    std::snprintf(text, sizeof text, "%+.3g %% ± %.2g %%%s", 100 * m.mean_bias,
-                  100 * m.mean_bias_se,
-                  bias_beyond_noise(m) ? ", beyond 3 SE: biased" : ", within 3 SE");
-    return text;
 }
 
 // The lines every image's metrics print, raw and denoised alike.
@@ -74,7 +64,7 @@ void print_metrics(const ErrorMetrics& m, const std::string& bucket) {
     std::printf("%-22s %.6g\n", ("max bucket E (" + bucket + ")").c_str(), m.max_bucket);
     std::printf("%-22s %.6g\n", ("p99 bucket E (" + bucket + ")").c_str(), m.p99_bucket);
     // E rewards a method that darkens its image (docs/RESULTS.md): the bias beside it.
-    std::printf("%-22s %s\n", "mean bias", bias_text(m).c_str());
+    std::printf("%-22s %s\n", "mean bias", mean_bias_text(m).c_str());
 }
 
 void run_compare(const CompareOptions& o) {

@@ -203,12 +203,10 @@ private:
         if (!isatty(STDERR_FILENO))  // no bar to watch: one line per render instead
             std::fprintf(
                 stderr,
-                "study: %zu/%zu %s %s: %llu samples, %.2f s, E %.6g, mean bias %+.3g %% "
-                "± "
-                "%.2g %%%s\n",
+                "study: %zu/%zu %s %s: %llu samples, %.2f s, E %.6g, mean bias %s%s\n",
                 finished_.size() + 1, renders_.size(), key.c_str(),
                 r.strategy.method.c_str(), (unsigned long long)c.samples, c.seconds,
-                m.mean_abs, 100 * m.mean_bias, 100 * m.mean_bias_se,
+                m.mean_abs, mean_bias_text(m).c_str(),
                 denoised ? (", denoised " + std::to_string(denoised->mean_abs)).c_str()
                          : "");
         finished_.insert(key);
