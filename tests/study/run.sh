@@ -85,6 +85,20 @@ print(" ".join(sorted({m for row in cells for m, v in row.items() if "**biased**
 PY
 )
 check "the report flags a method biased beyond 3 standard errors, and only it" "[[ '$flags' == 'optimal True' ]]"
+# Seeds whose biases scatter far more than their own standard errors say: the mean's error
+# is their spread over √seeds, not the propagated one, and -1 % is not flagged.
+check "over seeds the mean bias's error is at least the seeds' spread over √seeds" "python3 - '$ROOT/tools/report' <<'PY'
+import sys
+from types import SimpleNamespace as R
+sys.path.insert(0, sys.argv[1])
+from bias_table import flagged, point_bias
+scattered = R(renders=[R(mean_bias=b, mean_bias_se=0.001) for b in (-0.03, 0.01)])
+mean, se = point_bias(scattered)
+assert abs(mean + 0.01) < 1e-12 and abs(se - 0.02) < 1e-12 and not flagged((mean, se)), (mean, se)
+agreeing = R(renders=[R(mean_bias=-0.02, mean_bias_se=0.001) for _ in range(2)])
+assert abs(point_bias(agreeing)[1] - 0.001 / 2 ** 0.5) < 1e-12 and flagged(point_bias(agreeing))
+assert point_bias(R(renders=[R(mean_bias=-0.02, mean_bias_se=float('nan'))])) is None
+PY"
 cp -r "$tmp/tiny" "$tmp/old"
 python3 -c 'import sqlite3, sys; c = sqlite3.connect(sys.argv[1])
 for col in ("mean_bias", "mean_bias_se", "denoised_mean_bias", "denoised_mean_bias_se"):

@@ -783,8 +783,8 @@ def main():
         "- E is the seed's error: mean |image − reference| per pixel, averaged over RGB. RMSE is over pixels and "
         f"channels; bucket errors are E over {sc.get('metric_bucket', 16)}×{sc.get('metric_bucket', 16)}-pixel buckets "
         "(16×16 at the written resolution, scaled with it; p99 = 99th percentile, max = worst bucket). "
-        "The mean bias is the image's mean against the reference's, ± its standard error (pixels taken as "
-        "independent); E rewards an image too dark, so a method **biased** beyond 3 standard errors wins "
+        "The mean bias is the image's mean against the reference's, ± its standard error (from the spread of "
+        "16×16-pixel blocks' means, so a denoiser's spread error is not taken for signal); E rewards an image too dark, so a method **biased** beyond 3 standard errors wins "
         "some of its E by it. "
         + ("Wall times are the farm's: renders ran in parallel and shared its workers. " if farm else
            "Wall times are each render's own (embedded renders run one at a time), measured on a machine "

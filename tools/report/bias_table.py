@@ -19,16 +19,27 @@ FLAG_SE = 3.0
 
 def point_bias(point, attr="mean_bias"):
     """The mean bias over a point's seeds and its standard error, or None when a seed
-    lacks it. Each seed's error is its own (its pixels' differences, taken as
-    independent); the seeds' renders are independent, so the mean's is their root sum of
-    squares over the count. Seeds share one reference, whose noise this counts once per
-    seed rather than once: negligible against a reference of many times the samples."""
+    lacks it. Each seed's error is its own (the spread of its image's blocks' mean
+    differences, which holds the reference's noise too); propagated as from independent
+    seeds, the mean's is their root sum of squares over the count. With two seeds or more
+    it is the larger of that and the seeds' own spread (the standard deviation of their
+    biases over √seeds): the seeds' spread is measured, so a seed's error that runs low
+    (fireflies rarer than its blocks show) is caught. Neither counts the reference's noise
+    in full: the seeds share one reference, so its error moves every seed's bias alike and
+    the mean keeps it whole, where the propagation divides it by √seeds and the spread
+    does not see it. Small against a reference of many times a render's samples; a bias
+    near 3 standard errors with a reference of few samples is not proof."""
     values = [getattr(r, attr) for r in point.renders]
     errors = [getattr(r, attr + "_se") for r in point.renders]
-    if not values or any(math.isnan(v) for v in values + errors):
+    if not values or any(v is None or math.isnan(v) for v in values + errors):
         return None
     n = len(values)
-    return sum(values) / n, math.sqrt(sum(e * e for e in errors)) / n
+    mean = sum(values) / n
+    se = math.sqrt(sum(e * e for e in errors)) / n
+    if n >= 2:
+        spread = math.sqrt(sum((v - mean) ** 2 for v in values) / (n - 1))
+        se = max(se, spread / math.sqrt(n))
+    return mean, se
 
 
 def flagged(bias):
