@@ -462,7 +462,7 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
     const std::shared_ptr<const std::set<std::string>> alive =
         registry_.alive_identities();
     bool render_failed = false;
-    {
+    try {
         std::lock_guard render(slot->mutex);
         RenderSession& s = *slot->session;
         if (!s.fail_job(lease_id, caller.identity, reason, *alive,
@@ -475,6 +475,11 @@ bool Coordinator::fail(const std::string& session, uint64_t lease_id,
                  log_text("reason", reason)});
         render_failed = s.state() == RenderState::Failed;
         if (render_failed) log_farm_error(s.id() + " failed: " + s.error());
+    } catch (...) {
+        // The lease has ended and its job is queued again (fail_job), as complete's.
+        leases_.end(lease_id);
+        renders_.note_change();
+        throw;
     }
     leases_.end(lease_id);
     registry_.note_failure(caller.worker);

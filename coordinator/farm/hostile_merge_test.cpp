@@ -422,42 +422,52 @@ TEST(HostileMerges, AHeldResultRefusedWhenItsRoundComesIsNotCountedAsMerged) {
 // leases expired, workers lost or a round announced, none of which comes here: the
 // waiter returned empty at the end of its wait.
 TEST(HostileMerges, AJobGivenBackWakesAWaitingLease) {
-    CoordinatorOptions options;
-    options.worker_lost_after = std::chrono::hours(1);  // no worker lost meanwhile
-    Coordinator c(options);
-    const std::string id = c.submit(square_test_spec("uniform", 64, 2048));  // two rounds
-    const std::string a = c.register_worker("a", 8).session;
-    const std::string b = c.register_worker("b", 8).session;
-    // a takes every job there is: the round out's and, once it is open (then no round
-    // is announced again), the round ahead's up to its bound.
-    std::vector<LeaseGrant> out;
-    bool ahead_open = false;
-    for (int tries = 0; tries < 100; ++tries) {
-        std::optional<LeaseGrant> g = c.lease(a, milliseconds(200));
-        if (!g && ahead_open) break;
-        if (!g) continue;
-        ahead_open = ahead_open || g->job.first_sample[0] != 0;
-        out.push_back(std::move(*g));
+    // A merge that cannot keep what it needs, and a worker's failure that cannot be
+    // counted: both give their job back.
+    for (const bool by_fail : {false, true}) {
+        CoordinatorOptions options;
+        options.worker_lost_after = std::chrono::hours(1);  // no worker lost meanwhile
+        Coordinator c(options);
+        const std::string id =
+            c.submit(square_test_spec("uniform", 64, 2048));  // two rounds
+        const std::string a = c.register_worker("a", 8).session;
+        const std::string b = c.register_worker("b", 8).session;
+        // a takes every job there is: the round out's and, once it is open (then no round
+        // is announced again), the round ahead's up to its bound.
+        std::vector<LeaseGrant> out;
+        bool ahead_open = false;
+        for (int tries = 0; tries < 100; ++tries) {
+            std::optional<LeaseGrant> g = c.lease(a, milliseconds(200));
+            if (!g && ahead_open) break;
+            if (!g) continue;
+            ahead_open = ahead_open || g->job.first_sample[0] != 0;
+            out.push_back(std::move(*g));
+        }
+        ASSERT_TRUE(ahead_open);
+        const LeaseGrant& given = out.front();  // the round out's
+        bool fail = true;
+        c.with_session_for_test(id, [&](RenderSession& s) {
+            (by_fail ? s.while_counting_failure : s.while_keeping) = [&](size_t) {
+                if (std::exchange(fail, false)) throw std::bad_alloc();
+            };
+        });
+        auto waiting = std::async(std::launch::async,
+                                  [&] { return c.lease(b, milliseconds(3000)); });
+        // So that b waits when the job comes back (too short only weakens this test).
+        std::this_thread::sleep_for(milliseconds(200));
+        if (by_fail)
+            EXPECT_THROW(c.fail(a, given.lease_id, "crashed"), std::bad_alloc);
+        else
+            EXPECT_THROW(c.complete(a, given.lease_id, made_up_result(given)),
+                         std::bad_alloc);
+        // Not a time limit on anything: only so the regression fails rather than hangs.
+        ASSERT_EQ(waiting.wait_for(std::chrono::seconds(60)), std::future_status::ready);
+        const std::optional<LeaseGrant> got = waiting.get();
+        ASSERT_TRUE(got) << "the waiting lease did not hear of the job given back"
+                         << by_fail;
+        EXPECT_TRUE(got->job.rect == given.job.rect);
+        EXPECT_EQ(got->job.first_sample, given.job.first_sample);
     }
-    ASSERT_TRUE(ahead_open);
-    const LeaseGrant& given = out.front();  // the round out's
-    bool fail = true;
-    c.with_session_for_test(id, [&](RenderSession& s) {
-        s.while_keeping = [&](size_t) {
-            if (std::exchange(fail, false)) throw std::bad_alloc();
-        };
-    });
-    auto waiting =
-        std::async(std::launch::async, [&] { return c.lease(b, milliseconds(3000)); });
-    // So that b waits when the job comes back (too short only weakens this test).
-    std::this_thread::sleep_for(milliseconds(200));
-    EXPECT_THROW(c.complete(a, given.lease_id, made_up_result(given)), std::bad_alloc);
-    // Not a time limit on anything: only so the regression fails rather than hangs.
-    ASSERT_EQ(waiting.wait_for(std::chrono::seconds(60)), std::future_status::ready);
-    const std::optional<LeaseGrant> got = waiting.get();
-    ASSERT_TRUE(got) << "the waiting lease did not hear of the job given back";
-    EXPECT_TRUE(got->job.rect == given.job.rect);
-    EXPECT_EQ(got->job.first_sample, given.job.first_sample);
 }
 
 // A job of the round ahead, cut while a result of the round out is being added, counts
