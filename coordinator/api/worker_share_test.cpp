@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "aliquot.grpc.pb.h"
-#include "farm_test_results.h"
 #include "grpc_server.h"
+#include "scene_loader.h"
 #include "test_tokens.h"
 #include "wire.h"
 
@@ -71,7 +71,12 @@ TEST(WorkerShare, NamesThatTakeNoJobLeaveTheCutAsItWas) {
         ASSERT_TRUE(
             register_over(*stub, "idle-" + std::to_string(i), kMaxWorkerThreads).ok());
     }
-    RenderSpec spec = small_test_spec();
+    // Built here, not from the farm's small_test_spec: that header shows the scene room,
+    // which the farm links privately (room_links).
+    RenderSpec spec;
+    spec.scene_name = "cornell-box";
+    spec.scene_json = self_contained_scene_json("cornell-box");
+    spec.strategy.method = "uniform";
     spec.width = spec.height = 256;
     spec.strategy.spp = 8;
     coordinator.submit(spec);
