@@ -29,8 +29,8 @@ Coordinator::Coordinator(CoordinatorOptions options)
       tick_schedule_(options_.keep_finished),
       registry_({options_.worker_lost_after, options_.forget_workers_after,
                  options_.max_worker_sessions, options_.max_workers,
-                 options_.max_workers_per_host, options_.lease_time},
-                archive_, events_, [this] { return leases_.links_holding(); }) {
+                 options_.max_workers_per_host, working_window(options_.lease_time)},
+                archive_, events_, [this] { return leases_.leases_by_link(); }) {
     if (archive_.keeps_records()) {
         events_.record_to(archive_.store(), &archive_.backlog());
         resume_unfinished();

@@ -53,11 +53,11 @@ void LeaseTable::forget_render(const std::string& render) {
                   [&render](const auto& kv) { return kv.second.render == render; });
 }
 
-std::set<std::string> LeaseTable::links_holding() const {
+std::unordered_map<std::string, size_t> LeaseTable::leases_by_link() const {
     std::lock_guard lock(mutex_);
-    std::set<std::string> holding;
-    for (const auto& [id, lease] : leases_) holding.insert(lease.link);
-    return holding;
+    std::unordered_map<std::string, size_t> by_link;
+    for (const auto& [id, lease] : leases_) by_link[lease.link] += !lease.render.empty();
+    return by_link;
 }
 
 std::map<std::string, std::vector<std::string>> LeaseTable::labels_by_link() const {

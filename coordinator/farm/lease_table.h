@@ -56,8 +56,10 @@ public:
     // Drops the leases of `render` (it left memory): their results are answered as
     // unknown.
     void forget_render(const std::string& render);
-    // The links holding a lease now.
-    std::set<std::string> links_holding() const;
+    // The links holding a lease now, each with how many of its leases are granted (a job
+    // of a render; a lease only reserved, being issued, is held but not yet counted):
+    // what WorkerRegistry counts a worker's cores by, in one pass.
+    std::unordered_map<std::string, size_t> leases_by_link() const;
     // The granted leases' labels by the link holding them (the workers list).
     std::map<std::string, std::vector<std::string>> labels_by_link() const;
     size_t size() const;

@@ -21,13 +21,21 @@ std::string host_of_peer(const std::string& peer) {
     return peer.substr(0, colon);
 }
 
+std::chrono::milliseconds working_window(std::chrono::milliseconds lease_time) {
+    return std::max<std::chrono::milliseconds>(lease_time, std::chrono::minutes(10));
+}
+
 WorkerRegistry::WorkerRegistry(WorkerLimits limits, RenderArchive& archive,
                                RenderEvents& events,
-                               std::function<std::set<std::string>()> holding_leases)
+                               std::function<LeasesByLink()> leases_by_link)
     : limits_(limits),
       archive_(archive),
       events_(events),
-      holding_leases_(std::move(holding_leases)) {}
+      leases_by_link_(std::move(leases_by_link)) {
+    // Merges are counted in windows of working_within (note_merged): never of 0 ms.
+    limits_.working_within =
+        std::max(limits_.working_within, std::chrono::milliseconds(1));
+}
 
 WorkerRegistry::WorkerEntry& WorkerRegistry::touch_worker(const std::string& name) {
     const auto [it, is_new] = workers_.try_emplace(name);
@@ -59,25 +67,37 @@ void WorkerRegistry::refresh_alive() {
     alive_dirty_ = false;
 }
 
-std::set<std::string> WorkerRegistry::names_holding_leases() const {
-    std::set<std::string> names;
-    for (const std::string& link : holding_leases_())
+std::unordered_map<std::string, size_t> WorkerRegistry::names_holding_leases() const {
+    std::unordered_map<std::string, size_t> names;
+    for (const auto& [link, granted] : leases_by_link_())
         if (const auto it = links_.find(link); it != links_.end())
-            names.insert(it->second.worker);
+            names[it->second.worker] += granted;
     return names;
 }
 
+uint32_t WorkerRegistry::merges_counted(const WorkerEntry& w, int64_t now_ms) const {
+    const int64_t window = now_ms / limits_.working_within.count();
+    if (w.merge_window == window) return w.merged_in_window + w.merged_window_before;
+    return w.merge_window + 1 == window ? w.merged_in_window : 0;
+}
+
 void WorkerRegistry::count_cores(int64_t now_ms) {
-    const std::set<std::string> holding = names_holding_leases();
-    // A lease period: a worker tracing jobs merges one far more often than that, and
-    // holds a lease while it traces, so every worker of an honest farm at work counts.
-    const int64_t within = limits_.working_within.count();
+    const std::unordered_map<std::string, size_t> leases = names_holding_leases();
+    // An honest worker holds about a lease a thread while it traces (and one leased ahead
+    // each), and merges at least a job a thread a round, so it counts all its threads
+    // through a round and for the working window after, idle between rounds or renders.
     std::unordered_map<std::string, size_t> by_address;
     for (auto& [name, w] : workers_) {
-        w.counted =
-            alive_.count(name) && (w.trusted || holding.count(name) ||
-                                   (w.merged_ms > 0 && now_ms - w.merged_ms <= within));
-        if (w.counted) by_address[w.address] += w.threads;
+        size_t shown = 0;
+        if (alive_.count(name)) {
+            const auto held = leases.find(name);
+            shown = w.trusted ? w.threads
+                              : std::min<size_t>(
+                                    w.threads, (held == leases.end() ? 0 : held->second) +
+                                                   merges_counted(w, now_ms));
+        }
+        w.counted = uint32_t(shown);
+        if (shown > 0) by_address[w.address] += shown;
     }
     // Several workers on one machine share its cores, and one machine states at most
     // kMaxWorkerThreads; a farm behind one NAT address past it has its rounds cut for
@@ -153,9 +173,8 @@ size_t WorkerRegistry::links() const {
 namespace {
 
 // The entry of `entries` heard from longest ago whose key is not in `holding`, or end().
-template <class Entries>
-typename Entries::iterator longest_silent(Entries& entries,
-                                          const std::set<std::string>& holding) {
+template <class Entries, class Holding>
+typename Entries::iterator longest_silent(Entries& entries, const Holding& holding) {
     auto oldest = entries.end();
     for (auto it = entries.begin(); it != entries.end(); ++it)
         if (!holding.count(it->first) &&
@@ -169,7 +188,7 @@ typename Entries::iterator longest_silent(Entries& entries,
 
 void WorkerRegistry::make_room_for_a_link() {
     if (links_.size() < limits_.max_links) return;
-    const auto oldest = longest_silent(links_, holding_leases_());
+    const auto oldest = longest_silent(links_, leases_by_link_());
     if (oldest == links_.end())
         throw TooManyWorkers("the coordinator has " + std::to_string(links_.size()) +
                              " worker sessions, each holding a lease; try again later");
@@ -188,7 +207,7 @@ void WorkerRegistry::forget_worker(const std::string& name) {
 
 void WorkerRegistry::make_room_for_a_worker(const std::string& name) {
     if (workers_.size() < limits_.max_workers || workers_.count(name)) return;
-    const std::set<std::string> holding = names_holding_leases();
+    const auto holding = names_holding_leases();
     const auto oldest = longest_silent(workers_, holding);
     if (oldest == workers_.end())
         throw TooManyWorkers("the coordinator knows " + std::to_string(workers_.size()) +
@@ -226,7 +245,7 @@ void WorkerRegistry::make_room_on_host(const std::string& name,
         it == workers_.end() || it->second.address != address)
         for (const auto& [worker, w] : workers_) names_here += w.address == address;
     if (names_here >= most) {
-        const std::set<std::string> holding = names_holding_leases();
+        const auto holding = names_holding_leases();
         auto oldest = workers_.end();
         for (auto it = workers_.begin(); it != workers_.end(); ++it)
             if (it->second.address == address && !holding.count(it->first) &&
@@ -240,7 +259,7 @@ void WorkerRegistry::make_room_on_host(const std::string& name,
     size_t links_here = 0;
     for (const auto& [token, link] : links_) links_here += link.identity == address;
     if (links_here < most) return;
-    const std::set<std::string> holding = holding_leases_();
+    const LeasesByLink holding = leases_by_link_();
     auto oldest = links_.end();
     for (auto it = links_.begin(); it != links_.end(); ++it)
         if (it->second.identity == address && !holding.count(it->first) &&
@@ -256,7 +275,7 @@ void WorkerRegistry::make_room_on_host(const std::string& name,
 
 void WorkerRegistry::forget_silent_workers(int64_t now_ms) {
     const int64_t after = limits_.forget_after.count();
-    const std::set<std::string> holding = holding_leases_();
+    const LeasesByLink holding = leases_by_link_();
     std::set<std::string> named;
     for (auto it = links_.begin(); it != links_.end();) {
         if (now_ms - it->second.last_seen_ms > after && !holding.count(it->first)) {
@@ -294,11 +313,15 @@ std::string WorkerRegistry::register_link(const std::string& name, uint32_t thre
     if (!trusted) make_room_on_host(name, identity);
     make_room_for_a_link();
     make_room_for_a_worker(name);
+    const bool is_new = !workers_.count(name);
     WorkerEntry& w = touch_worker(name);
+    // A Register flood of a known name changes no count: a recount (it allocates) on
+    // every Lease and Complete after each would be its cost to the farm.
+    if (is_new || w.threads != threads || w.address != identity || w.trusted != trusted)
+        cores_dirty_ = true;
     w.threads = threads;
     w.address = identity;
     w.trusted = trusted;
-    cores_dirty_ = true;
     set_alive(name, true);
     // A full disk must not keep workers out: the row is written again when it returns.
     archive_.record_worker(name, threads, w.last_seen_ms);
@@ -326,9 +349,16 @@ void WorkerRegistry::note_merged(const std::string& name, uint64_t samples,
     if (it == workers_.end()) return;
     WorkerEntry& w = it->second;
     w.samples += samples;
-    // It has shown it works: its threads count from the next round cut (alive_cores).
-    w.merged_ms = unix_millis_now();
-    if (!w.counted) cores_dirty_ = true;
+    // It has shown it works: another of its threads counts from the next round cut
+    // (alive_cores), up to all it states.
+    const int64_t window = unix_millis_now() / limits_.working_within.count();
+    if (window != w.merge_window) {
+        w.merged_window_before = w.merge_window + 1 == window ? w.merged_in_window : 0;
+        w.merged_in_window = 0;
+        w.merge_window = window;
+    }
+    w.merged_in_window = std::min(w.merged_in_window + 1, kMaxWorkerThreads);
+    if (w.counted < w.threads) cores_dirty_ = true;
     // A worker's own clock: a NaN or a near-zero time would poison the smoothed rate.
     if (std::isfinite(wall_seconds) && wall_seconds >= 1e-3) {
         // Per-thread rate of this job, times the worker's threads, smoothed.
@@ -373,8 +403,8 @@ bool WorkerRegistry::tick(int64_t now_ms, bool sweep_rows) {
         }
     }
     forget_silent_workers(now_ms);
-    // Workers whose last merge is now older than working_within stop counting, and
-    // those that took a lease since the last count start.
+    // Merges of a working window two windows ago stop counting, and leases taken or
+    // ended since the last count are counted.
     count_cores(now_ms);
     // Rows of workers silent as long, those of an earlier run of the coordinator included
     // (it remembers no worker across a restart).

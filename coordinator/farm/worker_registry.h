@@ -5,7 +5,7 @@
 // lost, forgets those silent for long, and bounds both maps (CoordinatorOptions).
 //
 // Its own lock: every public method takes it. While it is held the registry may ask the
-// LeaseTable which links hold leases (`holding_leases`), write the archive's queue and
+// LeaseTable which links hold leases (`leases_by_link`), write the archive's queue and
 // log events; never the other way round (docs/FARM.md, "Locks").
 #pragma once
 
@@ -43,6 +43,14 @@ std::string host_of_peer(const std::string& peer);
 // hundred. It is also the most cores one address counts for (alive_cores).
 inline constexpr uint32_t kMaxWorkerThreads = 1024;
 
+// How long a worker's merged jobs count toward its cores (WorkerLimits::working_within)
+// for a farm whose leases last `lease_time`: at least 10 minutes, whatever the lease
+// time. An honest worker idles between rounds for as long as a round's end takes (17-25 s
+// of denoising at 1080p), between renders, or behind a straggler: a window of one lease
+// time (5 s with --lease-seconds 5) dropped it to no core then, and the next round was
+// cut for almost no one (16 jobs), the round after only for the workers that took those.
+std::chrono::milliseconds working_window(std::chrono::milliseconds lease_time);
+
 struct WorkerLimits {
     std::chrono::milliseconds lost_after{10000};
     std::chrono::milliseconds forget_after{std::chrono::hours(1)};
@@ -50,12 +58,15 @@ struct WorkerLimits {
     size_t max_workers = 4096;
     // Workers (names) and links from one address (host_of_peer) at once: past either, a
     // Register from it drops its own longest-silent entry that holds no lease and is
-    // lost, or is refused (TooManyWorkers), so that one holder of the worker token can
-    // neither fill the registry nor push other addresses' workers out of it.
+    // lost, or is refused (TooManyWorkers), so that one address alone cannot fill the
+    // registry. Four addresses at their share can (4 x 1024 = max_workers), and so can
+    // one IPv6 holder with many addresses; past max_workers a new name drops the
+    // longest-silent name holding no lease, from whichever address
+    // (make_room_for_a_worker).
     size_t max_workers_per_host = 1024;
-    // A worker's threads count toward cutting while it holds a lease or merged a job this
-    // recently (the coordinator's lease time): see alive_cores.
-    std::chrono::milliseconds working_within{30000};
+    // A worker's merged jobs count toward its cores for between one and two of these
+    // (counted in windows this long): see alive_cores and working_window.
+    std::chrono::milliseconds working_within{std::chrono::minutes(10)};
 };
 
 class WorkerRegistry {
@@ -68,10 +79,11 @@ public:
         int64_t last_seen_ms = 0;
     };
 
-    // `holding_leases`: the links holding a lease now, which are never dropped to make
-    // room or for silence.
+    // The links holding a lease now (never dropped to make room or for silence), each
+    // with how many of its leases are granted (LeaseTable::leases_by_link).
+    using LeasesByLink = std::unordered_map<std::string, size_t>;
     WorkerRegistry(WorkerLimits limits, RenderArchive& archive, RenderEvents& events,
-                   std::function<std::set<std::string>()> holding_leases);
+                   std::function<LeasesByLink()> leases_by_link);
 
     // A new link for `name`, its worker touched and its row written; throws
     // TooManyWorkers when no room can be made.
@@ -112,16 +124,20 @@ public:
     // lock alone.
     std::shared_ptr<const std::set<std::string>> alive_identities();
     // The farm's live worker cores, for which rounds are cut (two jobs each,
-    // round_cutter.h): the threads of the alive workers that have shown they work (hold a
-    // lease now, or merged a job within working_within; the threads of workers in this
-    // process count always), at most kMaxWorkerThreads from one address. A name costs a
-    // holder of the worker token nothing and a heartbeat keeps it alive, so threads that
-    // idle names state counted as cores had one holder (4096 names x 1024 threads) cut
-    // every round of every render into the smallest tiles; counting only workers that
-    // take jobs ties the count to jobs actually traced, and the cap per address makes
-    // many names on one machine (or behind one NAT) one machine. Rebuilt when workers
-    // register, are lost or forgotten, when one starts counting (its first merge in a
-    // while), and at every tick.
+    // round_cutter.h): each alive worker counts as many of its stated threads as it has
+    // shown work for, the granted leases its links hold now plus the jobs it merged in
+    // the working window (working_within; the threads of workers in this process count
+    // always), and one address at most kMaxWorkerThreads. A name costs a holder of the
+    // worker token nothing and a heartbeat keeps it alive, so threads that idle names
+    // state counted as cores had one holder (4096 names x 1024 threads) cut every round
+    // of every render into the smallest tiles; and a name's whole statement counted for
+    // one lease renewed forever or one cheap merge a window. Counting jobs ties the count
+    // to jobs actually taken (an honest worker holds about a lease a thread while it
+    // traces, and merges more), and the cap per address makes many names on one machine
+    // (or behind one NAT) one machine. Rebuilt (O(workers + leases)) at every tick, and
+    // at the next read after workers are lost, forgotten, new, or register with other
+    // threads, address or trust, and after a merge of a worker not counting all its
+    // threads.
     size_t alive_cores();
 
     // Writes the workers' counts, marks the silent lost, forgets those silent for long
@@ -144,10 +160,13 @@ private:
         std::string host, version;  // describe: for the workers list only
         std::string address;        // the identity its last registration came from
         bool trusted = false;       // that registration was in this process
-        int64_t merged_ms = 0;      // when a job of it last merged (0: never)
-        bool counted = false;       // its threads are in alive_cores_ (count_cores)
-        uint32_t failures = 0;      // jobs it reported failed
-        uint32_t polling = 0;       // lease polls in progress (poll_began)
+        // Jobs it merged in the working window `merge_window` (now / working_within) and
+        // in the one before it, at most kMaxWorkerThreads each (merges_counted).
+        int64_t merge_window = -2;
+        uint32_t merged_in_window = 0, merged_window_before = 0;
+        uint32_t counted = 0;   // its cores in alive_cores_ (count_cores)
+        uint32_t failures = 0;  // jobs it reported failed
+        uint32_t polling = 0;   // lease polls in progress (poll_began)
         // last_seen_ms as the store last has it: refreshed now and then (tick), so that
         // a row silent for forget_after is a worker gone, not an idle one.
         int64_t stored_seen_ms = 0;
@@ -168,8 +187,11 @@ private:
     // with no link left.
     void forget_silent_workers(int64_t now_ms);
     void refresh_alive();
-    // The workers (names) with a link holding a lease now.
-    std::set<std::string> names_holding_leases() const;
+    // The workers (names) with a link holding a lease now, each with its granted leases.
+    std::unordered_map<std::string, size_t> names_holding_leases() const;
+    // The jobs `w` merged that count toward its cores at `now_ms`: those of this working
+    // window and of the one before.
+    uint32_t merges_counted(const WorkerEntry& w, int64_t now_ms) const;
     // Rebuilds alive_cores_ as of `now_ms`.
     void count_cores(int64_t now_ms);
 
@@ -177,7 +199,7 @@ private:
     WorkerLimits limits_;
     RenderArchive& archive_;
     RenderEvents& events_;
-    std::function<std::set<std::string>()> holding_leases_;
+    std::function<LeasesByLink()> leases_by_link_;
     std::unordered_map<std::string, Link> links_;  // by link token
     std::map<std::string, WorkerEntry> workers_;   // by name
     std::set<std::string> alive_;  // names in workers_ that registered and are not lost

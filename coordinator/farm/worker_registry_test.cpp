@@ -12,6 +12,7 @@
 
 #include "coordinator.h"
 #include "farm_test_results.h"
+#include "lease_table.h"
 #include "unix_millis.h"
 
 namespace aliquot {
@@ -27,16 +28,20 @@ protected:
                                                          [this] { return holding; });
         return *registry_;
     }
-    // Registers `name` from `address` ("ipv4:..."), its link holding a lease when `busy`.
+    // Registers `name` from `address` ("ipv4:..."), its link holding a lease a thread
+    // (a worker at work) when `busy`.
     std::string add(const std::string& name, uint32_t threads, const std::string& address,
                     bool busy) {
         std::string link = registry().register_link(name, threads, address, false);
-        if (busy) holding.insert(link);
+        if (busy) holding[link] = threads;
         return link;
+    }
+    void merge(const std::string& name, int jobs) {
+        for (int i = 0; i < jobs; ++i) registry().note_merged(name, 1000, 0.1);
     }
 
     WorkerLimits limits;
-    std::set<std::string> holding;  // the links holding a lease
+    WorkerRegistry::LeasesByLink holding;  // the links holding leases, and how many
 
 private:
     RenderArchive archive_{""};
@@ -47,8 +52,8 @@ private:
 // A worker registered and heard from, but taking no job, adds no core: one holder of the
 // worker token kept 4096 such names alive, each stating 1024 threads, and every round of
 // every render was cut into the smallest tiles. A worker counts from its first lease (at
-// the next count, every tick) or merge (at once) until a lease time after its last merge;
-// the embedded render's threads, in this process, count always.
+// the next count, every tick) or merge (at once) until two working windows after its
+// last merge; the embedded render's threads, in this process, count always.
 TEST_F(WorkerRegistryTest, ThreadsCountOnlyForWorkersThatShowTheyWork) {
     add("idle", 1024, "ipv4:10.0.0.1", false);
     EXPECT_EQ(registry().alive_cores(), 0u);
@@ -57,13 +62,75 @@ TEST_F(WorkerRegistryTest, ThreadsCountOnlyForWorkersThatShowTheyWork) {
     EXPECT_EQ(registry().alive_cores(), 8u);
     add("merging", 16, "ipv4:10.0.0.3", false);
     EXPECT_EQ(registry().alive_cores(), 8u);
-    registry().note_merged("merging", 1000, 0.1);
+    merge("merging", 16);
     EXPECT_EQ(registry().alive_cores(), 24u);
     registry().register_link("in-process", 4, "process:in-process", true);
     EXPECT_EQ(registry().alive_cores(), 28u);
-    // A lease time after its last merge, a worker holding no lease stops counting.
-    registry().tick(unix_millis_now() + limits.working_within.count() + 1000, false);
+    // Two working windows after its last merge, a worker holding no lease stops counting.
+    registry().tick(unix_millis_now() + 2 * limits.working_within.count() + 1000, false);
     EXPECT_EQ(registry().alive_cores(), 12u);
+}
+
+// An honest worker idle between rounds longer than a lease (a denoised round's end of
+// 17-25 s at 1080p with --lease-seconds 5, a straggler, a gap between renders) still
+// counts: the working window is at least 10 minutes whatever the lease time. With a
+// window of one lease time it counted no core after 5 s, and the next round was cut for
+// almost no one.
+TEST_F(WorkerRegistryTest, AWorkerIdleBetweenRoundsCountsWhateverTheLeaseTime) {
+    EXPECT_EQ(working_window(std::chrono::seconds(5)), std::chrono::minutes(10));
+    EXPECT_EQ(working_window(std::chrono::hours(1)), std::chrono::hours(1));
+    limits.working_within = working_window(std::chrono::seconds(5));
+    add("honest", 16, "ipv4:10.0.0.3", false);
+    merge("honest", 32);
+    registry().tick(unix_millis_now() + 25000, false);
+    EXPECT_EQ(registry().alive_cores(), 16u);
+}
+
+// A name counts no more of the threads it states than it has shown work for: the granted
+// leases its links hold now plus the jobs it merged in the working window. One lease
+// renewed forever, or one cheap merge a window, counted all 1024 threads of a name.
+TEST_F(WorkerRegistryTest, ANameCountsAsManyThreadsAsItHoldsLeasesAndMergedJobs) {
+    const std::string renewing = add("renewing", 1024, "ipv4:10.0.0.1", false);
+    holding[renewing] = 1;
+    add("merged-once", 1024, "ipv4:10.0.0.2", false);
+    merge("merged-once", 1);
+    registry().tick(unix_millis_now(), false);
+    EXPECT_EQ(registry().alive_cores(), 2u);
+    holding[renewing] = 3;
+    merge("renewing", 2);
+    merge("merged-once", 9);
+    registry().tick(unix_millis_now(), false);
+    EXPECT_EQ(registry().alive_cores(), 15u);
+}
+
+// A lease only reserved (being issued: it may come to no job) shows no work yet; one
+// granted does.
+TEST_F(WorkerRegistryTest, AReservedLeaseCountsNoCore) {
+    LeaseTable leases;
+    const std::string link = add("asking", 8, "ipv4:10.0.0.1", false);
+    const uint64_t id = leases.reserve(link);
+    holding = leases.leases_by_link();
+    EXPECT_EQ(holding.count(link), 1u);  // held: its link is not dropped meanwhile
+    registry().tick(unix_millis_now(), false);
+    EXPECT_EQ(registry().alive_cores(), 0u);
+    leases.grant(id, "render", "render/0");
+    holding = leases.leases_by_link();
+    registry().tick(unix_millis_now(), false);
+    EXPECT_EQ(registry().alive_cores(), 1u);
+}
+
+// A Register of a known name with its threads, address and trust as they were changes no
+// count, so it recounts nothing (a recount allocates; a Register flood forced one on
+// every Lease and Complete): a lease taken since is counted at the next tick, as without
+// it. A Register that changes the threads recounts at once.
+TEST_F(WorkerRegistryTest, ARegisterAsBeforeRecountsNothing) {
+    const std::string link = add("w", 8, "ipv4:10.0.0.1", false);
+    EXPECT_EQ(registry().alive_cores(), 0u);
+    holding[link] = 8;
+    add("w", 8, "ipv4:10.0.0.1", false);
+    EXPECT_EQ(registry().alive_cores(), 0u);
+    add("w", 4, "ipv4:10.0.0.1", false);
+    EXPECT_EQ(registry().alive_cores(), 4u);
 }
 
 // Several workers on one machine share its cores, so one address counts at most
@@ -157,13 +224,19 @@ TEST_F(WorkerCoresTest, IdleNamesFromOneAddressLeaveTheCutOfOneHonestWorker) {
     EXPECT_EQ(honest_alone, 28u);
 }
 
-// A worker stating 1024 threads that never takes a job leaves the cut as it was; once it
-// has merged a job, the next render is cut for its threads.
+// A worker stating 1024 threads that never takes a job leaves the cut as it was; one
+// merge counts one of its threads, not 1024; once it has merged 84 jobs, the next render
+// is cut for them (88 cores with the honest worker's 4: 256 jobs).
 TEST_F(WorkerCoresTest, AWorkerCountsOnceItTakesJobs) {
     Coordinator c(options);
     const std::string big = c.register_worker("big", 1024, "ipv4:10.0.0.2:5").session;
     const std::string honest = c.register_worker("honest", 4, "ipv4:10.0.0.1:5").session;
     EXPECT_EQ(jobs_of_next_render(c, honest), 28u);
+    const auto merge_all = [&] {
+        while (const auto grant = c.lease(big, std::chrono::milliseconds(0)))
+            ASSERT_EQ(c.complete(big, grant->lease_id, zero_result(*grant)).status,
+                      CompleteStatus::Merged);
+    };
     c.submit(spec);
     const auto grant = c.lease(big, std::chrono::milliseconds(0));
     ASSERT_TRUE(grant);
@@ -171,6 +244,9 @@ TEST_F(WorkerCoresTest, AWorkerCountsOnceItTakesJobs) {
               CompleteStatus::Merged);
     while (c.lease(honest, std::chrono::milliseconds(0))) {
     }
+    EXPECT_EQ(jobs_of_next_render(c, honest), 28u);
+    for (int i = 0; i < 3; ++i) c.submit(spec);
+    merge_all();
     EXPECT_EQ(jobs_of_next_render(c, honest), 256u);
 }
 
