@@ -335,8 +335,11 @@ std::string WorkerRegistry::register_link(const std::string& name, uint32_t thre
     std::string link;
     do link = random_hex(16);
     while (links_.count(link));
+    // The alive identities change only with a new one (the worker is alive now; one
+    // that just came back has marked them already): a Register flood as before rebuilds
+    // (allocates) nothing on the Leases and Completes after it.
+    if (!alive_snapshot_->count(identity)) alive_dirty_ = true;
     links_.emplace(link, Link{name, std::move(identity), trusted, unix_millis_now()});
-    alive_dirty_ = true;
     return link;
 }
 

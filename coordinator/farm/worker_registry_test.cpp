@@ -131,6 +131,12 @@ TEST_F(WorkerRegistryTest, ARegisterAsBeforeRecountsNothing) {
     EXPECT_EQ(registry().alive_cores(), 0u);
     add("w", 4, "ipv4:10.0.0.1", false);
     EXPECT_EQ(registry().alive_cores(), 4u);
+    // Nor are the identities jobs may go to rebuilt for it.
+    const auto identities = registry().alive_identities();
+    add("w", 4, "ipv4:10.0.0.1", false);
+    EXPECT_EQ(registry().alive_identities(), identities);
+    add("w", 4, "ipv4:10.0.0.2", false);
+    EXPECT_EQ(registry().alive_identities()->count("ipv4:10.0.0.2"), 1u);
 }
 
 // Several workers on one machine share its cores, so one address counts at most
