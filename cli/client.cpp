@@ -3,6 +3,7 @@
 #include <grpc/support/log.h>
 
 #include <cctype>
+#include <chrono>
 #include <cstdio>
 #include <mutex>
 #include <thread>
@@ -189,26 +190,43 @@ void fetch_image(ClientConnection& c, const std::string& id, const std::string& 
     v1::FetchImageRequest req;
     req.set_id(id);
     req.set_aovs(aovs);
-    auto ctx = c.context(300);
-    auto reader = c.stub().FetchImage(ctx.get(), req);
     const std::string tmp = path + ".part";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw CommandError("--out: cannot write " + path);
-        v1::FileChunk chunk;
-        while (reader->Read(&chunk))
-            out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
-        out.close();
-        if (!out) {  // a full disk: never rename a truncated file into place
-            reader->Finish();
-            std::filesystem::remove(tmp);
-            throw CommandError("--out: cannot write " + path);
+    // The coordinator refuses a fetch past its places (RESOURCE_EXHAUSTED, before any
+    // byte): a render just done is served from memory until its file is written, one
+    // such fetch an address at a time, so a client fetching several renders at once
+    // waits its turn rather than failing. Bounded: ~2 minutes of refusals.
+    auto pause = std::chrono::milliseconds(50);
+    for (int refusals = 0;; ++refusals) {
+        auto ctx = c.context(300);
+        auto reader = c.stub().FetchImage(ctx.get(), req);
+        size_t received = 0;
+        {
+            std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+            if (!out) throw CommandError("--out: cannot write " + path);
+            v1::FileChunk chunk;
+            while (reader->Read(&chunk)) {
+                out.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+                received += chunk.data().size();
+            }
+            out.close();
+            if (!out) {  // a full disk: never rename a truncated file into place
+                reader->Finish();
+                std::filesystem::remove(tmp);
+                throw CommandError("--out: cannot write " + path);
+            }
         }
+        const grpc::Status status = reader->Finish();
+        if (!status.ok()) std::filesystem::remove(tmp);
+        if (status.error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED &&
+            received == 0 && refusals < 60) {
+            std::this_thread::sleep_for(pause);
+            pause = std::min(pause * 2, std::chrono::milliseconds(2000));
+            continue;
+        }
+        c.check(status, "fetch " + id);
+        std::filesystem::rename(tmp, path);
+        return;
     }
-    const grpc::Status status = reader->Finish();
-    if (!status.ok()) std::filesystem::remove(tmp);
-    c.check(status, "fetch " + id);
-    std::filesystem::rename(tmp, path);
 }
 
 RenderInfo follow(ClientConnection& c, const std::string& id,
