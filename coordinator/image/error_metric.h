@@ -27,7 +27,8 @@ struct ErrorMetrics {
     // Pixels are not taken as independent: a denoiser spreads each pixel's error over its
     // neighbours and a caustic's fireflies cluster, and both stay inside a block. Blocks
     // are taken as independent (a kernel wider than a block still makes it run low), and
-    // from K blocks it has K - 1 degrees of freedom: with few blocks it is itself noisy.
+    // from K blocks it has K - 1 degrees of freedom: with few blocks it is itself noisy,
+    // so where the per-pixel error (pixels taken as independent) is larger, that is it.
     // The reference's own noise is in it too. NaN with mean_bias, and for a single block.
     double mean_bias_se = 0;
 };
