@@ -59,6 +59,13 @@ SyntheticImage scene(uint32_t w, uint32_t h) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    if (argc > 1 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
+        std::puts(
+            "usage: round_digest [WxH] [method,...] [threads] [spp] [plan_ahead]\n"
+            "prints a line a round of each method; two builds printing the same lines\n"
+            "planned the same renders, bit for bit");
+        return 0;
+    }
     const Resolution size = parse_resolution(argc > 1 ? argv[1] : "480x270");
     std::vector<std::string> methods;
     std::stringstream list(

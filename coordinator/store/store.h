@@ -115,7 +115,8 @@ struct StudyResult {
     std::optional<double> denoised_mean_abs, denoised_rmse, denoised_relative_mse;
     // The image's mean bias against the reference and its standard error (fractions, as
     // ErrorMetrics has them), raw and denoised; empty for rows recorded before
-    // migration 7 and for a black reference.
+    // migration 7, for a black reference or an image holding NaN or inf, and (the
+    // standard error alone) for an image too small to cut into blocks.
     std::optional<double> mean_bias, mean_bias_se, denoised_mean_bias,
         denoised_mean_bias_se;
     std::string outcome_json;
