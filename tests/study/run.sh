@@ -144,8 +144,10 @@ rendered=$(sed -n 's/.*(\([0-9]*\) rendered now.*/\1/p' "$tmp/slow2.log")
 check "the resumed run rendered only the rest ($rendered of $((8 - ndone)))" "[[ '$rendered' -eq $((8 - ndone)) ]]"
 # A render interrupted mid-way is resumed from its checkpoint, not started again: at most
 # one render record beyond one per key (a kill between creating a render and recording it).
+# That one the embedded coordinator resumes as it starts, and a 32x32 render may end done
+# before the study cancels it as stale: 8 or 9 done, never more records than 9.
 check "no render was started twice" \
-    "[[ \$(sql '$sdb' \"SELECT COUNT(*) FROM renders WHERE state = 'done'\") -eq 8 && \$(sql '$sdb' 'SELECT COUNT(*) FROM renders') -le 9 ]]"
+    "[[ \$(sql '$sdb' \"SELECT COUNT(*) FROM renders WHERE state = 'done'\") -ge 8 && \$(sql '$sdb' 'SELECT COUNT(*) FROM renders') -le 9 ]]"
 
 # --- the same tiny study on a farm
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
