@@ -1,6 +1,6 @@
 // RunStore: the coordinator's durable record of scenes, renders, rounds and workers, kept
-// in one SQLite database (DIR/aliquot.db, WAL). No SQL lives outside store.cpp; see
-// docs/STORE.md.
+// in one SQLite database (DIR/aliquot.db, WAL). No SQL lives outside this room's
+// store*.cpp files (one concern each; store_internal.h lists them); see docs/STORE.md.
 #pragma once
 
 #include <cstdint>
