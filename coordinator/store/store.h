@@ -69,6 +69,9 @@ struct RoundRecord {
     double seconds = 0;         // wall time since the render started
     double error_estimate = 0;  // the strategy's own estimate (even/odd halves)
     std::optional<double> error_vs_reference;
+    // The image's mean bias against the reference and its standard error (a fraction,
+    // error_metric.h); absent without a reference or where there is none.
+    std::optional<double> mean_bias, mean_bias_se;
     std::string buckets_json;  // per-bucket state, when the strategy has buckets
     int64_t created_at = 0;
 };

@@ -148,6 +148,14 @@ ALTER TABLE study_results ADD COLUMN mean_bias_se REAL;
 ALTER TABLE study_results ADD COLUMN denoised_mean_bias REAL;
 ALTER TABLE study_results ADD COLUMN denoised_mean_bias_se REAL;
 )sql",
+    // 8: each round's mean bias against the render's reference and its standard error,
+    // beside its E: E falls as a biased method converges while its image stays too dark.
+    // NULL without a reference, where there is no bias (a black reference), and for the
+    // rounds of earlier coordinators, which did not measure it.
+    R"sql(
+ALTER TABLE rounds ADD COLUMN mean_bias REAL;
+ALTER TABLE rounds ADD COLUMN mean_bias_se REAL;
+)sql",
 };
 
 constexpr int kLatestVersion = int(sizeof(kMigrations) / sizeof(kMigrations[0]));

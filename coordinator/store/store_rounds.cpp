@@ -13,14 +13,14 @@ namespace {
 
 const std::string kRoundColumns =
     "render_id, idx, samples_in_round, samples_total, seconds, error_estimate, "
-    "error_vs_reference, buckets_json, created_at";
+    "error_vs_reference, buckets_json, created_at, mean_bias, mean_bias_se";
 
 }  // namespace
 
 bool RunStore::add_round(const RoundRecord& r) {
     std::lock_guard lock(mutex_);
     static const std::string sql = "INSERT INTO rounds (" + kRoundColumns +
-                                   ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)"
+                                   ") VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"
                                    " ON CONFLICT (render_id, idx) DO NOTHING";
     Query q =
         query(sql, "add round " + std::to_string(r.idx) + " of render " + r.render_id);
@@ -29,6 +29,9 @@ bool RunStore::add_round(const RoundRecord& r) {
     if (!std::isfinite(r.error_estimate)) q.refuse("its error estimate is not finite");
     if (r.error_vs_reference && !std::isfinite(*r.error_vs_reference))
         q.refuse("its error against the reference is not finite");
+    if ((r.mean_bias && !std::isfinite(*r.mean_bias)) ||
+        (r.mean_bias_se && !std::isfinite(*r.mean_bias_se)))
+        q.refuse("its mean bias is not finite");
     const int inserted = q.bind(r.render_id)
                              .bind(r.idx)
                              .bind(r.samples_in_round)
@@ -38,6 +41,8 @@ bool RunStore::add_round(const RoundRecord& r) {
                              .bind(r.error_vs_reference)
                              .bind(or_null(r.buckets_json))
                              .bind(r.created_at)
+                             .bind(r.mean_bias)
+                             .bind(r.mean_bias_se)
                              .run();
     if (inserted) {
         // The render's progress is its last recorded round's: kept with the round, not
@@ -75,6 +80,8 @@ RoundRecord RunStore::round_from_row(Query& q) {
     r.error_vs_reference = q.maybe_real(6);
     r.buckets_json = q.text(7);
     r.created_at = q.int64(8);
+    r.mean_bias = q.maybe_real(9);
+    r.mean_bias_se = q.maybe_real(10);
     return r;
 }
 
