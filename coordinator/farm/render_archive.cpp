@@ -63,6 +63,8 @@ RoundSummary summary_of(const RoundRecord& rec) {
     r.seconds = rec.seconds;
     r.error_estimate = rec.error_estimate;
     r.error_vs_reference = rec.error_vs_reference.value_or(-1);
+    r.mean_bias = rec.mean_bias;
+    r.mean_bias_se = rec.mean_bias_se;
     return r;
 }
 
@@ -266,6 +268,8 @@ void RenderArchive::record_round(RenderSlot& slot, const RoundSummary& round) {
         rec.error_estimate = round.error_estimate;
         if (round.error_vs_reference >= 0)
             rec.error_vs_reference = round.error_vs_reference;
+        rec.mean_bias = round.mean_bias;
+        rec.mean_bias_se = round.mean_bias_se;
         // Buckets are stored when their layout changes, not every round: Dammertz
         // runs thousands of rounds over hundreds of buckets, and the database would
         // grow by megabytes a render. A round without buckets_json keeps the previous
@@ -459,6 +463,8 @@ std::optional<RenderInfo> RenderArchive::stored_info(const std::string& id) {
         info.seconds = last->seconds;
         info.error_estimate = last->error_estimate;
         info.error_vs_reference = last->error_vs_reference.value_or(-1);
+        info.mean_bias = last->mean_bias;
+        info.mean_bias_se = last->mean_bias_se;
     }
     info.samples_per_second =
         info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;

@@ -28,6 +28,8 @@ RenderInfo info_of(const RenderSession& s, int32_t priority) {
         info.seconds > 0 ? double(info.samples_done) / info.seconds : 0;
     info.error_estimate = s.error_estimate();
     info.error_vs_reference = s.error_vs_reference();
+    info.mean_bias = s.last_round().mean_bias;
+    info.mean_bias_se = s.last_round().mean_bias_se;
     info.created_ms = s.created_ms();
     info.outcome_json = s.strategy().outcome().dump();
     return info;

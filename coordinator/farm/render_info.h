@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,8 @@ struct RenderInfo {
     int32_t priority = 0;
     double seconds = 0, samples_per_second = 0;
     double error_estimate = -1, error_vs_reference = -1;
+    // The last round's mean bias against the reference and its SE (RoundSummary).
+    std::optional<double> mean_bias, mean_bias_se;
     int64_t created_ms = 0, finished_ms = 0;
     std::string name;  // RenderSpec::name
     // While the render is Queued (no job leased yet), its place in the queue: 1 is

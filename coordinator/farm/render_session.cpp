@@ -324,9 +324,12 @@ void RenderSession::end_rounds(const std::set<std::string>& alive,
             summary.samples_total = merged_.total_samples();
             summary.seconds = seconds();
             summary.error_estimate = estimate_mean_abs_error(merged_);
-            if (spec_.reference)
-                summary.error_vs_reference =
-                    compare_images(merged_.image(), *spec_.reference).mean_abs;
+            if (spec_.reference) {
+                const ErrorMetrics m = compare_images(merged_.image(), *spec_.reference);
+                summary.error_vs_reference = m.mean_abs;
+                if (std::isfinite(m.mean_bias)) summary.mean_bias = m.mean_bias;
+                if (std::isfinite(m.mean_bias_se)) summary.mean_bias_se = m.mean_bias_se;
+            }
             last_round_ = summary;
             if (on_round) on_round(*this, summary);
             doing = "plan";

@@ -35,6 +35,11 @@ struct RoundSummary {
     double seconds = 0;              // wall time since the render started
     double error_estimate = -1;      // see error_estimate.h
     double error_vs_reference = -1;  // the seed's E against the reference, if any
+    // The image's mean bias against the reference and its standard error, fractions
+    // (error_metric.h): E falls as a biased method converges, its image still too dark.
+    // Absent without a reference, and where there is none (a black reference, an image
+    // holding NaN or inf, a single block for the SE).
+    std::optional<double> mean_bias, mean_bias_se;
 };
 
 class RenderSession {
@@ -187,6 +192,7 @@ public:
     double seconds() const;
     double error_estimate() const { return last_round_.error_estimate; }
     double error_vs_reference() const { return last_round_.error_vs_reference; }
+    const RoundSummary& last_round() const { return last_round_; }
     int64_t created_ms() const { return created_ms_; }
 
     // Called after a round is fully merged, before the next is planned: the moment a
