@@ -265,6 +265,8 @@ public:
             out->set_seconds(r.seconds);
             out->set_error_estimate(r.error_estimate);
             out->set_error_vs_reference(r.error_vs_reference);
+            if (r.mean_bias) out->set_mean_bias(*r.mean_bias);
+            if (r.mean_bias_se) out->set_mean_bias_se(*r.mean_bias_se);
         }
         return Status::OK;
     }

@@ -95,9 +95,9 @@ uint64_t whole_number(const json& v, const std::string& field, uint64_t top) {
 
 }  // namespace
 
-const char* const kRoundColumns[6] = {"index",          "samples_in_round",
-                                      "samples_total",  "seconds",
-                                      "error_estimate", "error_vs_reference"};
+const char* const kRoundColumns[8] = {
+    "index",          "samples_in_round",   "samples_total", "seconds",
+    "error_estimate", "error_vs_reference", "mean_bias",     "mean_bias_se"};
 
 json round_json(const RoundSummary& r) {
     const json row = round_row(r);
@@ -109,7 +109,8 @@ json round_json(const RoundSummary& r) {
 json round_row(const RoundSummary& r) {
     return json::array({r.index, r.samples_in_round, r.samples_total,
                         short_number(r.seconds), measured(r.error_estimate),
-                        measured(r.error_vs_reference)});
+                        measured(r.error_vs_reference), measured(r.mean_bias),
+                        measured(r.mean_bias_se)});
 }
 
 json worker_json(const WorkerStatus& w) {

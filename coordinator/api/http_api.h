@@ -34,9 +34,9 @@ private:
 
 nlohmann::json round_json(const RoundSummary& round);
 // The same as a row [index, samples_in_round, samples_total, seconds, error_estimate,
-// error_vs_reference]: a render may have thousands of rounds.
+// error_vs_reference, mean_bias, mean_bias_se]: a render may have thousands of rounds.
 nlohmann::json round_row(const RoundSummary& round);
-extern const char* const kRoundColumns[6];
+extern const char* const kRoundColumns[8];
 nlohmann::json worker_json(const WorkerStatus& worker);
 // Buckets as [x, y, width, height, error, converged] rows.
 nlohmann::json buckets_json(const std::vector<Bucket>& buckets);

@@ -81,6 +81,8 @@ RenderInfo a_render() {
     i.state = RenderState::Failed;
     i.error = "why";
     i.finished_ms = 2;
+    i.mean_bias = -0.05;  // optional in the proto: printed only when present
+    i.mean_bias_se = 0.001;
     return i;
 }
 
@@ -107,6 +109,8 @@ TEST(JsonVocabulary, WorkersAndRoundsHaveTheSameFieldsEverywhere) {
     EXPECT_EQ(keys(proto_json(worker)), keys(http_api::worker_json(from_proto(worker))));
 
     v1::RoundInfo round;
+    round.set_mean_bias(-0.05);  // optional: printed only when present
+    round.set_mean_bias_se(0.001);
     std::set<std::string> columns(std::begin(http_api::kRoundColumns),
                                   std::end(http_api::kRoundColumns));
     EXPECT_EQ(keys(proto_json(round)), columns);

@@ -40,6 +40,10 @@ json measured(double v) {
     return (v >= 0 && std::isfinite(v)) ? json(short_number(v)) : json(nullptr);
 }
 
+json measured(const std::optional<double>& v) {
+    return (v && std::isfinite(*v)) ? json(short_number(*v)) : json(nullptr);
+}
+
 BucketProgress bucket_progress(const std::vector<Bucket>& buckets, uint32_t width,
                                uint32_t height) {
     BucketProgress p;
@@ -74,6 +78,8 @@ json render_summary(const RenderInfo& info,
               {"samples_per_second", short_number(info.samples_per_second)},
               {"error_estimate", measured(info.error_estimate)},
               {"error_vs_reference", measured(info.error_vs_reference)},
+              {"mean_bias", measured(info.mean_bias)},
+              {"mean_bias_se", measured(info.mean_bias_se)},
               {"created_ms", info.created_ms},
               {"progress", progress_of(info, buckets)}};
     if (!info.error.empty()) j["error"] = info.error;

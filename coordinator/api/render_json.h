@@ -38,5 +38,7 @@ nlohmann::json event_json(const RenderEvent& event);
 double short_number(double v);
 // -1 is how the coordinator says "not measured"; JSON says null.
 nlohmann::json measured(double v);
+// A signed measure (a bias): null when absent or not finite, never a JSON NaN.
+nlohmann::json measured(const std::optional<double>& v);
 
 }  // namespace aliquot

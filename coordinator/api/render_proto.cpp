@@ -61,6 +61,8 @@ void to_proto(const RenderInfo& i, v1::RenderInfo& out) {
     out.set_priority(i.priority);
     out.set_name(i.name);
     out.set_queue_position(i.queue_position);
+    if (i.mean_bias) out.set_mean_bias(*i.mean_bias);
+    if (i.mean_bias_se) out.set_mean_bias_se(*i.mean_bias_se);
 }
 
 RenderInfo from_proto(const v1::RenderInfo& in) {
@@ -88,6 +90,8 @@ RenderInfo from_proto(const v1::RenderInfo& in) {
     i.rays = in.rays();
     i.name = in.name();
     i.queue_position = in.queue_position();
+    if (in.has_mean_bias()) i.mean_bias = in.mean_bias();
+    if (in.has_mean_bias_se()) i.mean_bias_se = in.mean_bias_se();
     return i;
 }
 
