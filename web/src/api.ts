@@ -18,6 +18,10 @@ export interface RenderSummary {
   samples_per_second: number;
   error_estimate: number | null;
   error_vs_reference: number | null;
+  /** The last round's mean bias against the reference (a fraction) and its SE; null
+   * without a reference or a bias, absent from a coordinator older than them. */
+  mean_bias?: number | null;
+  mean_bias_se?: number | null;
   created_ms: number;
   finished_ms?: number;
   progress: number;
@@ -52,12 +56,24 @@ export interface RoundRow {
   seconds: number;
   error_estimate: number | null;
   error_vs_reference: number | null;
+  mean_bias: number | null;
+  mean_bias_se: number | null;
+}
+
+type RoundCells = [number, number, number, number, number | null, number | null, (number | null)?, (number | null)?];
+
+/** A row of GET /api/renders/{id}/rounds; an older coordinator's rows end before the bias. */
+export function roundFromRow(row: RoundCells): RoundRow {
+  const [index, samples_in_round, samples_total, seconds, error_estimate, error_vs_reference] = row;
+  const mean_bias = row[6] ?? null;
+  const mean_bias_se = row[7] ?? null;
+  return { index, samples_in_round, samples_total, seconds, error_estimate, error_vs_reference, mean_bias, mean_bias_se };
 }
 
 /** GET /api/renders/{id}/rounds: rows in the order of `columns`. */
 interface RoundPage {
   columns: string[];
-  rows: [number, number, number, number, number | null, number | null][];
+  rows: RoundCells[];
   count: number;
   since: number;
   next: number | null;
@@ -241,10 +257,7 @@ export const api = {
     let count = 0;
     while (next !== null) {
       const page: RoundPage = await getJSON<RoundPage>(`/api/renders/${enc(id)}/rounds?since=${next}`);
-      for (const r of page.rows) {
-        const [index, samples_in_round, samples_total, seconds, error_estimate, error_vs_reference] = r;
-        out.push({ index, samples_in_round, samples_total, seconds, error_estimate, error_vs_reference });
-      }
+      for (const r of page.rows) out.push(roundFromRow(r));
       count = page.count;
       next = page.next;
     }

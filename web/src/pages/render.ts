@@ -5,6 +5,7 @@ import { api, ApiError, type Buckets, type MethodInfo, type PixelMap, type Rende
 import { pilotRounds, pilotSamples } from "../axes";
 import { ErrorChart, PALETTE, type ChartView } from "../chart";
 import { colorize, cssColor, decodeBase64, ERROR_MAP, SPP_MAP } from "../colormap";
+import { biasBeyondNoise, biasText } from "../bias";
 import { append, clear, h } from "../dom";
 import { etaSeconds, etaText } from "../eta";
 import { eventLines } from "../events";
@@ -314,6 +315,7 @@ export class RenderPage implements Page {
         stat("rounds", "rounds"),
         stat("error", "error estimate"),
         stat("reference", "error vs reference"),
+        stat("bias", "mean bias vs reference"),
         stat("time", "time"),
         stat("rays", "rays"),
       ),
@@ -402,9 +404,22 @@ export class RenderPage implements Page {
       ["rays", fmt.count(r.rays ?? 0)],
     ];
     for (const [key, value] of stats) setText(q(`dd[data-stat="${key}"]`), value);
+    this.showBias(q(`dd[data-stat="bias"]`), r);
     setText(q("p.params"), paramSummary(findMethod(this.methods, r.method), r.strategy));
     setText(q("p.error"), r.error ?? "");
     setText(q("p.outcome"), outcomeText(r.outcome));
+  }
+
+  // Beside E, the last round's mean bias ± its SE, marked when beyond 3 SE: E falls as a
+  // biased method converges while its image stays too dark. Shown only with a bias (a
+  // reference, not black), so a render without one keeps its header as it was.
+  private showBias(dd: HTMLElement, r: RenderDetail): void {
+    const known = r.mean_bias !== null && r.mean_bias !== undefined;
+    dd.parentElement!.hidden = !known;
+    setText(dd, biasText(r.mean_bias, r.mean_bias_se));
+    const beyond = biasBeyondNoise(r.mean_bias, r.mean_bias_se);
+    dd.classList.toggle("biased", beyond);
+    dd.title = beyond ? "beyond 3 standard errors: a bias the image's noise does not explain" : "";
   }
 
   private showRounds(): void {

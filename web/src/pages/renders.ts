@@ -1,6 +1,7 @@
 // Renders: every render with its thumbnail, progress, ETA and error, sorted and filtered
 // as the address says; a form to submit one (or resubmit one with changes); cancel buttons.
 import { api, ApiError, type MethodInfo, type RenderDetail, type RenderSummary, type SceneList } from "../api";
+import { biasText } from "../bias";
 import { clear, h } from "../dom";
 import { etaText } from "../eta";
 import * as fmt from "../format";
@@ -399,6 +400,8 @@ export class RendersPage implements Page {
     setText(cell("rate"), fmt.count(r.samples_per_second));
     setText(cell("error"), fmt.error(r.error_estimate));
     setText(cell("reference"), fmt.error(r.error_vs_reference));
+    // The mean bias where there is one, on hover: the list keeps its columns.
+    cell("reference").title = r.mean_bias === null || r.mean_bias === undefined ? "" : `mean bias ${biasText(r.mean_bias, r.mean_bias_se)}`;
     setText(cell("rounds"), String(r.rounds));
     setText(cell("time"), fmt.seconds(r.seconds));
     const cancel = row.querySelector<HTMLButtonElement>("button.cancel")!;
