@@ -4,11 +4,13 @@
 
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <mutex>
 #include <thread>
 
 #include "commands.h"
+#include "error_metric.h"
 #include "render_proto.h"
 
 namespace aliquot::cli {
@@ -172,6 +174,13 @@ std::string describe(const RenderInfo& i) {
     std::string s = line;
     if (i.error_vs_reference >= 0)
         s += "  E(ref)=" + std::to_string(i.error_vs_reference);
+    if (i.mean_bias) {  // as `aliquot compare` says it: E hides an image too dark
+        ErrorMetrics m;
+        m.mean_abs = i.error_vs_reference;
+        m.mean_bias = *i.mean_bias;
+        m.mean_bias_se = i.mean_bias_se.value_or(std::nan(""));
+        s += "  bias " + mean_bias_text(m);
+    }
     if (i.priority != 0) s += "  priority " + std::to_string(i.priority);
     if (!i.name.empty()) s += "  name: " + i.name;  // printable: the coordinator checks
     if (!i.error.empty()) s += "  error: " + i.error;
