@@ -169,7 +169,8 @@ public:
     // Inserts a new render; throws if the id exists or the scene is unknown.
     void create_render(const RenderRecord& render);
     // Sets the state and error (empty: none). Running stamps started_at once; a terminal
-    // state stamps finished_at; a non-terminal one clears it. The coordinator owns which
+    // state stamps finished_at; a non-terminal one clears it, but never replaces a
+    // terminal one (a late "running" after a cancel). The coordinator owns which other
     // transitions are allowed. Throws if the render is unknown.
     void update_render_state(const std::string& id, RenderState state,
                              const std::string& error, int64_t now_ms);

@@ -133,10 +133,15 @@ bool RunStore::reference_in_use(const std::string& path) {
 void RunStore::update_render_state(const std::string& id, RenderState state,
                                    const std::string& error, int64_t now_ms) {
     std::lock_guard lock(mutex_);
+    // A state that is not an end never overwrites one: the records are written in order,
+    // but a render's start is noted after its lock is let go, so a cancel in that gap
+    // queues its end first, and a late "running" would have a restart resume a render its
+    // client cancelled.
     Query q = query(
         "UPDATE renders SET state = ?, error = ?,"
         " started_at = CASE WHEN ? THEN COALESCE(started_at, ?) ELSE started_at END,"
-        " finished_at = ? WHERE id = ?",
+        " finished_at = ? WHERE id = ?"
+        " AND NOT (? AND state IN ('done', 'cancelled', 'failed'))",
         "set render " + id + " " + std::string(to_string(state)));
     q.bind(to_string(state))
         .bind(or_null(error))
@@ -146,7 +151,9 @@ void RunStore::update_render_state(const std::string& id, RenderState state,
         q.bind(now_ms);
     else
         q.bind(std::nullopt);
-    if (q.bind(id).run() == 0) q.refuse("no such render");
+    if (q.bind(id).bind(!is_terminal(state)).run() > 0) return;
+    Query known = query("SELECT 1 FROM renders WHERE id = ?", "look for render " + id);
+    if (!known.bind(id).step()) q.refuse("no such render");
 }
 
 void RunStore::update_render_progress(const std::string& id, int64_t samples_done,

@@ -253,6 +253,23 @@ TEST_F(RunStoreTest, CountsRendersByState) {
     EXPECT_EQ(store.count_renders_by_state(), want);
 }
 
+// The TSan run of issue 33's review: a render's start is noted after its lock is let go,
+// so a cancel in that gap records its end first; the late "running" must not undo it, or
+// a restart would resume a render its client cancelled.
+TEST_F(RunStoreTest, ALateRunningNeverUndoesAnEnd) {
+    RunStore store(dir);
+    seed(store);
+    store.update_render_state("r-1", RenderState::Cancelled, "", 20);
+    store.update_render_state("r-1", RenderState::Running, "", 30);
+    const auto r = store.get_render("r-1");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->state, RenderState::Cancelled);
+    EXPECT_EQ(r->finished_at, 20);
+    EXPECT_FALSE(r->started_at);
+    EXPECT_THROW(store.update_render_state("r-x", RenderState::Running, "", 40),
+                 StoreError);
+}
+
 TEST_F(RunStoreTest, RenderLifecycleStampsTimes) {
     RunStore store(dir);
     seed(store);
