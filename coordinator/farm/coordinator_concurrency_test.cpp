@@ -138,11 +138,20 @@ TEST_F(CoordinatorLocks, ManyThreadsAcrossRendersEndEachAsOneWorkerAloneWould) {
             }
         });
     threads.emplace_back([&] {
-        for (const std::string& id : cancelled) {
-            // Once a job of it has been leased (queued until then), or the others ended.
-            while (c.info(id)->state == RenderState::Queued && running())
-                std::this_thread::sleep_for(milliseconds(1));
-            c.cancel(id);
+        // Each once a job of it has been leased (queued until then), or the others ended.
+        // All watched at once: with made-up results a render of a thousand jobs can end
+        // in ~50 ms, and waiting on them one by one let a later one end Done before its
+        // turn (2 runs in 30).
+        std::vector<std::string> left = cancelled;
+        while (!left.empty()) {
+            for (auto it = left.begin(); it != left.end();)
+                if (c.info(*it)->state != RenderState::Queued || !running()) {
+                    c.cancel(*it);
+                    it = left.erase(it);
+                } else {
+                    ++it;
+                }
+            std::this_thread::sleep_for(milliseconds(1));
         }
     });
     threads.emplace_back([&] {
