@@ -85,7 +85,7 @@ GrpcServer::GrpcServer(Coordinator& coordinator, const std::string& address,
     // Asked first of a port just opened: where the probe cannot tell (no /proc/net), a
     // listener must not be started again for ever.
     if (!reachable()) {
-        log_farm_error("cannot check that gRPC's port " + std::to_string(port_) +
+        log_farm_error("cannot check that gRPC's port " + std::to_string(port_.load()) +
                            " accepts connections here; no listener watchdog",
                        "listener_watchdog_off");
         return;
@@ -152,14 +152,15 @@ bool GrpcServer::reachable() {
     if (host.size() > 2 && host.front() == '[' && host.back() == ']')
         host = host.substr(1, host.size() - 2);
     return accepts_connections(
-        host, port_, std::max(limits_.watchdog_period, std::chrono::milliseconds(1000)));
+        host, port_.load(),
+        std::max(limits_.watchdog_period, std::chrono::milliseconds(1000)));
 }
 
 void GrpcServer::listen_again() {
     std::lock_guard lock(mutex_);
     if (stopped_) return;
     log_farm_error(
-        "gRPC on port " + std::to_string(port_) +
+        "gRPC on port " + std::to_string(port_.load()) +
             " accepts no new connections (out of file descriptors?); listening "
             "again",
         "listener_deaf");
@@ -169,12 +170,12 @@ void GrpcServer::listen_again() {
     server_.reset();
     services_.reset();
     try {
-        listen(host_ + ":" + std::to_string(port_));
+        listen(host_ + ":" + std::to_string(port_.load()));
         ++restarts_;
     } catch (const std::exception& e) {
         // Up but deaf is worse than down: a supervisor restarts a process that exits.
-        log_farm_error("cannot listen on port " + std::to_string(port_) + " again (" +
-                           e.what() +
+        log_farm_error("cannot listen on port " + std::to_string(port_.load()) +
+                           " again (" + e.what() +
                            "); exiting so that a supervisor restarts the coordinator",
                        "listener_failed");
         std::fflush(stderr);

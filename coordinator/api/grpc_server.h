@@ -4,6 +4,7 @@
 // probes call) and, when asked for, server reflection (docs/SECURITY.md says why).
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <functional>
@@ -101,7 +102,7 @@ public:
     GrpcServer(Coordinator& coordinator, const std::string& address,
                GrpcSecurity security, GrpcOptions options = {}, GrpcLimits limits = {});
     ~GrpcServer();
-    int port() const { return port_; }
+    int port() const { return port_.load(); }
     // Health answers NOT_SERVING from now on, for every service, while calls are still
     // served: the first step of shutting down, so that probes and load balancers turn
     // away before the port closes. Idempotent.
@@ -128,7 +129,8 @@ private:
     std::mutex mutex_;  // guards what follows (the watchdog's thread and the caller's)
     std::unique_ptr<Services> services_;
     std::unique_ptr<grpc::Server> server_;
-    int port_ = 0;
+    // Written again by the listener watchdog's thread (listen_again), read by any.
+    std::atomic<int> port_{0};
     std::string host_;  // as given, for listening again on the same port
     bool serving_ = true, stopped_ = false;
     int restarts_ = 0;

@@ -336,8 +336,9 @@ TEST_F(HttpServerTest, SeedsAreStringsOutAndStringsOrNumbersIn) {
     EXPECT_EQ(get_json("/api/renders/" + exact)["seed"], "9007199254740993");
     const std::string small = submit({{"resolution", "8x8"}, {"seed", 5}});
     EXPECT_EQ(get_json("/api/renders/" + small)["seed"], "5");
-    for (const json& r : get_json("/api/renders")["renders"])
-        EXPECT_TRUE(r["seed"].is_string()) << r;
+    // Named: a range-for over a part of a temporary reads it after it is destroyed.
+    const json listed = get_json("/api/renders");
+    for (const json& r : listed["renders"]) EXPECT_TRUE(r["seed"].is_string()) << r;
 }
 
 TEST_F(HttpServerTest, TheExrDownloadIsTheRendersImageWithItsLayersAndSpec) {
