@@ -59,18 +59,24 @@ def sweep_table(study, t):
     for p in pts:
         rows.append(
             [fmt(p.param(c)) for c in cols]
-            + [
-                fmt_err(p),
-                fmt_bias(point_bias(p)),
-                fmt(p.mean("rmse")),
-                fmt(p.mean("p99_bucket")),
-                fmt(p.mean("max_bucket")),
-                f"{p.mean('seconds'):.2f}",
-                fmt(int(round(p.mean("samples")))),
-                fmt(p.mean("sps")),
-            ]
+            + metric_cells(p)
         )
     return md_table(header, rows)
+
+
+def metric_cells(p):
+    """A point's cells after its parameters, in the column order of sweep and detail tables:
+    E, mean bias, RMSE, p99 and max bucket E, time, budget, samples/s."""
+    return [
+        fmt_err(p),
+        fmt_bias(point_bias(p)),
+        fmt(p.mean("rmse")),
+        fmt(p.mean("p99_bucket")),
+        fmt(p.mean("max_bucket")),
+        f"{p.mean('seconds'):.2f}",
+        fmt(int(round(p.mean("samples")))),
+        fmt(p.mean("sps")),
+    ]
 
 
 def compare_table(study, t):
@@ -86,18 +92,7 @@ def compare_table(study, t):
         for g, lab in zip(groups, labels):
             p = series[g][i]
             detail.append(
-                [
-                    fmt(int(round(budget))),
-                    lab,
-                    fmt_err(p),
-                    fmt_bias(point_bias(p)),
-                    fmt(p.mean("rmse")),
-                    fmt(p.mean("p99_bucket")),
-                    fmt(p.mean("max_bucket")),
-                    f"{p.mean('seconds'):.2f}",
-                    fmt(int(round(p.mean("samples")))),
-                    fmt(p.mean("sps")),
-                ]
+                [fmt(int(round(budget))), lab] + metric_cells(p)
             )
     dh = ["budget", "method", "E", "mean bias", "RMSE", "p99 bucket E", "max bucket E", "time (s)", "samples",
           "samples/s"]
